@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs every Debian bookworm package deep_ois needs to build, run and test.
+# Idempotent: apt-get skips what is already installed. Needs root (or sudo).
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake pkg-config git
+  # catkin and ROS 1 build machinery (Debian's own ROS, in /usr)
+  catkin python3-catkin-pkg python3-catkin ros-cmake-modules
+  ros-message-generation ros-message-runtime
+  # message definitions (.msg files) and their C++ headers
+  ros-std-msgs libstd-msgs-dev ros-sensor-msgs libsensor-msgs-dev
+  ros-geometry-msgs libgeometry-msgs-dev ros-tf2-msgs libtf2-msgs-dev
+  libros-rosgraph-msgs-dev ros-rosgraph-msgs
+  # client libraries
+  libroscpp-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
+  libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
+  libmessage-filters-dev librosbag-dev librosbag-storage-dev
+  # run time tools: master, rosout, roslaunch, rosbag play, rostest
+  python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
+  python3-rostest librostest-dev python3-rosnode python3-rostopic
+  # maths, vision, tests
+  libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev
+)
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ "${#missing[@]}" -eq 0 ]; then
+  echo "install_deps: all ${#packages[@]} packages already installed"
+  exit 0
+fi
+echo "install_deps: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+
+# rostest and roslaunch resolve 'localhost'; some minimal images lack the entry.
+if ! grep -qE '^127\.0\.0\.1[[:space:]].*\blocalhost\b' /etc/hosts; then
+  echo "127.0.0.1 localhost" | $SUDO tee -a /etc/hosts >/dev/null
+fi
