@@ -10,9 +10,9 @@ namespace deep_ois {
 
 namespace enc = sensor_msgs::image_encodings;
 
-ImuSample toImuSample(const sensor_msgs::Imu& imu) {
+ImuSample toImuSample(const sensor_msgs::Imu& imu, const ros::Time& time_base) {
   ImuSample sample;
-  sample.stamp_s = imu.header.stamp.toSec();
+  sample.stamp_s = (imu.header.stamp - time_base).toSec();
   sample.angular_velocity_rad_s =
       Eigen::Vector3d(imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z);
   return sample;
@@ -91,11 +91,7 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
   }
   matrixToRowMajor(metadata.camera.K(), msg.K.data());
   msg.distortion_model = metadata.distortion_model;
-  msg.D.clear();
-  if (metadata.camera.hasDistortion()) {
-    const auto& d = metadata.camera.distortion();
-    msg.D.assign(d.data(), d.data() + d.size());
-  }
+  msg.D = metadata.distortion;
   const RollingShutterConfig& rs = metadata.rolling_shutter;
   msg.readout_time = rs.readout_time_s;
   msg.time_offset = rs.time_offset_s;

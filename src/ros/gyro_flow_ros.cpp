@@ -88,16 +88,31 @@ void GyroFlowRos::resetState(const std::string& why) {
   previous_.reset();
   cached_rotation_.reset();
   last_ros_time_ = ros::Time();
+  time_base_.reset();
+}
+
+double GyroFlowRos::secondsSinceBase(const ros::Time& stamp) {
+  if (!time_base_) time_base_ = ros::Time(stamp.sec, 0);
+  return (stamp - *time_base_).toSec();
 }
 
 void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
   std::lock_guard<std::mutex> lock(mutex_);
   checkRosTimeJump();
   ++imu_received_;
-  const ImuSample sample = toImuSample(*imu);
+  secondsSinceBase(imu->header.stamp);  // sets the time base on the first message
+  const ImuSample sample = toImuSample(*imu, *time_base_);
   if (!imu_buffer_.empty() && sample.stamp_s < imu_buffer_.newestStamp() - params_.time_jump_reset_s) {
     resetState("IMU stamps on " + imu_sub_.getTopic() + " jumped backwards by " +
                std::to_string(imu_buffer_.newestStamp() - sample.stamp_s) + " s");
+  }
+  // Rates in different frames cannot be integrated together: the buffer holds one frame's samples.
+  const std::string& frame_id = params_.imu_frame_id.empty() ? imu->header.frame_id : params_.imu_frame_id;
+  if (!imu_buffer_.empty() && frame_id != imu_frame_id_) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: frame_id on %s changed from '%s' to '%s': clearing the IMU buffer",
+                            imu_sub_.getTopic().c_str(), imu_frame_id_.c_str(), frame_id.c_str());
+    imu_buffer_.clear();
   }
   const ImuAddResult added = imu_buffer_.add(sample);
   if (!added.accepted()) {
@@ -105,7 +120,7 @@ void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
                             imu_sub_.getTopic().c_str(), added.reason.c_str());
     return;
   }
-  imu_frame_id_ = params_.imu_frame_id.empty() ? imu->header.frame_id : params_.imu_frame_id;
+  imu_frame_id_ = frame_id;
   processPendingFrames();
 }
 
@@ -140,6 +155,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   frame.stamp = image->header.stamp;
   frame.frame_id = params_.camera_frame_id.empty() ? image->header.frame_id : params_.camera_frame_id;
   frame.distortion_model = info->distortion_model;
+  frame.distortion = info->D;
   frame.received = ros::Time::now();
 
   const ros::Time* latest = !pending_frames_.empty() ? &pending_frames_.back().stamp
@@ -230,7 +246,8 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   RollingShutterConfig config = params_.rolling_shutter;
   config.imu_to_camera_rotation = *rotation;
   const RollingShutterHomographies result = computeRollingShutterHomographies(
-      imu_buffer_, params_.integration, config, frame.camera.K(), previous.stamp.toSec(), frame.stamp.toSec());
+      imu_buffer_, params_.integration, config, frame.camera.K(), secondsSinceBase(previous.stamp),
+      secondsSinceBase(frame.stamp));
   if (!result.ok()) {
     const bool may_still_come = result.status == IntegrationStatus::kNotYetAvailable ||
                                 result.status == IntegrationStatus::kEmptyBuffer;
@@ -255,6 +272,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   metadata.previous_stamp = previous.stamp;
   metadata.camera = frame.camera;
   metadata.distortion_model = frame.distortion_model;
+  metadata.distortion = frame.distortion;
   metadata.rolling_shutter = config;
   if (flow_pub_.getNumSubscribers() > 0) {
     auto msg = boost::make_shared<GyroFlow>();

@@ -17,8 +17,10 @@
 
 namespace deep_ois {
 
-// Gyro reading of an Imu message: stamp in seconds, rate in rad/s in the message's frame.
-ImuSample toImuSample(const sensor_msgs::Imu& imu);
+// Gyro reading of an Imu message: stamp in seconds since `time_base`, rate in rad/s in the
+// message's frame. A recent time base keeps the stamps' doubles at nanosecond resolution (epoch
+// seconds would leave only ~0.2 us).
+ImuSample toImuSample(const sensor_msgs::Imu& imu, const ros::Time& time_base);
 
 // Empty when the image header describes a usable image (known encoding, positive size, a step
 // and data size that hold width x height pixels); otherwise a sentence naming the problem.
@@ -34,6 +36,7 @@ struct GyroFlowMetadata {
   ros::Time previous_stamp;
   CameraModel camera;
   std::string distortion_model;
+  std::vector<double> distortion;  // CameraInfo D as received
   RollingShutterConfig rolling_shutter;
 };
 

@@ -49,6 +49,7 @@ class GyroFlowRos {
     std::string frame_id;
     CameraModel camera;
     std::string distortion_model;
+    std::vector<double> distortion;  // CameraInfo D as received
     ros::Time received;  // ROS time of arrival, to bound the wait for IMU data
   };
 
@@ -84,13 +85,16 @@ class GyroFlowRos {
   ros::WallTimer waiting_timer_;
 
   ImuSampleBuffer imu_buffer_;
-  std::string imu_frame_id_;  // frame of the latest accepted Imu message
+  std::string imu_frame_id_;  // frame of every sample in imu_buffer_
   std::deque<Frame> pending_frames_;
   std::optional<Frame> previous_;
   std::unique_ptr<HomographyFlowRenderer> renderer_;  // rebuilt when camera or grid changes
   std::optional<Eigen::Matrix3d> cached_rotation_;     // tf rotation for cached_rotation_frames_
   std::string cached_rotation_frames_;
   ros::Time last_ros_time_;
+  // Origin of the seconds handed to the core (whole second of the first stamp since a reset).
+  std::optional<ros::Time> time_base_;
+  double secondsSinceBase(const ros::Time& stamp);
 
   // Counters for the "still waiting" diagnostics.
   std::size_t imu_received_ = 0;
