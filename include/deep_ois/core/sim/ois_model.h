@@ -1,0 +1,51 @@
+// Optical image stabilizer: a lens shift, in pixels, driven by the stabilizer's own gyro.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/sim/camera_motion.h"
+
+namespace deep_ois {
+namespace sim {
+
+struct OisConfig {
+  bool enabled = true;
+  // Pan and tilt only: the stabilizer integrates the rates about camera x and y (never roll).
+  // High-pass (centring) corner on the integrated angle, so the lens drifts back to centre.
+  double highpass_corner_hz = 0.6;
+  // Second-order actuator (voice coil) from commanded to actual shift.
+  double actuator_natural_hz = 35.0;
+  double actuator_damping = 0.7;
+  double stroke_limit_deg = 1.0;  // commanded shift is clamped to f * tan(limit) pixels
+  double gain = 1.0;              // fraction of the rotation the stabilizer cancels
+  double gyro_noise_rad_s = 0.002;  // white noise of the stabilizer's own gyro (per sample)
+  double control_rate_hz = 4000.0;  // controller and actuator simulation rate
+
+  std::string validate() const;  // empty, or a sentence naming the bad field
+};
+
+// The principal-point shift the lens causes over [motion.startTime(), motion.endTime()].
+// A shift s moves every image point by +s: the OIS camera's intrinsics at time t are K with
+// (cx, cy) + lensShift(t). The stabilizer commands the shift that cancels the image motion of the
+// high-passed pan/tilt angle (to first order: s = f * (theta_y, -theta_x)).
+class OisModel {
+ public:
+  // focal_px: camera focal length in pixels (sets the px per rad and the stroke in px).
+  OisModel(const OisConfig& config, const CameraMotion& motion, double focal_px, std::uint32_t seed);
+
+  Eigen::Vector2d lensShift(double t_s) const;  // pixels (x right, y down); zero when disabled
+  bool enabled() const { return config_.enabled; }
+  double strokeLimitPx() const { return stroke_limit_px_; }
+
+ private:
+  OisConfig config_;
+  double start_s_ = 0.0;
+  double stroke_limit_px_ = 0.0;
+  std::vector<Eigen::Vector2d> shift_grid_;  // at control_rate_hz from start_s_
+};
+
+}  // namespace sim
+}  // namespace deep_ois

@@ -1,0 +1,1 @@
+#include "deep_ois/core/sim/ois_model.h"

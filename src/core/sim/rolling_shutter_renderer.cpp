@@ -1,0 +1,1 @@
+#include "deep_ois/core/sim/rolling_shutter_renderer.h"

@@ -1,0 +1,218 @@
+#include "deep_ois/core/sim/simulator_config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Core>
+#include <functional>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+namespace deep_ois {
+namespace sim {
+
+std::string SimulatorConfig::validate() const {
+  const std::pair<const char*, std::string> sections[] = {
+      {"sensor", sensor.validate()}, {"motion", motion.validate()}, {"ois", ois.validate()},
+      {"imu", imu.validate()},       {"scene", scene.validate()},
+  };
+  for (const auto& [name, problem] : sections) {
+    if (!problem.empty()) return std::string(name) + ": " + problem;
+  }
+  const GroundTruthConfig& gt = ground_truth;
+  if (gt.patch_count < 1 || gt.patch_count > sensor.height_px) {
+    return "ground_truth.patch_count: must be between 1 and the image height";
+  }
+  if (gt.min_correspondences < 1 || gt.max_correspondences < gt.min_correspondences) {
+    return "ground_truth.min_correspondences/max_correspondences: need 1 <= min <= max";
+  }
+  if (!(gt.lens_shift_rate_hz > 0.0)) return "ground_truth.lens_shift_rate_hz: must be positive";
+  if (imu_frame_id.empty() || camera_frame_id.empty() || imu_frame_id == camera_frame_id) {
+    return "frames.imu/frames.camera: must be two different, non-empty frame ids";
+  }
+  if (!(start_epoch_s > 0.0)) return "frames.start_epoch_s: must be positive";
+  return {};
+}
+
+namespace {
+
+// Reads one section: each known key has a setter; unknown keys are errors (a typo must not pass
+// silently as a default).
+class SectionReader {
+ public:
+  SectionReader(const YAML::Node& root, std::string section) : section_(std::move(section)) {
+    node_ = root[section_];
+    if (node_ && !node_.IsMap()) fail("", "must be a mapping");
+  }
+
+  template <typename T>
+  SectionReader& read(const std::string& key, T& value) {
+    known_.push_back(key);
+    if (!node_ || !node_[key]) return *this;
+    try {
+      value = node_[key].as<T>();
+    } catch (const YAML::Exception&) {
+      fail(key, "has the wrong type");
+    }
+    return *this;
+  }
+
+  SectionReader& readVector3(const std::string& key, Eigen::Vector3d& value) {
+    std::vector<double> values;
+    read(key, values);
+    if (node_ && node_[key]) {
+      if (values.size() != 3) fail(key, "must hold 3 numbers");
+      value = Eigen::Vector3d(values[0], values[1], values[2]);
+    }
+    return *this;
+  }
+
+  SectionReader& readMatrix3(const std::string& key, Eigen::Matrix3d& value) {
+    std::vector<double> values;
+    read(key, values);
+    if (node_ && node_[key]) {
+      if (values.size() != 9) fail(key, "must hold 9 numbers (row-major 3x3)");
+      for (int i = 0; i < 9; ++i) value(i / 3, i % 3) = values[i];
+    }
+    return *this;
+  }
+
+  void finish() const {
+    if (!node_) return;
+    for (const auto& entry : node_) {
+      const std::string key = entry.first.as<std::string>();
+      if (std::find(known_.begin(), known_.end(), key) == known_.end()) fail(key, "unknown key");
+    }
+  }
+
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+    throw std::runtime_error(section_ + (key.empty() ? "" : "." + key) + ": " + what);
+  }
+
+ private:
+  std::string section_;
+  YAML::Node node_;
+  std::vector<std::string> known_;
+};
+
+}  // namespace
+
+SimulatorConfig loadSimulatorConfig(const std::string& path) {
+  SimulatorConfig config;
+  try {
+    YAML::Node root;
+    try {
+      root = YAML::LoadFile(path);
+    } catch (const YAML::BadFile&) {
+      throw std::runtime_error("cannot open the file");
+    } catch (const YAML::ParserException& e) {
+      throw std::runtime_error(std::string("not valid YAML: ") + e.what());
+    }
+    if (!root.IsMap()) throw std::runtime_error("top level must be a mapping");
+    static const char* kSections[] = {"category", "sensor", "motion", "ois", "imu",
+                                      "scene", "ground_truth", "frames"};
+    for (const auto& entry : root) {
+      const std::string key = entry.first.as<std::string>();
+      if (std::find(std::begin(kSections), std::end(kSections), key) == std::end(kSections)) {
+        throw std::runtime_error(key + ": unknown section");
+      }
+    }
+    if (root["category"]) {
+      const std::string text = root["category"].as<std::string>();
+      if (!parseCategory(text, &config.category)) {
+        throw std::runtime_error("category: '" + text + "' is not one of RE, LT, LL, MF");
+      }
+    }
+
+    SensorConfig& s = config.sensor;
+    SectionReader(root, "sensor")
+        .read("width_px", s.width_px)
+        .read("height_px", s.height_px)
+        .read("horizontal_fov_deg", s.horizontal_fov_deg)
+        .read("frame_rate_hz", s.frame_rate_hz)
+        .read("readout_time_s", s.readout_time_s)
+        .read("exposure_time_s", s.exposure_time_s)
+        .read("distortion", s.distortion)
+        .read("supersampling", s.supersampling)
+        .read("exposure_samples", s.exposure_samples)
+        .read("brightness", s.brightness)
+        .read("full_well_electrons", s.full_well_electrons)
+        .read("read_noise_electrons", s.read_noise_electrons)
+        .read("add_noise", s.add_noise)
+        .finish();
+
+    CameraMotionConfig& m = config.motion;
+    SectionReader(root, "motion")
+        .read("shake_band_low_hz", m.shake_band_low_hz)
+        .read("shake_band_high_hz", m.shake_band_high_hz)
+        .readVector3("shake_rms_rad_s", m.shake_rms_rad_s)
+        .read("shake_peak_rad_s", m.shake_peak_rad_s)
+        .read("pan_peak_rad_s", m.pan_peak_rad_s)
+        .read("pan_period_s", m.pan_period_s)
+        .read("translation_rms_m", m.translation_rms_m)
+        .read("translation_band_high_hz", m.translation_band_high_hz)
+        .read("integration_rate_hz", m.integration_rate_hz)
+        .finish();
+
+    OisConfig& o = config.ois;
+    SectionReader(root, "ois")
+        .read("enabled", o.enabled)
+        .read("highpass_corner_hz", o.highpass_corner_hz)
+        .read("actuator_natural_hz", o.actuator_natural_hz)
+        .read("actuator_damping", o.actuator_damping)
+        .read("stroke_limit_deg", o.stroke_limit_deg)
+        .read("gain", o.gain)
+        .read("gyro_noise_rad_s", o.gyro_noise_rad_s)
+        .read("control_rate_hz", o.control_rate_hz)
+        .finish();
+
+    ImuConfig& i = config.imu;
+    SectionReader(root, "imu")
+        .read("rate_hz", i.rate_hz)
+        .readMatrix3("imu_to_camera_rotation", i.imu_to_camera_rotation)
+        .read("gyro_noise_density", i.gyro_noise_density)
+        .read("gyro_bias_random_walk", i.gyro_bias_random_walk)
+        .read("gyro_initial_bias_rad_s", i.gyro_initial_bias_rad_s)
+        .read("accel_noise_density", i.accel_noise_density)
+        .read("time_offset_s", i.time_offset_s)
+        .finish();
+
+    SceneConfig& sc = config.scene;
+    SectionReader(root, "scene")
+        .read("texture_paths", sc.texture_paths)
+        .read("near_layer_count", sc.near_layer_count)
+        .read("near_depth_min_m", sc.near_depth_min_m)
+        .read("near_depth_max_m", sc.near_depth_max_m)
+        .read("background_depth_min_m", sc.background_depth_min_m)
+        .read("background_depth_max_m", sc.background_depth_max_m)
+        .read("low_texture_fraction", sc.low_texture_fraction)
+        .read("moving_object_depth_m", sc.moving_object_depth_m)
+        .read("moving_object_speed_m_s", sc.moving_object_speed_m_s)
+        .read("moving_object_min_coverage", sc.moving_object_min_coverage)
+        .finish();
+
+    GroundTruthConfig& gt = config.ground_truth;
+    SectionReader(root, "ground_truth")
+        .read("patch_count", gt.patch_count)
+        .read("min_correspondences", gt.min_correspondences)
+        .read("max_correspondences", gt.max_correspondences)
+        .read("lens_shift_rate_hz", gt.lens_shift_rate_hz)
+        .finish();
+
+    SectionReader(root, "frames")
+        .read("imu", config.imu_frame_id)
+        .read("camera", config.camera_frame_id)
+        .read("start_epoch_s", config.start_epoch_s)
+        .finish();
+
+    if (sc.texture_paths.empty()) sc.texture_paths = defaultTexturePaths();
+    const std::string problem = config.validate();
+    if (!problem.empty()) throw std::runtime_error(problem);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
+  return config;
+}
+
+}  // namespace sim
+}  // namespace deep_ois

@@ -1,0 +1,1 @@
+// Filled in by the implementer of camera_motion.
