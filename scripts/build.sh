@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Configures (first time) and builds deep_ois with plain cmake into build/main (ignored by git).
+# Configures (first time) and builds deep_ois with plain cmake into _build/main (ignored by git;
+# not build/, whose executables rosrun deliberately skips).
 # Pass --tests to build the gtest and rostest executables too.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-build_dir="${DEEP_OIS_BUILD_DIR:-$repo/build/main}"
+build_dir="${DEEP_OIS_BUILD_DIR:-$repo/_build/main}"
 
 # A pyenv or venv python first on PATH lacks catkin_pkg: catkin must use Debian's.
 mkdir -p "$build_dir"

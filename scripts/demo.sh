@@ -1,21 +1,19 @@
 #!/usr/bin/env bash
-# The main job on a fresh Debian bookworm machine: installs the dependencies, builds, writes a
-# short synthetic bag (IMU + rolling-shutter camera + camera_info + tf_static) and replays it
-# through the gyro flow nodelet (launch/demo.launch); the summary of what it published is
-# printed, and the script fails when a frame pair got no gyro flow.
+# The main job on a fresh Debian bookworm machine: installs the dependencies, builds, and replays
+# the committed sample bag (bags/sample.bag, written by the OIS simulator: IMU, rolling-shutter
+# camera, camera_info, tf_static and ground truth) through the gyro flow nodelet
+# (launch/demo.launch); prints the summary of what it published, then the gyro error on the bag's
+# annotated correspondences. Fails when a frame pair got no gyro flow.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$repo/scripts/install_deps.sh"
 bash "$repo/scripts/build.sh"
 # shellcheck disable=SC1091
 source "$repo/scripts/ros_env.sh"
-# rosrun skips executables below the package's build/ folder: call them by path.
-bin="$build_dir/devel/lib/deep_ois"
 
 out="$build_dir/demo"
 mkdir -p "$out"
-bag="$out/sample.bag"
-"$bin/write_sample_bag" --out "$bag" --seed 1 --duration 3
+bag="$repo/bags/sample.bag"
 
 # A private master port, so that the demo neither needs nor disturbs a running roscore.
 export ROS_MASTER_URI=http://localhost:11351
@@ -27,7 +25,7 @@ trap 'kill -INT "$launch_pid" 2>/dev/null || true; wait "$launch_pid" 2>/dev/nul
 for _ in $(seq 1 100); do rosparam get /use_sim_time >/dev/null 2>&1 && break; sleep 0.2; done
 
 status=0
-"$bin/gyro_flow_summary" --bag "$bag" gyro_flow:=/deep_ois/gyro_flow || status=$?
+rosrun deep_ois gyro_flow_summary --bag "$bag" gyro_flow:=/deep_ois/gyro_flow || status=$?
 if grep -qE "WARN|ERROR|FATAL" "$out/roslaunch.log"; then
   echo "warnings and errors of the pipeline (full log: $out/roslaunch.log):"
   grep -E "WARN|ERROR|FATAL" "$out/roslaunch.log" | head -20

@@ -14,14 +14,14 @@ packages=(
   ros-geometry-msgs libgeometry-msgs-dev ros-tf2-msgs libtf2-msgs-dev
   libros-rosgraph-msgs-dev ros-rosgraph-msgs
   # client libraries
-  libroscpp-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
+  libroscpp-dev libroslib-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
   libmessage-filters-dev librosbag-dev librosbag-storage-dev
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic
   # maths, vision, tests
-  libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev
+  libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
 )
 
 SUDO=""

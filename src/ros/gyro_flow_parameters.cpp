@@ -11,11 +11,11 @@ namespace deep_ois {
 
 namespace {
 
-[[noreturn]] void reject(const ros::NodeHandle& nh, const std::string& name, const std::string& what) {
-  throw std::invalid_argument("parameter " + nh.resolveName(name) + ": " + what);
+[[noreturn]] void reject(const ParameterSource& nh, const std::string& name, const std::string& what) {
+  throw std::invalid_argument("parameter " + nh.describe(name) + ": " + what);
 }
 
-double positiveSeconds(const ros::NodeHandle& nh, const std::string& name, double fallback) {
+double positiveSeconds(const ParameterSource& nh, const std::string& name, double fallback) {
   const double value = nh.param(name, fallback);
   if (!std::isfinite(value) || value <= 0.0) {
     reject(nh, name, "must be a positive number of seconds, got " + std::to_string(value));
@@ -26,7 +26,10 @@ double positiveSeconds(const ros::NodeHandle& nh, const std::string& name, doubl
 }  // namespace
 
 GyroFlowParameters loadGyroFlowParameters(const ros::NodeHandle& private_nh) {
-  const ros::NodeHandle& nh = private_nh;
+  return loadGyroFlowParameters(NodeHandleParameters(private_nh));
+}
+
+GyroFlowParameters loadGyroFlowParameters(const ParameterSource& nh) {
   GyroFlowParameters p;
   RollingShutterConfig& rs = p.rolling_shutter;
 
@@ -52,7 +55,7 @@ GyroFlowParameters loadGyroFlowParameters(const ros::NodeHandle& private_nh) {
   }
 
   std::vector<double> rotation;
-  if (nh.getParam("imu_to_camera_rotation", rotation) && !rotation.empty()) {
+  if (nh.get("imu_to_camera_rotation", rotation) && !rotation.empty()) {
     if (rotation.size() != 9) {
       reject(nh, "imu_to_camera_rotation",
              "must hold 9 numbers (row-major R_cam_imu), got " + std::to_string(rotation.size()));
@@ -72,7 +75,7 @@ GyroFlowParameters loadGyroFlowParameters(const ros::NodeHandle& private_nh) {
     reject(nh, "interpolation", "must be 'linear' or 'zero_order_hold', got '" + interpolation + "'");
   }
   std::vector<double> bias;
-  if (nh.getParam("gyro_bias", bias) && !bias.empty()) {
+  if (nh.get("gyro_bias", bias) && !bias.empty()) {
     if (bias.size() != 3 || !std::isfinite(bias[0] + bias[1] + bias[2])) {
       reject(nh, "gyro_bias", "must hold 3 finite numbers in rad/s (IMU frame)");
     }

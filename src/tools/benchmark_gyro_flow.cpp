@@ -11,7 +11,8 @@
 
 #include "deep_ois/core/homography_flow.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
-#include "deep_ois/core/synthetic_rotation_sequence.h"
+#include "deep_ois/core/sim/camera_motion.h"
+#include "deep_ois/core/sim/imu_model.h"
 
 namespace deep_ois {
 namespace {
@@ -44,14 +45,20 @@ int run(int frames) {
   // Single-threaded, as the nodelet's callback runs; keeps OpenCV from spreading work.
   cv::setNumThreads(1);
 
-  SyntheticSequenceConfig config;
-  config.duration_s = (frames + kWarmupFrames + 2) / config.frame_rate_hz;
-  config.environment_face_px = 64;  // only the motion is needed here, not the images
-  config.environment_shape_count = 0;
-  const SyntheticRotationSequence sequence(config);
-  const ImuSampleBuffer buffer = sequence.imuBuffer();
-  const RollingShutterConfig rolling = sequence.rollingShutterConfig(kPatches);
+  // Hand-held motion sampled by a 400 Hz phone gyro, as the simulator makes it.
+  constexpr double kFrameRateHz = 30.0;
+  const double duration_s = (frames + kWarmupFrames + 2) / kFrameRateHz;
+  const sim::CameraMotion motion(sim::CameraMotionConfig{}, 1, -0.2, duration_s + 0.2);
+  const sim::ImuConfig imu_config;
+  const std::vector<sim::ImuMeasurement> imu = sim::sampleImu(imu_config, motion, 1, -0.1, duration_s + 0.1);
+  ImuSampleBuffer buffer(duration_s + 1.0);
+  for (const sim::ImuMeasurement& m : imu) buffer.add({m.stamp_s, m.angular_velocity_rad_s});
+  RollingShutterConfig rolling;
+  rolling.patch_count = kPatches;
+  rolling.readout_time_s = 0.022;
+  rolling.imu_to_camera_rotation = imu_config.imu_to_camera_rotation;
   const IntegrationOptions integration;
+  auto frameStamp = [&](int k) { return k / kFrameRateHz; };
 
   const std::vector<BenchCase> cases = {
       {"360x270 camera, 360x270 grid", cameraWithFov(360, 270), cv::Size(360, 270)},
@@ -64,7 +71,7 @@ int run(int frames) {
   std::printf(
       "benchmark_gyro_flow: %d frame pairs per case after %d warm-up, %d patches, "
       "%.0f Hz gyro, single thread\n",
-      frames, kWarmupFrames, kPatches, config.imu_rate_hz);
+      frames, kWarmupFrames, kPatches, imu_config.rate_hz);
   std::printf("%-44s %10s %10s %14s\n", "case", "median ms", "p95 ms", "of which H ms");
   bool target_met = true;
   double checksum = 0.0;  // keeps the optimiser from dropping the work
@@ -78,7 +85,7 @@ int run(int frames) {
       const auto start = std::chrono::steady_clock::now();
       const RollingShutterHomographies homographies =
           computeRollingShutterHomographies(buffer, integration, rolling, bench.camera.K(),
-                                            sequence.frameStamp(k), sequence.frameStamp(k + 1));
+                                            frameStamp(k), frameStamp(k + 1));
       const auto integrated = std::chrono::steady_clock::now();
       if (!homographies.ok()) {
         std::cerr << "benchmark_gyro_flow: " << homographies.reason << "\n";

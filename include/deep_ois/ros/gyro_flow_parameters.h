@@ -3,6 +3,8 @@
 
 #include <ros/node_handle.h>
 
+#include "deep_ois/ros/parameter_source.h"
+
 #include <opencv2/core.hpp>
 #include <string>
 
@@ -31,8 +33,10 @@ struct GyroFlowParameters {
   int imu_queue_size = 2000;
 };
 
-// Reads every parameter from `private_nh` with its default. Throws std::invalid_argument with a
-// message naming the parameter, its value and what is expected when one is invalid.
+// Reads every parameter with its default. Throws std::invalid_argument with a message naming the
+// parameter, its value and what is expected when one is invalid. The nodelet reads its private
+// namespace; offline tools read config/gyro_flow.yaml through a YamlParameters source.
+GyroFlowParameters loadGyroFlowParameters(const ParameterSource& source);
 GyroFlowParameters loadGyroFlowParameters(const ros::NodeHandle& private_nh);
 
 }  // namespace deep_ois

@@ -5,15 +5,13 @@
 #include <cmath>
 #include <random>
 
+#include "deep_ois/core/portable_random.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
 
 namespace deep_ois {
 namespace sim {
 
 namespace {
-
-// Uniform double in [0, 1) from the generator's raw output: identical on every standard library.
-double uniform01(std::mt19937& rng) { return rng() / 4294967296.0; }
 
 // Whether the static point X is what the camera sees at pixel `pixel` of a frame at time t: the
 // first surface along the ray must be X's own plane at X's distance.

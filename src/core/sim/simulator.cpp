@@ -4,6 +4,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/portable_random.h"
+
 namespace deep_ois {
 namespace sim {
 
@@ -35,13 +37,7 @@ Simulator::Simulator(const SimulatorConfig& config, std::uint32_t seed, double d
                    frameStamp(frame_count_ - 1) + sensor.readout_time_s + 0.1);
 }
 
-std::uint32_t Simulator::subSeed(std::uint32_t stream) const {
-  // SplitMix-style mixing: well-spread sub-seeds from (seed, stream), the same everywhere.
-  std::uint64_t z = (static_cast<std::uint64_t>(seed_) << 32) ^ (0x9E3779B97F4A7C15ull * (stream + 1));
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return static_cast<std::uint32_t>((z ^ (z >> 31)) & 0xFFFFFFFFu);
-}
+std::uint32_t Simulator::subSeed(std::uint32_t stream) const { return streamSeed(seed_, stream); }
 
 double Simulator::frameStamp(int k) const { return k / config_.sensor.frame_rate_hz; }
 

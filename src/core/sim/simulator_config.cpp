@@ -40,17 +40,18 @@ namespace {
 // silently as a default).
 class SectionReader {
  public:
-  SectionReader(const YAML::Node& root, std::string section) : section_(std::move(section)) {
-    node_ = root[section_];
+  // Copy-constructed: assigning an absent section (a "zombie" node) would throw in yaml-cpp.
+  SectionReader(const YAML::Node& root, const std::string& section)
+      : section_(section), node_(root[section]) {
     if (node_ && !node_.IsMap()) fail("", "must be a mapping");
   }
 
   template <typename T>
   SectionReader& read(const std::string& key, T& value) {
     known_.push_back(key);
-    if (!node_ || !node_[key]) return *this;
+    if (!has(key)) return *this;
     try {
-      value = node_[key].as<T>();
+      value = section()[key].as<T>();
     } catch (const YAML::Exception&) {
       fail(key, "has the wrong type");
     }
@@ -60,7 +61,7 @@ class SectionReader {
   SectionReader& readVector3(const std::string& key, Eigen::Vector3d& value) {
     std::vector<double> values;
     read(key, values);
-    if (node_ && node_[key]) {
+    if (has(key)) {
       if (values.size() != 3) fail(key, "must hold 3 numbers");
       value = Eigen::Vector3d(values[0], values[1], values[2]);
     }
@@ -70,7 +71,7 @@ class SectionReader {
   SectionReader& readMatrix3(const std::string& key, Eigen::Matrix3d& value) {
     std::vector<double> values;
     read(key, values);
-    if (node_ && node_[key]) {
+    if (has(key)) {
       if (values.size() != 9) fail(key, "must hold 9 numbers (row-major 3x3)");
       for (int i = 0; i < 9; ++i) value(i / 3, i % 3) = values[i];
     }
@@ -84,6 +85,10 @@ class SectionReader {
       if (std::find(known_.begin(), known_.end(), key) == known_.end()) fail(key, "unknown key");
     }
   }
+
+  // Const access: yaml-cpp's non-const operator[] would insert the key it looks up.
+  const YAML::Node& section() const { return node_; }
+  bool has(const std::string& key) const { return node_ && section()[key]; }
 
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
     throw std::runtime_error(section_ + (key.empty() ? "" : "." + key) + ": " + what);

@@ -15,8 +15,10 @@ struct CameraMotionConfig {
   // per camera axis. Roll (about the optical axis) is usually weaker on a hand-held phone.
   double shake_band_low_hz = 1.0;
   double shake_band_high_hz = 12.0;
-  Eigen::Vector3d shake_rms_rad_s{0.15, 0.15, 0.06};  // RMS rate about camera x, y, z, rad/s
-  double shake_peak_rad_s = 0.5;  // rates are scaled down where |w| would exceed this, rad/s
+  Eigen::Vector3d shake_rms_rad_s{0.2, 0.2, 0.07};  // RMS rate about camera x, y, z, rad/s
+  // Bound on |shake| (the norm of the shake part of the rate), rad/s: a smooth limiter scales the
+  // shake down where it would exceed this. |w| <= shake_peak_rad_s + pan_peak_rad_s overall.
+  double shake_peak_rad_s = 0.5;
   // Intentional pans: smooth yaw/pitch rate changes, rad/s peak, over periods of seconds.
   double pan_peak_rad_s = 0.2;
   double pan_period_s = 4.0;
@@ -36,30 +38,44 @@ struct CameraPose {
 };
 
 // The motion over [start_s, end_s] (seconds, simulation clock). Orientation obeys
-// dR/dt = R [w_cam(t)]x exactly up to the internal integration step (4 kHz, third order), so a
-// gyro sampling angularVelocity() reproduces pose() to far below a pixel.
+// dR/dt = R [w_cam(t)]x exactly up to the internal integration step (4 kHz, fourth order), so a
+// gyro sampling angularVelocity() reproduces pose() to far below a pixel. The pose at t = 0 (or
+// at start_s / end_s when 0 is outside the span) is the reference: centre at the world origin,
+// looking along world +x with image rows horizontal.
 class CameraMotion {
  public:
+  // Throws std::invalid_argument with the validate() sentence, or for a bad time span.
   CameraMotion(const CameraMotionConfig& config, std::uint32_t seed, double start_s, double end_s);
 
-  CameraPose pose(double t_s) const;                     // interpolated on the internal grid
+  CameraPose pose(double t_s) const;  // interpolated on the internal grid; held outside the span
   Eigen::Vector3d angularVelocity(double t_s) const;     // camera frame, rad/s (closed form)
   Eigen::Vector3d linearAcceleration(double t_s) const;  // of the centre, world frame, m/s^2
   double startTime() const { return start_s_; }
   double endTime() const { return end_s_; }
 
  private:
-  // Implementation-defined members (Fourier components, integrated orientation grid, ...).
-  struct Component {
-    double frequency_hz, phase_rad;
-    Eigen::Vector3d amplitude;
+  struct Sinusoid {
+    double amplitude;  // rad/s (rotation) or m (translation)
+    double frequency_hz;
+    double phase_rad;
   };
+  Eigen::Vector3d unlimitedShake(double t_s) const;  // rad/s, camera frame
+  Eigen::Vector3d panRate(double t_s) const;         // rad/s, camera frame
+  Eigen::Vector3d translationSeries(double t_s) const;
+  void integrateOrientation();
+
   CameraMotionConfig config_;
   double start_s_, end_s_;
-  std::vector<Component> rotation_components_;     // angular velocity, rad/s
-  std::vector<Component> translation_components_;  // position, m
-  double rate_scale_ = 1.0;                        // keeps |w| <= shake_peak_rad_s
-  std::vector<Eigen::Vector4d> orientation_grid_;  // quaternions (w,x,y,z) at integration_rate_hz
+  std::vector<Sinusoid> shake_[3];        // angular velocity per camera axis, rad/s
+  std::vector<Eigen::Vector2d> pans_;     // peak pan rate about camera x, y per pan period, rad/s
+  std::vector<Sinusoid> translation_[3];  // centre per world axis, m
+  Eigen::Vector3d centre_anchor_m_ = Eigen::Vector3d::Zero();  // series at the anchor time
+  // Orientation grid at integration_rate_hz from start_s_: R_world_cam, the body rate there and
+  // the body-frame rotation vector of each step (k -> k+1), for cubic interpolation in between.
+  double grid_step_s_ = 0.0;
+  std::vector<Eigen::Vector4d> orientation_grid_;  // Eigen::Quaterniond coefficients (x, y, z, w)
+  std::vector<Eigen::Vector3d> rate_grid_;
+  std::vector<Eigen::Vector3d> step_rotation_grid_;
 };
 
 }  // namespace sim

@@ -27,16 +27,43 @@ struct OisConfig {
   std::string validate() const;  // empty, or a sentence naming the bad field
 };
 
+// The lens actuator of one axis (voice coil with its position loop), a second-order system from
+// the commanded to the actual shift: x'' = wn^2 (x_cmd - x) - 2 zeta wn x', discretised exactly
+// for a command held over each step. The lens stops dead at +-limit_px (its end stop).
+class LensActuator {
+ public:
+  // Throws std::invalid_argument unless natural_hz, damping and step_s are positive and
+  // limit_px is non-negative.
+  LensActuator(double natural_hz, double damping, double step_s, double limit_px);
+
+  // Holds `command_px` for one step and returns the position at the end of it, pixels.
+  double advance(double command_px);
+  double positionPx() const { return position_px_; }
+  double velocityPxPerS() const { return velocity_scaled_ * natural_rad_s_; }
+
+ private:
+  double natural_rad_s_;
+  double limit_px_;
+  // State (x, x' / wn): both in pixels, so the transition matrix is well conditioned.
+  Eigen::Matrix2d transition_;
+  Eigen::Vector2d input_;
+  double position_px_ = 0.0;
+  double velocity_scaled_ = 0.0;
+};
+
 // The principal-point shift the lens causes over [motion.startTime(), motion.endTime()].
 // A shift s moves every image point by +s: the OIS camera's intrinsics at time t are K with
 // (cx, cy) + lensShift(t). The stabilizer commands the shift that cancels the image motion of the
 // high-passed pan/tilt angle (to first order: s = f * (theta_y, -theta_x)).
 class OisModel {
  public:
-  // focal_px: camera focal length in pixels (sets the px per rad and the stroke in px).
+  // focal_px: camera focal length in pixels (sets the px per rad and the stroke in px). Throws
+  // std::invalid_argument with the validate() sentence. Keeps no reference to `motion`.
   OisModel(const OisConfig& config, const CameraMotion& motion, double focal_px, std::uint32_t seed);
 
-  Eigen::Vector2d lensShift(double t_s) const;  // pixels (x right, y down); zero when disabled
+  // Pixels (x right, y down), linear between control steps, held outside the span; zero when
+  // disabled.
+  Eigen::Vector2d lensShift(double t_s) const;
   bool enabled() const { return config_.enabled; }
   double strokeLimitPx() const { return stroke_limit_px_; }
 

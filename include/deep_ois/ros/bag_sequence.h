@@ -1,0 +1,49 @@
+// Reads the non-image content of a recording (IMU stream, frame stamps, camera_info, static tf,
+// simulator ground truth) from a rosbag, for offline tools and tests that run the same core code
+// as the nodelets.
+#pragma once
+
+#include <deep_ois/FramePairTruth.h>
+#include <ros/time.h>
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/camera_model.h"
+#include "deep_ois/core/imu_sample_buffer.h"
+
+namespace deep_ois {
+
+struct BagSequenceTopics {
+  std::string image = "/camera/image_raw";
+  std::string camera_info = "/camera/camera_info";
+  std::string imu = "/imu/data";
+  std::string frame_pair_truth = "/ground_truth/frame_pair";
+};
+
+struct BagSequence {
+  std::string path;
+  ros::Time time_base;  // imu samples' stamps are seconds since this
+  std::vector<ImuSample> imu_samples;
+  std::string imu_frame_id;
+  std::vector<ros::Time> frame_stamps;  // stamps of the camera_info messages, in bag order
+  std::string camera_frame_id;
+  std::optional<CameraModel> camera;   // from the first camera_info
+  std::string distortion_model;
+  // R_cam_imu from /tf_static (lookup camera frame <- IMU frame); empty when the bag has no such
+  // transform.
+  std::optional<Eigen::Matrix3d> imu_to_camera_rotation;
+  std::vector<FramePairTruth> truths;  // empty for a real recording
+
+  double secondsSinceBase(const ros::Time& stamp) const { return (stamp - time_base).toSec(); }
+  // A buffer holding every IMU sample (duration-bounded buffers would drop the early ones).
+  ImuSampleBuffer imuBuffer() const;
+};
+
+// Throws std::runtime_error naming the file and the problem (unreadable bag, no camera_info, a
+// camera_info that is not usable, IMU samples rejected by the buffer's rules).
+BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics = {});
+
+}  // namespace deep_ois

@@ -1,0 +1,68 @@
+// Where parameters come from: the ROS parameter server (nodelets) or a YAML file of the same
+// shape (offline tools), so that both are read and validated by one loader.
+#pragma once
+
+#include <ros/node_handle.h>
+#include <yaml-cpp/yaml.h>
+
+#include <string>
+#include <vector>
+
+namespace deep_ois {
+
+class ParameterSource {
+ public:
+  virtual ~ParameterSource() = default;
+  // Each returns false (and leaves `value` alone) when the parameter is absent; throws
+  // std::invalid_argument naming the parameter when it is present with the wrong type.
+  virtual bool get(const std::string& name, double& value) const = 0;
+  virtual bool get(const std::string& name, int& value) const = 0;
+  virtual bool get(const std::string& name, std::string& value) const = 0;
+  virtual bool get(const std::string& name, std::vector<double>& value) const = 0;
+  // The parameter's full name for messages (e.g. /deep_ois/gyro_flow/readout_time).
+  virtual std::string describe(const std::string& name) const = 0;
+
+  // The value or `fallback` when absent.
+  template <typename T>
+  T param(const std::string& name, const T& fallback) const {
+    T value = fallback;
+    get(name, value);
+    return value;
+  }
+};
+
+class NodeHandleParameters : public ParameterSource {
+ public:
+  explicit NodeHandleParameters(const ros::NodeHandle& nh) : nh_(nh) {}
+  bool get(const std::string& name, double& value) const override { return nh_.getParam(name, value); }
+  bool get(const std::string& name, int& value) const override { return nh_.getParam(name, value); }
+  bool get(const std::string& name, std::string& value) const override { return nh_.getParam(name, value); }
+  bool get(const std::string& name, std::vector<double>& value) const override {
+    return nh_.getParam(name, value);
+  }
+  std::string describe(const std::string& name) const override { return nh_.resolveName(name); }
+
+ private:
+  ros::NodeHandle nh_;
+};
+
+// A YAML mapping (e.g. config/gyro_flow.yaml) read as a private namespace.
+class YamlParameters : public ParameterSource {
+ public:
+  // Throws std::runtime_error naming the file when it cannot be read or is not a mapping.
+  explicit YamlParameters(const std::string& path);
+  bool get(const std::string& name, double& value) const override { return read(name, value); }
+  bool get(const std::string& name, int& value) const override { return read(name, value); }
+  bool get(const std::string& name, std::string& value) const override { return read(name, value); }
+  bool get(const std::string& name, std::vector<double>& value) const override { return read(name, value); }
+  std::string describe(const std::string& name) const override { return path_ + ": " + name; }
+
+ private:
+  template <typename T>
+  bool read(const std::string& name, T& value) const;
+
+  std::string path_;
+  YAML::Node root_;
+};
+
+}  // namespace deep_ois

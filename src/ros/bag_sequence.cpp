@@ -1,0 +1,101 @@
+#include "deep_ois/ros/bag_sequence.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Imu.h>
+#include <tf2/buffer_core.h>
+#include <tf2/exceptions.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <Eigen/Geometry>
+#include <stdexcept>
+
+#include "deep_ois/ros/conversions.h"
+
+namespace deep_ois {
+
+ImuSampleBuffer BagSequence::imuBuffer() const {
+  const double span = imu_samples.empty() ? 1.0 : imu_samples.back().stamp_s - imu_samples.front().stamp_s;
+  ImuSampleBuffer buffer(span + 1.0);
+  for (const ImuSample& sample : imu_samples) buffer.add(sample);
+  return buffer;
+}
+
+BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics) {
+  BagSequence sequence;
+  sequence.path = path;
+  auto fail = [&](const std::string& what) { throw std::runtime_error(path + ": " + what); };
+  rosbag::Bag bag;
+  try {
+    bag.open(path, rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& e) {
+    fail(std::string("cannot open the bag: ") + e.what());
+  }
+  tf2::BufferCore tf_buffer(ros::Duration(1e6));
+  bool have_base = false;
+  std::size_t rejected_imu = 0;
+  std::string first_imu_problem;
+  try {
+    rosbag::View view(bag, rosbag::TopicQuery({topics.camera_info, topics.imu, topics.frame_pair_truth,
+                                               std::string("/tf_static")}));
+    ImuSampleBuffer checker(1e9);  // applies the buffer's sample rules without dropping history
+    for (const rosbag::MessageInstance& m : view) {
+      if (!have_base) {
+        sequence.time_base = ros::Time(m.getTime().sec, 0);
+        have_base = true;
+      }
+      if (m.getTopic() == topics.imu) {
+        const auto imu = m.instantiate<sensor_msgs::Imu>();
+        if (!imu) continue;
+        const ImuSample sample = toImuSample(*imu, sequence.time_base);
+        const ImuAddResult added = checker.add(sample);
+        if (!added.accepted()) {
+          if (first_imu_problem.empty()) first_imu_problem = added.reason;
+          ++rejected_imu;
+          continue;
+        }
+        sequence.imu_frame_id = imu->header.frame_id;
+        sequence.imu_samples.push_back(sample);
+      } else if (m.getTopic() == topics.camera_info) {
+        const auto info = m.instantiate<sensor_msgs::CameraInfo>();
+        if (!info) continue;
+        if (!sequence.camera) {
+          CameraModel camera;
+          const std::string problem = toCameraModel(*info, camera);
+          if (!problem.empty()) fail(topics.camera_info + ": " + problem);
+          sequence.camera = camera;
+          sequence.distortion_model = info->distortion_model;
+          sequence.camera_frame_id = info->header.frame_id;
+        }
+        sequence.frame_stamps.push_back(info->header.stamp);
+      } else if (m.getTopic() == topics.frame_pair_truth) {
+        const auto truth = m.instantiate<FramePairTruth>();
+        if (truth) sequence.truths.push_back(*truth);
+      } else {
+        const auto tf = m.instantiate<tf2_msgs::TFMessage>();
+        if (!tf) continue;
+        for (const auto& transform : tf->transforms) tf_buffer.setTransform(transform, "bag", true);
+      }
+    }
+  } catch (const rosbag::BagException& e) {
+    // A truncated or corrupt bag: report it rather than silently using part of it.
+    fail(std::string("reading failed: ") + e.what());
+  }
+  if (!sequence.camera) fail("no camera_info on " + topics.camera_info);
+  if (rejected_imu > 0) {
+    fail(std::to_string(rejected_imu) + " IMU samples on " + topics.imu + " rejected, first: " + first_imu_problem);
+  }
+  if (!sequence.imu_frame_id.empty() && !sequence.camera_frame_id.empty()) {
+    try {
+      const auto transform = tf_buffer.lookupTransform(sequence.camera_frame_id, sequence.imu_frame_id, ros::Time(0));
+      const auto& q = transform.transform.rotation;
+      sequence.imu_to_camera_rotation = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+    } catch (const tf2::TransformException&) {
+      // No static transform between the two: the caller must supply the rotation.
+    }
+  }
+  return sequence;
+}
+
+}  // namespace deep_ois

@@ -1,0 +1,149 @@
+// Simulator bags end to end, without a roscore: what simulate writes, read back the way a robot's
+// recording would be, through the gyro flow core.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <sstream>
+
+#include "deep_ois/core/geometry_distance.h"
+#include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/ros/bag_sequence.h"
+#include "deep_ois/ros/conversions.h"
+#include "deep_ois/ros/simulation_bag_writer.h"
+
+namespace deep_ois {
+namespace {
+
+std::string configPath(const std::string& category) {
+  return std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator/" + category + ".yaml";
+}
+
+std::string writeBag(const sim::SimulatorConfig& config, std::uint32_t seed, double duration_s,
+                     const std::string& name) {
+  const std::string path = ::testing::TempDir() + "/" + name + ".bag";
+  const sim::Simulator simulator(config, seed, duration_s);
+  writeSimulationBag(simulator, path, rosbag::compression::Uncompressed, SimulationBagTopics{}, nullptr);
+  return path;
+}
+
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+std::vector<Eigen::Matrix3d> homographiesOf(const std::vector<double>& values) {
+  std::vector<Eigen::Matrix3d> out;
+  for (std::size_t i = 0; i + 9 <= values.size(); i += 9) out.push_back(rowMajorToMatrix(&values[i]));
+  return out;
+}
+
+std::vector<Eigen::Vector2d> pointsOf(const std::vector<double>& values) {
+  std::vector<Eigen::Vector2d> out;
+  for (std::size_t i = 0; i + 2 <= values.size(); i += 2) out.emplace_back(values[i], values[i + 1]);
+  return out;
+}
+
+// The gyro flow of every pair, computed from the bag's own IMU, tf and camera_info exactly as the
+// nodelet does (patch_time centre, time offset 0, linear interpolation).
+std::vector<std::vector<Eigen::Matrix3d>> gyroHomographies(const BagSequence& bag, int patches,
+                                                           double readout_s) {
+  RollingShutterConfig rs;
+  rs.patch_count = patches;
+  rs.readout_time_s = readout_s;
+  rs.imu_to_camera_rotation = *bag.imu_to_camera_rotation;
+  const ImuSampleBuffer buffer = bag.imuBuffer();
+  std::vector<std::vector<Eigen::Matrix3d>> out;
+  for (const FramePairTruth& truth : bag.truths) {
+    const auto result = computeRollingShutterHomographies(
+        buffer, IntegrationOptions{}, rs, bag.camera->K(), bag.secondsSinceBase(truth.previous_stamp),
+        bag.secondsSinceBase(truth.header.stamp));
+    EXPECT_TRUE(result.ok()) << result.reason;
+    out.push_back(result.homographies);
+  }
+  return out;
+}
+
+TEST(SimulationBag, GyroFlowFromTheBagReproducesTheTrueMotionWithoutOis) {
+  sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
+  config.ois.enabled = false;
+  config.motion.translation_rms_m = 0.0;
+  config.imu.gyro_noise_density = 0.0;
+  config.imu.gyro_bias_random_walk = 0.0;
+  config.imu.gyro_initial_bias_rad_s = 0.0;
+  const BagSequence bag = readBagSequence(writeBag(config, 3, 1.0, "exact_gyro"));
+  ASSERT_TRUE(bag.imu_to_camera_rotation.has_value()) << "no IMU -> camera transform in /tf_static";
+  ASSERT_EQ(bag.truths.size(), bag.frame_stamps.size() - 1);
+  const auto gyro = gyroHomographies(bag, config.ground_truth.patch_count, config.sensor.readout_time_s);
+  double worst_px = 0.0, mean_motion_px = 0.0;
+  const int w = config.sensor.width_px, h = config.sensor.height_px;
+  for (std::size_t k = 0; k < bag.truths.size(); ++k) {
+    const auto truth = homographiesOf(bag.truths[k].homographies_without_ois);
+    ASSERT_EQ(truth.size(), gyro[k].size());
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      // Compare where both send a grid of points of the patch's own rows.
+      const double row0 = i * h / double(truth.size()), row1 = (i + 1) * h / double(truth.size()) - 1;
+      for (double x : {0.0, w / 2.0, w - 1.0}) {
+        for (double y : {row0, row1}) {
+          const Eigen::Vector3d p(x, y, 1.0);
+          const Eigen::Vector2d expected = (truth[i] * p).hnormalized();
+          worst_px = std::max(worst_px, (expected - (gyro[k][i] * p).hnormalized()).norm());
+          mean_motion_px += (expected - p.head<2>()).norm();
+        }
+      }
+    }
+  }
+  mean_motion_px /= bag.truths.size() * gyro[0].size() * 6;
+  std::cout << "[ measured ] gyro flow from the bag vs true motion (OIS off, no translation, no IMU noise): "
+            << "worst " << worst_px << " px; mean motion " << mean_motion_px << " px\n";
+  EXPECT_GT(mean_motion_px, 1.0) << "the motion must be large enough for the check to mean something";
+  EXPECT_LT(worst_px, 0.05);
+}
+
+TEST(SimulationBag, OisMakesTheGyroMissTheAnnotations) {
+  sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
+  const BagSequence with_ois = readBagSequence(writeBag(config, 5, 1.0, "ois_on"));
+  config.ois.enabled = false;
+  const BagSequence twin = readBagSequence(writeBag(config, 5, 1.0, "ois_off"));
+  auto meanError = [&](const BagSequence& bag) {
+    const auto gyro = gyroHomographies(bag, config.ground_truth.patch_count, config.sensor.readout_time_s);
+    double sum = 0.0;
+    for (std::size_t k = 0; k < bag.truths.size(); ++k) {
+      sum += geometryDistance(pointsOf(bag.truths[k].points_a), pointsOf(bag.truths[k].points_b), gyro[k],
+                              config.sensor.height_px);
+    }
+    return sum / bag.truths.size();
+  };
+  const double ois_px = meanError(with_ois), twin_px = meanError(twin);
+  std::cout << "[ measured ] gyro geometry distance: OIS camera " << ois_px << " px, non-OIS twin " << twin_px
+            << " px\n";
+  EXPECT_GT(ois_px, 2.0 * twin_px);
+  for (const auto& truth : with_ois.truths) EXPECT_TRUE(truth.ois_enabled);
+  for (const auto& truth : twin.truths) EXPECT_FALSE(truth.ois_enabled);
+}
+
+TEST(SimulationBag, SameSeedAndConfigGiveIdenticalBags) {
+  const sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("MF"));
+  const std::string first = fileBytes(writeBag(config, 9, 0.2, "same_a"));
+  const std::string second = fileBytes(writeBag(config, 9, 0.2, "same_b"));
+  ASSERT_GT(first.size(), 100000u);
+  EXPECT_TRUE(first == second) << "bags of the same seed and config differ";
+}
+
+TEST(SimulationBag, TruncatedBagGivesAClearError) {
+  const sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
+  const std::string bytes = fileBytes(writeBag(config, 2, 0.2, "whole"));
+  const std::string truncated = ::testing::TempDir() + "/truncated.bag";
+  std::ofstream(truncated, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  try {
+    readBagSequence(truncated);
+    FAIL() << "a truncated bag was read without error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(truncated), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace deep_ois
