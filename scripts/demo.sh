@@ -30,4 +30,10 @@ if grep -qE "WARN|ERROR|FATAL" "$out/roslaunch.log"; then
   echo "warnings and errors of the pipeline (full log: $out/roslaunch.log):"
   grep -E "WARN|ERROR|FATAL" "$out/roslaunch.log" | head -20
 fi
+
+# Geometry distance on the bag's annotated correspondences (pixels): identity vs the gyro flow,
+# uncompensated on this OIS camera (the error the compensation network is there to remove).
+echo
+echo "==== geometry distance on the annotated correspondences of $(basename "$bag") ===="
+rosrun deep_ois evaluate --bags "$bag" --out "$out" || status=$?
 exit "$status"

@@ -2,6 +2,7 @@
 // recording would be, through the gyro flow core.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
