@@ -6,18 +6,11 @@
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/imu_model.h"
 #include "test_helpers.h"
+#include "sim_test_helpers.h"
 
 namespace deep_ois {
 namespace sim {
 namespace {
-
-CameraMotionConfig still() {
-  CameraMotionConfig config;
-  config.shake_rms_rad_s.setZero();
-  config.pan_peak_rad_s = 0.0;
-  config.translation_rms_m = 0.0;
-  return config;
-}
 
 ImuConfig noiseless() {
   ImuConfig config;
@@ -81,7 +74,7 @@ TEST(ImuModel, RotatesIntoTheImuFrame) {
 }
 
 TEST(ImuModel, StillCameraFeelsGravityUpwards) {
-  const CameraMotion motion(still(), 1, 0.0, 1.0);
+  const CameraMotion motion(test::stillMotionConfig(), 1, 0.0, 1.0);
   const auto samples = sampleImu(noiseless(), motion, 1, 0.0, 1.0);
   const Eigen::Matrix3d R_cam_imu = ImuConfig().imu_to_camera_rotation;
   for (const auto& sample : samples) {
@@ -108,7 +101,7 @@ TEST(ImuModel, AccelerometerFollowsPoseAndMotion) {
 }
 
 TEST(ImuModel, WhiteNoiseSigmas) {
-  const CameraMotion motion(still(), 1, 0.0, 20.0);
+  const CameraMotion motion(test::stillMotionConfig(), 1, 0.0, 20.0);
   ImuConfig config = noiseless();
   config.gyro_noise_density = 1e-3;
   config.accel_noise_density = 4e-3;
@@ -131,7 +124,7 @@ TEST(ImuModel, WhiteNoiseSigmas) {
 }
 
 TEST(ImuModel, BiasRandomWalkGrowsWithTime) {
-  CameraMotionConfig slow = still();  // a long span: a coarse orientation grid is enough
+  CameraMotionConfig slow = test::stillMotionConfig();  // a long span: a coarse orientation grid is enough
   slow.integration_rate_hz = 200.0;
   const CameraMotion motion(slow, 1, 0.0, 400.0);
   ImuConfig config = noiseless();
@@ -163,7 +156,7 @@ TEST(ImuModel, BiasRandomWalkGrowsWithTime) {
 }
 
 TEST(ImuModel, InitialBiasSpread) {
-  const CameraMotion motion(still(), 1, 0.0, 0.01);
+  const CameraMotion motion(test::stillMotionConfig(), 1, 0.0, 0.01);
   ImuConfig config = noiseless();
   config.gyro_initial_bias_rad_s = 0.002;
   std::vector<Eigen::Vector3d> biases;
@@ -203,7 +196,7 @@ TEST(ImuModel, ValidateNamesTheField) {
   config = ImuConfig();
   config.gyro_bias_random_walk = -1.0;
   EXPECT_NE(std::string::npos, config.validate().find("gyro_bias_random_walk"));
-  const CameraMotion motion(still(), 1, 0.0, 1.0);
+  const CameraMotion motion(test::stillMotionConfig(), 1, 0.0, 1.0);
   EXPECT_THROW(sampleImu(config, motion, 1, 0.0, 1.0), std::invalid_argument);
   EXPECT_THROW(sampleImu(ImuConfig(), motion, 1, 1.0, 0.0), std::invalid_argument);
 }

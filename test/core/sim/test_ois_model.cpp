@@ -8,6 +8,7 @@
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
 #include "test_helpers.h"
+#include "sim_test_helpers.h"
 
 namespace deep_ois {
 namespace sim {
@@ -22,16 +23,8 @@ Eigen::Matrix3d nominalK() {
   return K;
 }
 
-CameraMotionConfig still() {
-  CameraMotionConfig config;
-  config.shake_rms_rad_s.setZero();
-  config.pan_peak_rad_s = 0.0;
-  config.translation_rms_m = 0.0;
-  return config;
-}
-
 CameraMotionConfig shakeOnly(double low_hz, double high_hz) {
-  CameraMotionConfig config = still();
+  CameraMotionConfig config = test::stillMotionConfig();
   config.shake_band_low_hz = low_hz;
   config.shake_band_high_hz = high_hz;
   config.shake_rms_rad_s = CameraMotionConfig().shake_rms_rad_s;
@@ -87,9 +80,9 @@ TEST(OisModel, DeterministicPerSeed) {
 }
 
 TEST(OisModel, IgnoresRoll) {
-  CameraMotionConfig roll = still();
+  CameraMotionConfig roll = test::stillMotionConfig();
   roll.shake_rms_rad_s = Eigen::Vector3d(0.0, 0.0, 0.3);
-  const CameraMotion rolling(roll, 3, 0.0, 4.0), resting(still(), 3, 0.0, 4.0);
+  const CameraMotion rolling(roll, 3, 0.0, 4.0), resting(test::stillMotionConfig(), 3, 0.0, 4.0);
   // Without gyro noise: no shift at all.
   OisConfig quiet;
   quiet.gyro_noise_rad_s = 0.0;
@@ -118,7 +111,7 @@ TEST(OisModel, ShiftCancelsRotationAboutEachAxis) {
   ideal.stroke_limit_deg = 20.0;
   ideal.gyro_noise_rad_s = 0.0;
   for (int axis = 0; axis < 2; ++axis) {
-    CameraMotionConfig config = still();
+    CameraMotionConfig config = test::stillMotionConfig();
     config.shake_rms_rad_s[axis] = 0.3;
     const CameraMotion motion(config, 8, 0.0, 2.0);
     const OisModel ois(ideal, motion, kFocalPx, 1);
@@ -168,7 +161,7 @@ TEST(OisModel, CancelsMostShakeInsideItsBand) {
 // A slow pan: the high-passed angle follows the quasi-static response instead of the growing
 // pan angle, so the lens stays near centre and returns to it when the pan rate does.
 TEST(OisModel, CentresDuringSlowPans) {
-  CameraMotionConfig config = still();
+  CameraMotionConfig config = test::stillMotionConfig();
   config.pan_peak_rad_s = 0.05;
   config.pan_period_s = 6.0;
   const CameraMotion motion(config, 17, 0.0, 12.0);
@@ -307,7 +300,7 @@ TEST(OisModel, ValidateNamesTheField) {
   config = OisConfig();
   config.highpass_corner_hz = std::nan("");
   EXPECT_NE(std::string::npos, config.validate().find("highpass_corner_hz"));
-  const CameraMotion motion(still(), 1, 0.0, 1.0);
+  const CameraMotion motion(test::stillMotionConfig(), 1, 0.0, 1.0);
   EXPECT_THROW(OisModel(config, motion, kFocalPx, 1), std::invalid_argument);
   EXPECT_THROW(OisModel(OisConfig(), motion, 0.0, 1), std::invalid_argument);
 }

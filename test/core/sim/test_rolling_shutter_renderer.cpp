@@ -9,6 +9,7 @@
 
 #include "deep_ois/core/sim/rolling_shutter_renderer.h"
 #include "test_helpers.h"
+#include "sim_test_helpers.h"
 
 namespace deep_ois {
 namespace sim {
@@ -20,19 +21,10 @@ constexpr double kEndS = 1.5;
 const std::vector<double> kPhoneDistortion{-0.12, 0.03, 0.0005, -0.0003, 0.0};
 
 // Hand-held motion (the default shake and pans), the default OIS, a camera.
-struct Rig {
+struct Rig : test::Rig {
   explicit Rig(const SensorConfig& sensor_config, std::uint32_t seed = 7,
                const OisConfig& ois_config = OisConfig())
-      : sensor(sensor_config),
-        motion(CameraMotionConfig(), seed, kStartS, kEndS),
-        ois(ois_config, motion, nominalCamera(sensor).K()(0, 0), seed),
-        camera(sensor, motion, ois) {}
-  double focalPx() const { return camera.nominal().K()(0, 0); }
-
-  SensorConfig sensor;
-  CameraMotion motion;
-  OisModel ois;
-  SimCamera camera;
+      : test::Rig(kStartS, kEndS, sensor_config, seed, ois_config) {}
 };
 
 SensorConfig distortedSensor() {

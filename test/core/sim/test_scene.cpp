@@ -13,6 +13,7 @@
 #include "deep_ois/core/sim/scene.h"
 #include "deep_ois/core/sim/sim_camera.h"
 #include "test_helpers.h"
+#include "sim_test_helpers.h"
 
 namespace deep_ois {
 namespace sim {
@@ -52,18 +53,9 @@ double distanceAlongNormal(const TexturedPlane& plane, const Eigen::Vector3d& po
                   "scripts/install_deps.sh)"
 
 // The hand-held motion, OIS and 360x270 camera the layouts are built for.
-struct Rig {
+struct Rig : test::Rig {
   explicit Rig(std::uint32_t seed, const SensorConfig& sensor_config = SensorConfig())
-      : sensor(sensor_config),
-        motion(CameraMotionConfig(), seed, kStartS, kEndS),
-        ois(OisConfig(), motion, nominalCamera(sensor).K()(0, 0), seed),
-        camera(sensor, motion, ois) {}
-  double focalPx() const { return camera.nominal().K()(0, 0); }
-
-  SensorConfig sensor;
-  CameraMotion motion;
-  OisModel ois;
-  SimCamera camera;
+      : test::Rig(kStartS, kEndS, sensor_config, seed) {}
 };
 
 // Built scenes are reused across tests (reading the photographs is the slow part).
