@@ -22,6 +22,15 @@ void EvaluationTable::add(const std::string& method, const std::string& category
   ++cell.count;
 }
 
+void EvaluationTable::orderCategories(const std::vector<std::string>& preferred) {
+  auto rank = [&](const std::string& category) {
+    const auto it = std::find(preferred.begin(), preferred.end(), category);
+    return it == preferred.end() ? preferred.size() : static_cast<std::size_t>(it - preferred.begin());
+  };
+  std::stable_sort(categories_.begin(), categories_.end(),
+                   [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
+}
+
 double EvaluationTable::mean(const std::string& method, const std::string& category) const {
   const auto it = cells_.find({method, category});
   if (it == cells_.end() || it->second.count == 0) return std::numeric_limits<double>::quiet_NaN();

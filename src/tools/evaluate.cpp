@@ -112,6 +112,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "evaluate: no frame pair could be scored\n");
     return 1;
   }
+  scores.orderCategories({"RE", "LT", "LL", "MF"});  // the paper's column order
   std::printf("%s", scores.markdown().c_str());
   if (!out_dir.empty()) {
     const std::string csv_path = out_dir + "/evaluation.csv";

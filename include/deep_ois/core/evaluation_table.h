@@ -25,6 +25,10 @@ class EvaluationTable {
   // The paper's Avg: the mean of the per-category means (categories without pairs are left out).
   double average(const std::string& method) const;
 
+  // Lists the named categories first, in this order (e.g. the paper's RE, LT, LL, MF), then any
+  // others in the order they were added.
+  void orderCategories(const std::vector<std::string>& preferred);
+
   const std::vector<std::string>& methods() const { return methods_; }
   const std::vector<std::string>& categories() const { return categories_; }
 
