@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "deep_ois/core/progress_bar.h"
 #include "deep_ois/core/sim/simulator.h"
 #include "deep_ois/ros/simulation_bag_writer.h"
 
@@ -89,16 +90,9 @@ int main(int argc, char** argv) {
                                                          : rosbag::compression::Uncompressed;
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
-    auto progress = [&](int done, int total) {
-      if (quiet || (done % 10 != 0 && done != total)) return;
-      const double elapsed =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-      const double rate = done / elapsed;
-      const int width = 30, filled = width * done / total;
-      std::fprintf(stderr, "\r[%s%s] %d/%d frames, %.1f frames/s, ETA %.0f s   ",
-                   std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), done,
-                   total, rate, (total - done) / rate);
-      if (done == total) std::fprintf(stderr, "\n");
+    deep_ois::ProgressBar bar(static_cast<std::size_t>(simulator.frameCount()), "frames");
+    auto progress = [&](int done, int) {
+      if (!quiet) bar.update(static_cast<std::size_t>(done));
     };
     const deep_ois::SimulationBagStats stats = deep_ois::writeSimulationBag(
         simulator, out_path, compression, deep_ois::SimulationBagTopics{}, progress, &g_stop);

@@ -1,0 +1,30 @@
+// A one-line terminal progress bar with rate and ETA for the offline tools.
+#pragma once
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+namespace deep_ois {
+
+class ProgressBar {
+ public:
+  // `unit` names what is counted ("frames", "pairs"); output goes to `stream` (stderr by default,
+  // so stdout stays clean for results).
+  ProgressBar(std::size_t total, std::string unit, std::FILE* stream = stderr);
+
+  // Reports `done` items; redraws at most every 0.2 s and always at the end.
+  void update(std::size_t done);
+  // The line as it would be drawn (for tests): "[#####     ] 5/10 frames, 2.0 frames/s, ETA 3 s".
+  std::string line(std::size_t done, double elapsed_s) const;
+  double elapsedSeconds() const;
+
+ private:
+  std::size_t total_;
+  std::string unit_;
+  std::FILE* stream_;
+  std::chrono::steady_clock::time_point started_;
+  double last_draw_s_ = -1.0;
+};
+
+}  // namespace deep_ois
