@@ -11,6 +11,7 @@
 
 #include "deep_ois/core/geometry_distance.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/ros/bag_frame_reader.h"
 #include "deep_ois/ros/bag_sequence.h"
 #include "deep_ois/ros/conversions.h"
 #include "deep_ois/ros/simulation_bag_writer.h"
@@ -133,6 +134,26 @@ TEST(SimulationBag, SameSeedAndConfigGiveIdenticalBags) {
   EXPECT_TRUE(first == second) << "bags of the same seed and config differ";
 }
 
+TEST(SimulationBag, FramesStreamBackAsRendered) {
+  const sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("LL"));
+  const sim::Simulator simulator(config, 4, 0.2);
+  const std::string path = ::testing::TempDir() + "/frames.bag";
+  writeSimulationBag(simulator, path, rosbag::compression::BZ2, SimulationBagTopics{}, nullptr);
+  BagFrameReader reader(path, "/camera/image_raw");
+  ASSERT_EQ(reader.frameCount(), static_cast<std::size_t>(simulator.frameCount()));
+  BagFrame frame;
+  int k = 0;
+  while (reader.next(frame)) {
+    ASSERT_LT(k, simulator.frameCount());
+    EXPECT_EQ(cv::norm(frame.rgb, simulator.renderFrame(k), cv::NORM_INF), 0.0) << "frame " << k;
+    EXPECT_EQ(frame.gray.type(), CV_8UC1);
+    EXPECT_EQ(frame.frame_id, config.camera_frame_id);
+    ++k;
+  }
+  EXPECT_EQ(k, simulator.frameCount());
+  EXPECT_THROW(BagFrameReader(path, "/no/such/topic"), std::runtime_error);
+}
+
 TEST(SimulationBag, TruncatedBagGivesAClearError) {
   const sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
   const std::string bytes = fileBytes(writeBag(config, 2, 0.2, "whole"));
@@ -141,6 +162,15 @@ TEST(SimulationBag, TruncatedBagGivesAClearError) {
   try {
     readBagSequence(truncated);
     FAIL() << "a truncated bag was read without error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(truncated), std::string::npos) << e.what();
+  }
+  try {
+    BagFrameReader reader(truncated, "/camera/image_raw");
+    BagFrame frame;
+    while (reader.next(frame)) {
+    }
+    FAIL() << "a truncated bag was streamed without error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find(truncated), std::string::npos) << e.what();
   }
