@@ -1,6 +1,7 @@
 #include "deep_ois/core/orientation_integrator.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -18,6 +19,10 @@ const char* toString(IntegrationStatus status) {
     case IntegrationStatus::kInvalidTime: return "invalid time";
   }
   return "unknown";
+}
+
+bool isProperRotation(const Eigen::Matrix3d& R) {
+  return R.allFinite() && (R * R.transpose()).isIdentity(1e-6) && std::abs(R.determinant() - 1.0) <= 1e-6;
 }
 
 Eigen::Matrix3d expSO3(const Eigen::Vector3d& rotation_vector_rad) {

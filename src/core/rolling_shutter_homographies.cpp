@@ -15,10 +15,7 @@ std::string RollingShutterConfig::validate() const {
     why << "readout_time must be a non-negative number of seconds (got " << readout_time_s << ")";
   } else if (!std::isfinite(time_offset_s)) {
     why << "time_offset must be finite (got " << time_offset_s << ")";
-  } else if (!imu_to_camera_rotation.allFinite() ||
-             !(imu_to_camera_rotation * imu_to_camera_rotation.transpose())
-                  .isIdentity(1e-6) ||
-             std::abs(imu_to_camera_rotation.determinant() - 1.0) > 1e-6) {
+  } else if (!isProperRotation(imu_to_camera_rotation)) {
     why << "imu_to_camera_rotation must be a proper rotation matrix (orthonormal, det +1)";
   }
   return why.str();

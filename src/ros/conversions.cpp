@@ -78,6 +78,34 @@ void matrixToRowMajor(const Eigen::Matrix3d& matrix, double* values) {
     for (int c = 0; c < 3; ++c) values[3 * r + c] = matrix(r, c);
 }
 
+std::vector<double> flattenMatrices(const std::vector<Eigen::Matrix3d>& matrices) {
+  std::vector<double> values(9 * matrices.size());
+  for (std::size_t i = 0; i < matrices.size(); ++i) matrixToRowMajor(matrices[i], &values[9 * i]);
+  return values;
+}
+
+std::vector<Eigen::Matrix3d> unflattenMatrices(const std::vector<double>& values) {
+  std::vector<Eigen::Matrix3d> matrices;
+  for (std::size_t i = 0; i + 9 <= values.size(); i += 9) matrices.push_back(rowMajorToMatrix(&values[i]));
+  return matrices;
+}
+
+std::vector<double> flattenPoints(const std::vector<Eigen::Vector2d>& points) {
+  std::vector<double> values;
+  values.reserve(2 * points.size());
+  for (const Eigen::Vector2d& p : points) {
+    values.push_back(p.x());
+    values.push_back(p.y());
+  }
+  return values;
+}
+
+std::vector<Eigen::Vector2d> unflattenPoints(const std::vector<double>& values) {
+  std::vector<Eigen::Vector2d> points;
+  for (std::size_t i = 0; i + 2 <= values.size(); i += 2) points.emplace_back(values[i], values[i + 1]);
+  return points;
+}
+
 void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::Matrix3d>& homographies,
                      const cv::Mat& flow, GyroFlow& msg) {
   msg.header = metadata.header;
@@ -85,10 +113,7 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
   msg.image_width = static_cast<uint32_t>(metadata.camera.width());
   msg.image_height = static_cast<uint32_t>(metadata.camera.height());
   msg.patch_count = static_cast<uint32_t>(homographies.size());
-  msg.homographies.resize(9 * homographies.size());
-  for (std::size_t i = 0; i < homographies.size(); ++i) {
-    matrixToRowMajor(homographies[i], &msg.homographies[9 * i]);
-  }
+  msg.homographies = flattenMatrices(homographies);
   matrixToRowMajor(metadata.camera.K(), msg.K.data());
   msg.distortion_model = metadata.distortion_model;
   msg.D = metadata.distortion;
@@ -124,10 +149,7 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
   }
   const std::string image_problem = validateImage(msg.flow);
   if (!image_problem.empty()) return "GyroFlow flow: " + image_problem;
-  homographies.resize(msg.patch_count);
-  for (std::size_t i = 0; i < msg.patch_count; ++i) {
-    homographies[i] = rowMajorToMatrix(&msg.homographies[9 * i]);
-  }
+  homographies = unflattenMatrices(msg.homographies);
   flow_view = cv::Mat(static_cast<int>(msg.flow.height), static_cast<int>(msg.flow.width), CV_32FC2,
                       const_cast<uint8_t*>(msg.flow.data.data()), msg.flow.step);
   return {};

@@ -19,12 +19,6 @@
 namespace deep_ois {
 namespace {
 
-std::vector<double> rowMajor(const std::vector<Eigen::Matrix3d>& matrices) {
-  std::vector<double> values(9 * matrices.size());
-  for (std::size_t i = 0; i < matrices.size(); ++i) matrixToRowMajor(matrices[i], &values[9 * i]);
-  return values;
-}
-
 // Frame pairs on the image topic from the bag's index only (cheap: no message is read). A bag that
 // cannot be opened counts 0 here; run() reports it when it gets there.
 std::size_t indexedPairCount(const std::string& path, const std::string& image_topic) {
@@ -100,7 +94,7 @@ TrainingPair processPair(const BagContext& bag, const BagFrame& a, const BagFram
     reject(msg, std::string("gyro: ") + toString(gyro.status), "gyro: " + gyro.reason, summary);
     return msg;
   }
-  msg.gyro_homographies = rowMajor(gyro.homographies);
+  msg.gyro_homographies = flattenMatrices(gyro.homographies);
 
   const std::vector<cv::Point2f> corners = detectUniformCorners(a.gray, options.corners);
   const std::vector<FeatureMatch> matches = trackFeatures(a.gray, b.gray, corners, options.klt);
@@ -116,7 +110,7 @@ TrainingPair processPair(const BagContext& bag, const BagFrame& a, const BagFram
   }
   msg.accepted = true;
   msg.model = toString(result.model);
-  msg.target_homographies = rowMajor(result.homographies);
+  msg.target_homographies = flattenMatrices(result.homographies);
   msg.residual_px = result.median_rotation_residual_px;
   ++summary.accepted;
   return msg;

@@ -26,21 +26,6 @@ ros::Time toRosTime(double epoch_s, double t_s) {
   return ros::Time(static_cast<uint32_t>(whole), 0) + ros::Duration(epoch_s - whole + t_s);
 }
 
-void appendMatrices(const std::vector<Eigen::Matrix3d>& matrices, std::vector<double>& out) {
-  for (const auto& m : matrices) {
-    double values[9];
-    matrixToRowMajor(m, values);
-    out.insert(out.end(), values, values + 9);
-  }
-}
-
-void appendPoints(const std::vector<Eigen::Vector2d>& points, std::vector<double>& out) {
-  for (const auto& p : points) {
-    out.push_back(p.x());
-    out.push_back(p.y());
-  }
-}
-
 // One message to write, ordered by bag time.
 struct Pending {
   ros::Time time;
@@ -170,13 +155,13 @@ SimulationBagStats writeSimulationBag(const sim::Simulator& simulator, const std
       msg.image_height = info.height;
       msg.patch_count = static_cast<uint32_t>(truth.rotations_b_a.size());
       msg.readout_time = sensor.readout_time_s;
-      appendMatrices(truth.homographies_without_ois, msg.homographies_without_ois);
-      appendMatrices(truth.homographies_with_ois, msg.homographies_with_ois);
-      appendMatrices(truth.rotations_b_a, msg.rotations);
-      appendPoints(truth.lens_shift_a_px, msg.lens_shift_a);
-      appendPoints(truth.lens_shift_b_px, msg.lens_shift_b);
-      appendPoints(truth.points_a_px, msg.points_a);
-      appendPoints(truth.points_b_px, msg.points_b);
+      msg.homographies_without_ois = flattenMatrices(truth.homographies_without_ois);
+      msg.homographies_with_ois = flattenMatrices(truth.homographies_with_ois);
+      msg.rotations = flattenMatrices(truth.rotations_b_a);
+      msg.lens_shift_a = flattenPoints(truth.lens_shift_a_px);
+      msg.lens_shift_b = flattenPoints(truth.lens_shift_b_px);
+      msg.points_a = flattenPoints(truth.points_a_px);
+      msg.points_b = flattenPoints(truth.points_b_px);
       bag.write(topics.frame_pair_truth, stamp, msg);
       ++stats.frame_pairs;
       stats.correspondences += static_cast<int>(truth.points_a_px.size());

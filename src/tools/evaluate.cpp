@@ -31,12 +31,6 @@ int usage(const std::string& problem) {
   return 2;
 }
 
-std::vector<Eigen::Vector2d> pointsOf(const std::vector<double>& values) {
-  std::vector<Eigen::Vector2d> out;
-  for (std::size_t i = 0; i + 2 <= values.size(); i += 2) out.emplace_back(values[i], values[i + 1]);
-  return out;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -80,7 +74,8 @@ int main(int argc, char** argv) {
         const deep_ois::ImuSampleBuffer buffer = bag.imuBuffer();
         int skipped = 0;
         for (const auto& truth : bag.truths) {
-          const auto points_a = pointsOf(truth.points_a), points_b = pointsOf(truth.points_b);
+          const auto points_a = deep_ois::unflattenPoints(truth.points_a),
+                     points_b = deep_ois::unflattenPoints(truth.points_b);
           if (points_a.empty()) continue;
           const int h = static_cast<int>(truth.image_height);
           const double identity = deep_ois::geometryDistance(points_a, points_b, {Eigen::Matrix3d::Identity()}, h);

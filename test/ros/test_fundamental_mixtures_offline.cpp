@@ -81,20 +81,6 @@ double patchCornerDifference(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b,
   return sum / 4.0;
 }
 
-std::vector<Eigen::Matrix3d> homographiesOf(const std::vector<double>& values) {
-  std::vector<Eigen::Matrix3d> out;
-  for (std::size_t i = 0; i + 9 <= values.size(); i += 9)
-    out.push_back(rowMajorToMatrix(&values[i]));
-  return out;
-}
-
-std::vector<Eigen::Vector2d> pointsOf(const std::vector<double>& values) {
-  std::vector<Eigen::Vector2d> out;
-  for (std::size_t i = 0; i + 2 <= values.size(); i += 2)
-    out.emplace_back(values[i], values[i + 1]);
-  return out;
-}
-
 double median(std::vector<double> values) {
   if (values.empty()) return 0.0;
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
@@ -147,11 +133,11 @@ TEST(FundamentalMixturesOffline, TargetsMatchTheTrueMotionAndABrokenBagCostsOnly
     ASSERT_EQ(truth.patch_count, record.patch_count);
     ASSERT_EQ(truth.previous_stamp, record.previous_stamp);
     ++models[record.model];
-    const auto points_a = pointsOf(truth.points_a), points_b = pointsOf(truth.points_b);
+    const auto points_a = unflattenPoints(truth.points_a), points_b = unflattenPoints(truth.points_b);
     target_distance_px += geometryDistance(
-        points_a, points_b, homographiesOf(record.target_homographies), record.image_height);
+        points_a, points_b, unflattenMatrices(record.target_homographies), record.image_height);
     gyro_distance_px += geometryDistance(
-        points_a, points_b, homographiesOf(record.gyro_homographies), record.image_height);
+        points_a, points_b, unflattenMatrices(record.gyro_homographies), record.image_height);
     for (std::size_t i = 0; i < record.patch_count; ++i) {
       const Eigen::Matrix3d expected = rowMajorToMatrix(&truth.homographies_with_ois[9 * i]);
       target_px.push_back(

@@ -36,18 +36,6 @@ std::string fileBytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-std::vector<Eigen::Matrix3d> homographiesOf(const std::vector<double>& values) {
-  std::vector<Eigen::Matrix3d> out;
-  for (std::size_t i = 0; i + 9 <= values.size(); i += 9) out.push_back(rowMajorToMatrix(&values[i]));
-  return out;
-}
-
-std::vector<Eigen::Vector2d> pointsOf(const std::vector<double>& values) {
-  std::vector<Eigen::Vector2d> out;
-  for (std::size_t i = 0; i + 2 <= values.size(); i += 2) out.emplace_back(values[i], values[i + 1]);
-  return out;
-}
-
 // The gyro flow of every pair, computed from the bag's own IMU, tf and camera_info exactly as the
 // nodelet does (patch_time centre, time offset 0, linear interpolation).
 std::vector<std::vector<Eigen::Matrix3d>> gyroHomographies(const BagSequence& bag, int patches,
@@ -82,7 +70,7 @@ TEST(SimulationBag, GyroFlowFromTheBagReproducesTheTrueMotionWithoutOis) {
   double worst_px = 0.0, mean_motion_px = 0.0;
   const int w = config.sensor.width_px, h = config.sensor.height_px;
   for (std::size_t k = 0; k < bag.truths.size(); ++k) {
-    const auto truth = homographiesOf(bag.truths[k].homographies_without_ois);
+    const auto truth = unflattenMatrices(bag.truths[k].homographies_without_ois);
     ASSERT_EQ(truth.size(), gyro[k].size());
     for (std::size_t i = 0; i < truth.size(); ++i) {
       // Compare where both send a grid of points of the patch's own rows.
@@ -113,7 +101,7 @@ TEST(SimulationBag, OisMakesTheGyroMissTheAnnotations) {
     const auto gyro = gyroHomographies(bag, config.ground_truth.patch_count, config.sensor.readout_time_s);
     double sum = 0.0;
     for (std::size_t k = 0; k < bag.truths.size(); ++k) {
-      sum += geometryDistance(pointsOf(bag.truths[k].points_a), pointsOf(bag.truths[k].points_b), gyro[k],
+      sum += geometryDistance(unflattenPoints(bag.truths[k].points_a), unflattenPoints(bag.truths[k].points_b), gyro[k],
                               config.sensor.height_px);
     }
     return sum / bag.truths.size();

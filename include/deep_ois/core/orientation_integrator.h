@@ -56,6 +56,9 @@ IntegrationResult integrateRotation(const ImuSampleBuffer& buffer, double t0_s, 
 IntegrationResult checkCoverage(const ImuSampleBuffer& buffer, double t0_s, double t1_s,
                                 const IntegrationOptions& options);
 
+// Whether `R` is a proper rotation: finite, orthonormal and det +1 (to 1e-6).
+bool isProperRotation(const Eigen::Matrix3d& R);
+
 // The exponential map of so(3) (Rodrigues' formula), accurate for small angles too.
 Eigen::Matrix3d expSO3(const Eigen::Vector3d& rotation_vector_rad);
 

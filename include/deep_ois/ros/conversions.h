@@ -50,6 +50,13 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
 std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& homographies,
                             cv::Mat& flow_view);
 
+// Messages carry matrices and points as flat float64[] arrays: consecutive row-major 3x3 blocks,
+// and (x, y) pairs. The unflatten functions ignore a trailing incomplete block.
+std::vector<double> flattenMatrices(const std::vector<Eigen::Matrix3d>& matrices);
+std::vector<Eigen::Matrix3d> unflattenMatrices(const std::vector<double>& values);
+std::vector<double> flattenPoints(const std::vector<Eigen::Vector2d>& points);
+std::vector<Eigen::Vector2d> unflattenPoints(const std::vector<double>& values);
+
 // Row-major 9 values <-> 3x3.
 Eigen::Matrix3d rowMajorToMatrix(const double* values);
 void matrixToRowMajor(const Eigen::Matrix3d& matrix, double* values);

@@ -1,11 +1,11 @@
 #include "deep_ois/core/sim/imu_model.h"
 
-#include <Eigen/LU>  // determinant()
 #include <cmath>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/orientation_integrator.h"
 #include "deep_ois/core/portable_random.h"
 
 namespace deep_ois {
@@ -24,8 +24,7 @@ std::string ImuConfig::validate() const {
   const Eigen::Matrix3d& R = imu_to_camera_rotation;
   if (!std::isfinite(rate_hz) || !(rate_hz > 0.0)) {
     why << "rate_hz: must be positive (got " << rate_hz << " Hz)";
-  } else if (!R.allFinite() || !(R * R.transpose()).isIdentity(1e-6) ||
-             std::abs(R.determinant() - 1.0) > 1e-6) {
+  } else if (!isProperRotation(R)) {
     why << "imu_to_camera_rotation: must be a proper rotation matrix (orthonormal, det +1)";
   } else if (!nonNegative(gyro_noise_density)) {
     why << "gyro_noise_density: must be non-negative (got " << gyro_noise_density << ")";
