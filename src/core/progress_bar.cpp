@@ -36,12 +36,13 @@ std::string ProgressBar::line(std::size_t done, double elapsed_s) const {
   return out.str();
 }
 
-void ProgressBar::update(std::size_t done) {
+void ProgressBar::update(std::size_t done, const std::string& note) {
   const double elapsed = elapsedSeconds();
   const bool finished = done >= total_;
   if (!finished && last_draw_s_ >= 0.0 && elapsed - last_draw_s_ < kRedrawPeriodS) return;
   last_draw_s_ = elapsed;
-  std::fprintf(stream_, "\r%s   %s", line(done, elapsed).c_str(), finished ? "\n" : "");
+  const std::string text = note.empty() ? line(done, elapsed) : line(done, elapsed) + ", " + note;
+  std::fprintf(stream_, "\r%s   %s", text.c_str(), finished ? "\n" : "");
   std::fflush(stream_);
 }
 

@@ -13,8 +13,9 @@ class ProgressBar {
   // so stdout stays clean for results).
   ProgressBar(std::size_t total, std::string unit, std::FILE* stream = stderr);
 
-  // Reports `done` items; redraws at most every 0.2 s and always at the end.
-  void update(std::size_t done);
+  // Reports `done` items; redraws at most every 0.2 s and always at the end. A non-empty `note`
+  // (e.g. "epoch 3/40, loss 0.21") is appended to the line.
+  void update(std::size_t done, const std::string& note = "");
   // The line as it would be drawn (for tests): "[#####     ] 5/10 frames, 2.0 frames/s, ETA 3 s".
   std::string line(std::size_t done, double elapsed_s) const;
   double elapsedSeconds() const;

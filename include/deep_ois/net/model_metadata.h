@@ -1,0 +1,70 @@
+// What a compensation model file says about itself: architecture, working grid, input
+// normalisation and where its weights came from. Stored inside the model file (so a model can
+// never be run with the wrong statistics) and written beside it as YAML for people.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace deep_ois {
+
+// The UNet: `widths` are the channel counts of the encoder levels, the last one being the
+// bottleneck (one max-pool between consecutive levels, so widths.size() - 1 pools).
+struct UNetArchitecture {
+  std::vector<int> widths;
+  // "instance": conv -> InstanceNorm (no affine) -> ReLU, as the authors' network;
+  // "none": conv -> ReLU. Instance normalisation makes every feature map invariant to the scale of
+  // the input flow, which the authors' setting tolerates; "none" keeps the magnitude.
+  std::string normalization = "none";
+  // true: the network predicts a correction added to the (normalised) gyro flow; false: it predicts
+  // the compensated flow itself (the authors' formulation).
+  bool residual = true;
+};
+
+// Provenance of the weights, filled by the trainer (empty for an untrained model).
+struct TrainingRecord {
+  std::vector<std::string> data_files;
+  std::string data_hash;  // FNV-1a 64 of the training-set files' bytes, hex
+  std::size_t train_pairs = 0;
+  std::size_t validation_pairs = 0;
+  int epochs = 0;
+  int batch_size = 0;
+  double learning_rate = 0.0;
+  std::string loss;  // "l1" or "l2" (per flow component)
+  unsigned seed = 0;
+  // Per epoch: mean training loss, validation loss, and validation end-point error (pixels of the
+  // working grid) of the model and of the uncompensated gyro input against the targets.
+  std::vector<double> train_loss, validation_loss, validation_epe_px, validation_gyro_epe_px;
+  double training_time_s = 0.0;
+};
+
+struct ModelMetadata {
+  static constexpr int kFormatVersion = 1;
+
+  int format_version = kFormatVersion;
+  std::string preset;  // "fast", "paper" or "custom"
+  UNetArchitecture architecture;
+  // Size the network runs at; flows on any other grid are resampled to it and back.
+  cv::Size working_grid;
+  // Per-channel (u, v) statistics of the training gyro flows, in working-grid pixels: the network
+  // sees (flow - mean) / std.
+  std::array<double, 2> input_mean_px{{0.0, 0.0}};
+  std::array<double, 2> input_std_px{{1.0, 1.0}};
+  TrainingRecord training;
+
+  // Empty when usable; otherwise a sentence naming the field that is wrong.
+  std::string validate() const;
+  std::string toYaml() const;
+  // Throws std::runtime_error naming the missing or malformed field.
+  static ModelMetadata fromYaml(const std::string& yaml_text);
+};
+
+// The two presets of the README: "paper" (the authors' widths 32-64-128-256-256 with instance
+// normalisation at 360x270) and "fast" (real time on a 2-core CPU). Throws on an unknown name.
+ModelMetadata presetMetadata(const std::string& preset);
+
+}  // namespace deep_ois

@@ -1,0 +1,88 @@
+// ROS wrapper of the compensation network: for every gyro flow, the OIS-compensated flow and
+// frame a warped onto frame b.
+#pragma once
+
+#include <deep_ois/GyroFlow.h>
+#include <image_transport/image_transport.h>
+#include <ros/ros.h>
+#include <sensor_msgs/Image.h>
+
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "deep_ois/net/compensation_model.h"
+
+namespace deep_ois {
+
+struct CompensationParameters {
+  std::string model_path;        // ~model: the model file (required)
+  int torch_threads = 1;         // ~torch_threads: intra-op threads (process-wide in torch)
+  int image_queue_size = 5;      // ~image_queue_size
+  int gyro_flow_queue_size = 5;  // ~gyro_flow_queue_size
+  int image_cache_size = 30;     // ~image_cache_size: frames kept to pair with gyro flows
+  double max_wait_s = 1.0;       // ~max_wait: wall time a gyro flow waits for its images
+  int warp_iterations = 3;       // ~warp_iterations: fixed-point steps inverting the flow
+  double color_max_flow_px = 0.0;  // ~color_max_flow: as the gyro flow nodelet's
+};
+
+// Reads and checks the parameters; throws std::invalid_argument naming the bad one.
+CompensationParameters loadCompensationParameters(const ros::NodeHandle& private_nh);
+
+// Topics (relative to the node handle): subscribes `gyro_flow` (deep_ois/GyroFlow) and
+// `image_raw` (image_transport); publishes `compensated_flow` (deep_ois/GyroFlow: the gyro
+// message with the flow replaced by the network's), `compensated_flow/color` (rgb8),
+// `aligned/image_raw` (frame a warped onto frame b by the compensated flow, frame b's stamp and
+// frame a's encoding) and `aligned/ghost` (rgb8: red of frame b over green/blue of the aligned
+// frame a). Inputs are subscribed only while an output has a subscriber; each output is computed
+// only while it has one.
+//
+// Threading: callbacks run on the node handle's queue; one mutex guards the state. The network
+// runs inside the callback (a few ms with the fast preset).
+class CompensationRos {
+ public:
+  // Loads the model; throws ModelFileError naming the file and the problem, or
+  // std::invalid_argument for a bad parameter.
+  CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh);
+  ~CompensationRos();
+
+  CompensationRos(const CompensationRos&) = delete;
+  CompensationRos& operator=(const CompensationRos&) = delete;
+
+ private:
+  struct PendingFlow {
+    GyroFlowConstPtr flow;
+    ros::WallTime received;
+  };
+
+  void connectCallback();
+  void gyroFlowCallback(const GyroFlowConstPtr& msg);
+  void imageCallback(const sensor_msgs::ImageConstPtr& msg);
+  // Processes every pending gyro flow whose two frames are cached; drops those that waited too long.
+  void processPending();
+  sensor_msgs::ImageConstPtr cachedImage(const ros::Time& stamp) const;
+  void process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
+               const sensor_msgs::ImageConstPtr& image_b);
+  bool anyOutputWanted() const;
+
+  ros::NodeHandle nh_;
+  ros::NodeHandle private_nh_;
+  const CompensationParameters params_;
+  CompensationModel model_;
+
+  std::mutex mutex_;
+  image_transport::ImageTransport it_;
+  ros::Subscriber gyro_flow_sub_;
+  image_transport::Subscriber image_sub_;
+  ros::Publisher compensated_pub_;
+  image_transport::Publisher color_pub_;
+  image_transport::Publisher aligned_pub_;
+  image_transport::Publisher ghost_pub_;
+
+  std::deque<sensor_msgs::ImageConstPtr> images_;  // newest last
+  std::deque<PendingFlow> pending_;
+  std::size_t published_ = 0;
+};
+
+}  // namespace deep_ois

@@ -1,0 +1,24 @@
+// Reads the training-set bags of the offline Fundamental Mixtures job (deep_ois/TrainingPair
+// records) into plain samples for the trainer.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/training_sample.h"
+
+namespace deep_ois {
+
+struct TrainingSet {
+  std::vector<TrainingSample> samples;  // accepted records, in file order
+  std::size_t records = 0;              // every record read
+  // Records not usable as samples, by reason (the job's rejection reason, or what is malformed).
+  std::map<std::string, std::size_t> skipped_by_reason;
+};
+
+// Throws std::runtime_error naming the bag when one cannot be read or holds no record on `topic`.
+TrainingSet readTrainingSet(const std::vector<std::string>& bags,
+                            const std::string& topic = "/deep_ois/training_pair");
+
+}  // namespace deep_ois

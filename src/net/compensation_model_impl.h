@@ -1,0 +1,29 @@
+// Private to src/net: the torch side of CompensationModel, shared with the trainer.
+#pragma once
+
+#include <torch/torch.h>
+
+#include <opencv2/core.hpp>
+
+#include "deep_ois/net/compensation_model.h"
+#include "unet.h"
+
+namespace deep_ois {
+
+struct CompensationModel::Impl {
+  ModelMetadata metadata;
+  UNet net{nullptr};
+
+  // Normalised network input from flows already on the working grid: [batch, 2, H, W].
+  torch::Tensor normalise(const torch::Tensor& flow_px) const;
+  // Compensated flow (working-grid pixels) from the network output for the given input flow.
+  torch::Tensor denormalise(const torch::Tensor& network_output, const torch::Tensor& input_flow_px) const;
+  // Both steps around the network: flows in, compensated flows out, working-grid pixels.
+  torch::Tensor forward(const torch::Tensor& flow_px);
+};
+
+// CV_32FC2 HxW <-> [1, 2, H, W] float tensor (copies).
+torch::Tensor flowToTensor(const cv::Mat& flow);
+cv::Mat tensorToFlow(const torch::Tensor& tensor);
+
+}  // namespace deep_ois

@@ -1,0 +1,60 @@
+#include "deep_ois/ros/training_set_reader.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <stdexcept>
+
+#include "deep_ois/TrainingPair.h"
+#include "deep_ois/ros/conversions.h"
+
+namespace deep_ois {
+
+TrainingSet readTrainingSet(const std::vector<std::string>& bags, const std::string& topic) {
+  TrainingSet set;
+  for (const std::string& path : bags) {
+    std::size_t records_in_bag = 0;
+    try {
+      rosbag::Bag bag(path, rosbag::bagmode::Read);
+      rosbag::View view(bag, rosbag::TopicQuery(topic));
+      for (const rosbag::MessageInstance& instance : view) {
+        const TrainingPair::ConstPtr record = instance.instantiate<TrainingPair>();
+        if (!record) throw std::runtime_error("a message on " + topic + " is not a deep_ois/TrainingPair");
+        ++records_in_bag;
+        ++set.records;
+        if (!record->accepted) {
+          ++set.skipped_by_reason["rejected by the job: " + record->rejection_reason];
+          continue;
+        }
+        TrainingSample sample;
+        sample.gyro_homographies = unflattenMatrices(record->gyro_homographies);
+        sample.target_homographies = unflattenMatrices(record->target_homographies);
+        const std::size_t patches = record->patch_count;
+        if (patches == 0 || sample.gyro_homographies.size() != patches ||
+            sample.target_homographies.size() != patches) {
+          ++set.skipped_by_reason["malformed: homography counts differ from patch_count"];
+          continue;
+        }
+        sample.camera = CameraModel(static_cast<int>(record->image_width), static_cast<int>(record->image_height),
+                                    rowMajorToMatrix(record->K.data()),
+                                    record->distortion_model == "plumb_bob" ? record->D : std::vector<double>{});
+        const std::string problem = sample.camera.validate();
+        if (!problem.empty()) {
+          ++set.skipped_by_reason["malformed camera: " + problem];
+          continue;
+        }
+        sample.source = record->source_bag;
+        set.samples.push_back(std::move(sample));
+      }
+    } catch (const rosbag::BagException& e) {
+      throw std::runtime_error(path + ": " + e.what());
+    }
+    if (records_in_bag == 0) {
+      throw std::runtime_error(path + ": no deep_ois/TrainingPair on " + topic +
+                               " (is it a training set written by the fundamental_mixtures job?)");
+    }
+  }
+  return set;
+}
+
+}  // namespace deep_ois

@@ -1,0 +1,216 @@
+// Trains the compensation network on training-set bags of the Fundamental Mixtures job.
+//
+//   train --data gt.bag [more.bag ...] --out models/NAME.pt [--preset fast|paper] [--epochs 40]
+//         [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50]
+//         [--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1]
+//         [--threads 2] [--resume] [--max-pairs N]
+//
+// Writes NAME.pt (weights + metadata), NAME.yaml (the metadata, for people), NAME_loss.png and,
+// during training, NAME.checkpoint.pt (after every epoch; Ctrl-C writes it too; --resume goes on
+// from it).
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/content_hash.h"
+#include "deep_ois/core/line_plot.h"
+#include "deep_ois/core/portable_random.h"
+#include "deep_ois/core/progress_bar.h"
+#include "deep_ois/net/compensation_model.h"
+#include "deep_ois/net/flow_trainer.h"
+#include "deep_ois/ros/training_set_reader.h"
+
+namespace {
+
+std::atomic<bool> g_stop_requested{false};
+void onSignal(int) { g_stop_requested = true; }
+
+int usage(const std::string& problem) {
+  std::fprintf(stderr,
+               "train: %s\nusage: train --data GT.bag [GT.bag ...] --out models/NAME.pt [--preset fast|paper] "
+               "[--epochs N] [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50] "
+               "[--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1] [--threads 2] "
+               "[--resume] [--max-pairs N]\n",
+               problem.c_str());
+  return 2;
+}
+
+// Whole recordings go to validation (pairs of one recording are correlated): a seeded choice of
+// ceil(fraction * recordings) of them; with a single recording, its last pairs.
+void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double fraction, unsigned seed,
+                      std::vector<deep_ois::TrainingSample>& train, std::vector<deep_ois::TrainingSample>& validation) {
+  std::vector<std::string> sources;
+  for (const auto& sample : all) {
+    if (std::find(sources.begin(), sources.end(), sample.source) == sources.end()) sources.push_back(sample.source);
+  }
+  if (fraction <= 0.0) {
+    train = all;
+    return;
+  }
+  if (sources.size() < 2) {
+    const auto cut = static_cast<std::size_t>(static_cast<double>(all.size()) * (1.0 - fraction));
+    train.assign(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(cut));
+    validation.assign(all.begin() + static_cast<std::ptrdiff_t>(cut), all.end());
+    return;
+  }
+  std::sort(sources.begin(), sources.end());
+  std::mt19937 rng = deep_ois::streamGenerator(seed, 7777);
+  for (std::size_t i = sources.size(); i > 1; --i) {
+    const auto j = static_cast<std::size_t>(deep_ois::uniform01(rng) * static_cast<double>(i));
+    std::swap(sources[i - 1], sources[std::min(j, i - 1)]);
+  }
+  const auto held_out = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(fraction * sources.size())));
+  const std::set<std::string> validation_sources(sources.begin(), sources.begin() + static_cast<std::ptrdiff_t>(held_out));
+  for (const auto& sample : all) (validation_sources.count(sample.source) ? validation : train).push_back(sample);
+}
+
+std::string stripSuffix(const std::string& path, const std::string& suffix) {
+  if (path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
+    return path.substr(0, path.size() - suffix.size());
+  }
+  return path;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> data;
+  std::string out, preset = "fast";
+  deep_ois::TrainerOptions options;
+  double validation_fraction = 0.1;
+  int threads = 2;
+  std::size_t max_pairs = 0;
+  try {
+    for (int i = 1; i < argc; ++i) {
+      const std::string flag = argv[i];
+      const bool has_value = i + 1 < argc;
+      if (flag == "--data") {
+        while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0) data.push_back(argv[++i]);
+      } else if (flag == "--resume") {
+        options.resume = true;
+      } else if (!has_value) {
+        return usage("unknown flag or missing value: " + flag);
+      } else if (flag == "--out") {
+        out = argv[++i];
+      } else if (flag == "--preset") {
+        preset = argv[++i];
+      } else if (flag == "--epochs") {
+        options.epochs = std::stoi(argv[++i]);
+      } else if (flag == "--batch-size") {
+        options.batch_size = std::stoi(argv[++i]);
+      } else if (flag == "--lr") {
+        options.learning_rate = std::stod(argv[++i]);
+      } else if (flag == "--beta1") {
+        options.beta1 = std::stod(argv[++i]);
+      } else if (flag == "--beta2") {
+        options.beta2 = std::stod(argv[++i]);
+      } else if (flag == "--lr-decay-epochs") {
+        options.lr_decay_every_epochs = std::stoi(argv[++i]);
+      } else if (flag == "--lr-decay-factor") {
+        options.lr_decay_factor = std::stod(argv[++i]);
+      } else if (flag == "--loss") {
+        options.loss = argv[++i];
+      } else if (flag == "--validation-fraction") {
+        validation_fraction = std::stod(argv[++i]);
+      } else if (flag == "--seed") {
+        options.seed = static_cast<unsigned>(std::stoul(argv[++i]));
+      } else if (flag == "--threads") {
+        threads = std::stoi(argv[++i]);
+      } else if (flag == "--max-pairs") {
+        max_pairs = static_cast<std::size_t>(std::stoul(argv[++i]));
+      } else {
+        return usage("unknown flag: " + flag);
+      }
+    }
+  } catch (const std::exception&) {
+    return usage("a numeric flag has a value that is not a number");
+  }
+  if (data.empty()) return usage("--data needs at least one training-set bag");
+  if (out.empty()) return usage("--out is required (e.g. models/fast.pt)");
+  if (validation_fraction < 0.0 || validation_fraction >= 1.0) return usage("--validation-fraction must be in [0, 1)");
+
+  const std::string stem = stripSuffix(out, ".pt");
+  options.checkpoint_path = stem + ".checkpoint.pt";
+  try {
+    deep_ois::setTorchThreads(threads);
+    deep_ois::CompensationModel model(deep_ois::presetMetadata(preset), options.seed);
+
+    const deep_ois::TrainingSet set = deep_ois::readTrainingSet(data);
+    std::fprintf(stderr, "train: %zu records in %zu bag(s), %zu usable\n", set.records, data.size(), set.samples.size());
+    for (const auto& [reason, count] : set.skipped_by_reason) std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
+    std::vector<deep_ois::TrainingSample> samples = set.samples;
+    if (max_pairs > 0 && samples.size() > max_pairs) samples.resize(max_pairs);
+    std::vector<deep_ois::TrainingSample> train, validation;
+    splitByRecording(samples, validation_fraction, options.seed, train, validation);
+    std::fprintf(stderr, "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d), %d threads\n",
+                 train.size(), validation.size(), preset.c_str(), model.metadata().working_grid.width,
+                 model.metadata().working_grid.height, threads);
+
+    std::signal(SIGINT, onSignal);
+    std::signal(SIGTERM, onSignal);
+    options.stop_requested = &g_stop_requested;
+    const std::size_t steps_per_epoch = (train.size() + options.batch_size - 1) / options.batch_size;
+    std::unique_ptr<deep_ois::ProgressBar> bar;
+    int bar_first_epoch = -1;
+    auto on_step = [&](const deep_ois::TrainingProgress& p) {
+      if (!bar) {  // created at the first step, so a resumed run counts only what is left
+        bar_first_epoch = p.epoch;
+        bar = std::make_unique<deep_ois::ProgressBar>(
+            static_cast<std::size_t>(p.epochs - p.epoch + 1) * steps_per_epoch, "steps");
+      }
+      char note[96];
+      std::snprintf(note, sizeof(note), "epoch %d/%d, loss %.4f", p.epoch, p.epochs, p.running_loss);
+      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * steps_per_epoch + p.step, note);
+    };
+    auto on_epoch = [&](int epoch, const deep_ois::TrainingRecord& record) {
+      std::fprintf(stderr,
+                   "\ntrain: epoch %d: train loss %.4f, validation loss %.4f, validation EPE %.4f px "
+                   "(gyro input %.4f px), working-grid pixels\n",
+                   epoch, record.train_loss.back(), record.validation_loss.back(), record.validation_epe_px.back(),
+                   record.validation_gyro_epe_px.back());
+    };
+    const deep_ois::TrainingOutcome outcome =
+        deep_ois::trainCompensationModel(model, train, validation, options, on_step, on_epoch);
+    if (outcome.resumed) std::fprintf(stderr, "train: resumed after epoch %d\n", outcome.resumed_from_epoch);
+    if (outcome.stopped_early) {
+      std::fprintf(stderr, "\ntrain: stopped after %d epochs; checkpoint %s (continue with --resume)\n",
+                   outcome.epochs_done, options.checkpoint_path.c_str());
+      return 130;
+    }
+
+    deep_ois::TrainingRecord& record = model.metadata().training;
+    record.data_files = data;
+    record.data_hash = deep_ois::fnv1aHashOfFiles(data);
+    model.save(out);
+    std::ofstream yaml(stem + ".yaml");
+    yaml << "# Metadata of " << out << " (also stored inside it).\n" << model.metadata().toYaml();
+    if (!yaml) throw std::runtime_error("cannot write " + stem + ".yaml");
+    const cv::Mat plot = deep_ois::drawLinePlot(
+        {{"training loss", record.train_loss, cv::Scalar(200, 80, 0)},
+         {"validation loss", record.validation_loss, cv::Scalar(0, 120, 230)}},
+        "deep_ois " + preset + ": " + options.loss + " loss per epoch", "epoch", "loss (px)", true);
+    if (!cv::imwrite(stem + "_loss.png", plot)) throw std::runtime_error("cannot write " + stem + "_loss.png");
+    std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n", out.c_str(),
+                stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);
+    if (!record.validation_epe_px.empty()) {
+      std::printf("train: validation EPE %.4f px vs gyro input %.4f px (working grid %dx%d)\n",
+                  record.validation_epe_px.back(), record.validation_gyro_epe_px.back(),
+                  model.metadata().working_grid.width, model.metadata().working_grid.height);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "\ntrain: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
