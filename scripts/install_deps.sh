@@ -16,7 +16,7 @@ packages=(
   # client libraries
   libroscpp-dev libroslib-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
-  libmessage-filters-dev librosbag-dev librosbag-storage-dev
+  libmessage-filters-dev librosbag-dev librosbag-storage-dev libcamera-calibration-parsers-dev
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic
