@@ -1,6 +1,10 @@
 #!/usr/bin/env bash
 # Installs every Debian bookworm package deep_ois needs to build, run and test.
 # Idempotent: apt-get skips what is already installed. Needs root (or sudo).
+#   --visualisation  also rviz (launch/replay.launch rviz:=true, rviz/deep_ois.rviz) and the tools
+#                    for headless screenshots (Xvfb, ImageMagick's import). Optional: rviz pulls
+#                    Qt5, Ogre and OpenGL (~270 packages) that building, testing and the demo
+#                    do not need.
 set -euo pipefail
 
 packages=(
@@ -23,6 +27,10 @@ packages=(
   # maths, vision, tests
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
 )
+
+if [ "${1:-}" = "--visualisation" ]; then
+  packages+=(rviz xvfb imagemagick)
+fi
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
