@@ -14,7 +14,9 @@ namespace deep_ois {
 
 struct CorrespondenceProposerOptions {
   int max_candidates = 12;            // per pair, strongest corners first
-  double min_distance_px = 25.0;      // between two candidates of a pair
+  // Between two detected corners of a pair; cornerSubPix may then move each by up to
+  // subpixel_half_window_px per axis.
+  double min_distance_px = 25.0;
   double corner_quality = 0.02;       // Shi-Tomasi threshold, relative to the region's best corner
   int corner_block_px = 7;            // Shi-Tomasi gradient window
   int subpixel_half_window_px = 4;    // cornerSubPix window (2 n + 1 pixels) in frame a
