@@ -1,6 +1,10 @@
 #!/usr/bin/env bash
 # Installs every Debian bookworm package deep_ois needs to build, run and test.
 # Idempotent: apt-get skips what is already installed. Needs root (or sudo).
+#   --visualisation  also rviz (launch/replay.launch rviz:=true, rviz/deep_ois.rviz) and the tools
+#                    for headless screenshots (Xvfb, ImageMagick's import). Optional: rviz pulls
+#                    Qt5, Ogre and OpenGL (~270 packages) that building, testing and the demo
+#                    do not need.
 set -euo pipefail
 
 packages=(
@@ -16,13 +20,17 @@ packages=(
   # client libraries
   libroscpp-dev libroslib-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
-  libmessage-filters-dev librosbag-dev librosbag-storage-dev
+  libmessage-filters-dev librosbag-dev librosbag-storage-dev libcamera-calibration-parsers-dev
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic
   # maths, vision, tests
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
 )
+
+if [ "${1:-}" = "--visualisation" ]; then
+  packages+=(rviz xvfb imagemagick)
+fi
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

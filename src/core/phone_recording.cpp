@@ -2,7 +2,10 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cctype>
 #include <cstdlib>
+#include <filesystem>
+#include <map>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -142,6 +145,51 @@ std::vector<double> parseFrameStamps(std::istream& in, const std::string& source
 std::vector<double> loadFrameStamps(const std::string& path) {
   std::ifstream in = openOrThrow(path);
   return parseFrameStamps(in, path);
+}
+
+std::vector<FrameImageFile> listFrameImages(const std::string& directory) {
+  namespace fs = std::filesystem;
+  static const char* const kImageExtensions[] = {".jpg", ".jpeg", ".png", ".bmp",
+                                                 ".pgm", ".ppm",  ".tif", ".tiff"};
+  std::error_code error;
+  if (!fs::is_directory(directory, error)) {
+    throw RecordingFormatError(directory, 0, "not a folder (expected the frame images)");
+  }
+  std::map<int, std::string> by_index;
+  for (const fs::directory_entry& entry : fs::directory_iterator(directory, error)) {
+    if (!entry.is_regular_file()) continue;
+    std::string extension = entry.path().extension().string();
+    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    bool is_image = false;
+    for (const char* known : kImageExtensions) is_image = is_image || extension == known;
+    if (!is_image) continue;
+    const std::string stem = entry.path().stem().string();
+    const std::string path = entry.path().string();
+    std::size_t digits_start = stem.size();
+    while (digits_start > 0 && std::isdigit(static_cast<unsigned char>(stem[digits_start - 1]))) {
+      --digits_start;
+    }
+    const std::string digits = stem.substr(digits_start);
+    if (digits.empty() || digits.size() > 9) {
+      throw RecordingFormatError(path, 0,
+                                 "the image name must end in its frame index (the 0-based line of "
+                                 "the frame stamp list), e.g. frame-42.jpg");
+    }
+    const int index = std::stoi(digits);
+    const auto [it, inserted] = by_index.emplace(index, path);
+    if (!inserted) {
+      throw RecordingFormatError(path, 0,
+                                 "frame index " + std::to_string(index) + " is also the index of " +
+                                     it->second);
+    }
+  }
+  if (error) throw RecordingFormatError(directory, 0, "cannot list the folder: " + error.message());
+  if (by_index.empty()) {
+    throw RecordingFormatError(directory, 0, "no images (.jpg .jpeg .png .bmp .pgm .ppm .tif .tiff)");
+  }
+  std::vector<FrameImageFile> files;
+  for (const auto& [index, path] : by_index) files.push_back({index, path});
+  return files;
 }
 
 PhoneRecording loadPhoneRecording(const std::string& directory) {

@@ -7,24 +7,16 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/distortion_models.h>
 #include <sensor_msgs/image_encodings.h>
-#include <tf2_msgs/TFMessage.h>
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
 #include "deep_ois/ros/conversions.h"
+#include "deep_ois/ros/recording_bag_messages.h"
 
 namespace deep_ois {
 
 namespace {
-
-// Simulation seconds -> ROS time. The epoch's whole seconds and the offset are added as integers
-// and a Duration, so stamps keep nanosecond resolution.
-ros::Time toRosTime(double epoch_s, double t_s) {
-  const double whole = std::floor(epoch_s);
-  return ros::Time(static_cast<uint32_t>(whole), 0) + ros::Duration(epoch_s - whole + t_s);
-}
 
 // One message to write, ordered by bag time.
 struct Pending {
@@ -51,49 +43,22 @@ SimulationBagStats writeSimulationBag(const sim::Simulator& simulator, const std
 
   // Static transform, latched like a tf_static publisher, at the time of the first message.
   const ros::Time first_time = toRosTime(epoch, std::min(simulator.imu().front().stamp_s, -0.1));
-  {
-    tf2_msgs::TFMessage tf;
-    geometry_msgs::TransformStamped transform;
-    transform.header.stamp = first_time;
-    transform.header.frame_id = config.imu_frame_id;  // parent
-    transform.child_frame_id = config.camera_frame_id;
-    // The camera's orientation in the IMU frame is R_imu_cam = R_cam_imu^T, so that
-    // lookupTransform(camera, imu) yields R_cam_imu.
-    const Eigen::Quaterniond q(Eigen::Matrix3d(config.imu.imu_to_camera_rotation.transpose()));
-    transform.transform.rotation.w = q.w();
-    transform.transform.rotation.x = q.x();
-    transform.transform.rotation.y = q.y();
-    transform.transform.rotation.z = q.z();
-    tf.transforms.push_back(transform);
-    // A custom connection header replaces rosbag's own: it must carry the type too.
-    auto header = boost::make_shared<ros::M_string>();
-    (*header)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
-    (*header)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
-    (*header)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();
-    (*header)["callerid"] = "/deep_ois_simulator";
-    (*header)["latching"] = "1";
-    bag.write(topics.tf_static, first_time, tf, header);
-  }
+  writeLatched(bag, topics.tf_static, first_time,
+               makeImuToCameraTransform(first_time, config.imu_frame_id, config.camera_frame_id,
+                                        config.imu.imu_to_camera_rotation),
+               "/deep_ois_simulator");
 
   // IMU and lens-shift streams, merged with the frames in time order.
   std::vector<Pending> stream;
   const double gyro_sigma = config.imu.gyro_noise_density * std::sqrt(config.imu.rate_hz / 2.0);
   const double accel_sigma = config.imu.accel_noise_density * std::sqrt(config.imu.rate_hz / 2.0);
   for (const sim::ImuMeasurement& m : simulator.imu()) {
-    sensor_msgs::Imu imu;
-    imu.header.stamp = toRosTime(epoch, m.stamp_s);
-    imu.header.frame_id = config.imu_frame_id;
-    imu.orientation_covariance[0] = -1.0;  // no orientation estimate
-    imu.angular_velocity.x = m.angular_velocity_rad_s.x();
-    imu.angular_velocity.y = m.angular_velocity_rad_s.y();
-    imu.angular_velocity.z = m.angular_velocity_rad_s.z();
+    sensor_msgs::Imu imu = makeGyroImuMessage(toRosTime(epoch, m.stamp_s), config.imu_frame_id,
+                                              m.angular_velocity_rad_s, gyro_sigma * gyro_sigma);
     imu.linear_acceleration.x = m.linear_acceleration_m_s2.x();
     imu.linear_acceleration.y = m.linear_acceleration_m_s2.y();
     imu.linear_acceleration.z = m.linear_acceleration_m_s2.z();
-    for (int i = 0; i < 3; ++i) {
-      imu.angular_velocity_covariance[4 * i] = gyro_sigma * gyro_sigma;
-      imu.linear_acceleration_covariance[4 * i] = accel_sigma * accel_sigma;
-    }
+    for (int i = 0; i < 3; ++i) imu.linear_acceleration_covariance[4 * i] = accel_sigma * accel_sigma;
     stream.push_back({imu.header.stamp, [&bag, &topics, &stats, imu] {
                         bag.write(topics.imu, imu.header.stamp, imu);
                         ++stats.imu_messages;

@@ -37,6 +37,19 @@ std::vector<ImuSample> loadGyroCsv(const std::string& path);
 std::vector<double> parseFrameStamps(std::istream& in, const std::string& source_name);
 std::vector<double> loadFrameStamps(const std::string& path);
 
+// One image of a recording's frame folder. The integer that ends the file name (before the
+// extension) is the frame index, i.e. the 0-based line of the frame stamp list: RE_frame-99.jpg is
+// frame 99.
+struct FrameImageFile {
+  int index = 0;
+  std::string path;
+};
+
+// The images (.jpg .jpeg .png .bmp .pgm .ppm .tif .tiff, any case) of `directory`, sorted by frame
+// index; other files are ignored. Throws RecordingFormatError for a missing folder, a folder
+// without images, an image name that does not end in an index, or two images with one index.
+std::vector<FrameImageFile> listFrameImages(const std::string& directory);
+
 // A whole recording: gyro and frame stamps share one clock.
 struct PhoneRecording {
   std::vector<ImuSample> gyro;

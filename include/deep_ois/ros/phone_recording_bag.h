@@ -1,0 +1,82 @@
+// Converts a phone recording in the cc9pro layout (gyro CSV, frame stamp list, a folder of frame
+// images, camera intrinsics) into the rosbag a robot would have recorded: camera images,
+// camera_info, gyro Imu messages and the static IMU -> camera transform.
+#pragma once
+
+#include <rosbag/bag.h>
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+
+namespace deep_ois {
+
+// Where the parts of a recording are.
+struct PhoneRecordingFiles {
+  std::string gyro_csv;      // rows wx,wy,wz,t: rad/s in the IMU frame, seconds
+  std::string frame_stamps;  // line i (0-based) = stamp of frame i, seconds, same clock as the gyro
+  std::string images_dir;    // frame images, the file name ending in the frame index
+  std::string camera_info;   // ROS camera calibration file (YAML or INI, camera_calibration_parsers)
+};
+
+// The cc9pro layout under `directory`: gyro.txt, framestamp.txt, frames/. The intrinsics are not
+// part of that layout (camera_info stays empty).
+PhoneRecordingFiles cc9proLayout(const std::string& directory);
+
+// R_cam_imu of the Xiaomi CC9 Pro recording: the proper form of the authors' (wy, wx, wz) axis swap
+// (see ../shared/data/cc9pro/README.md and the README's measured figures).
+Eigen::Matrix3d cc9proImuToCameraRotation();
+
+struct PhoneRecordingBagOptions {
+  std::string image_topic = "/camera/image_raw";
+  std::string camera_info_topic = "/camera/camera_info";
+  std::string imu_topic = "/imu/data";
+  std::string tf_static_topic = "/tf_static";
+  std::string camera_frame_id = "camera_optical_frame";
+  std::string imu_frame_id = "imu_link";
+  // R_cam_imu: a gyro vector v in the IMU frame is R * v in the camera optical frame.
+  Eigen::Matrix3d imu_to_camera_rotation = cc9proImuToCameraRotation();
+  // Seconds added to every stamp, gyro and frames alike: moves the recording's clock (a phone's
+  // boot clock for cc9pro) to another one, e.g. Unix time. 0 keeps the recording's own stamps.
+  double clock_offset_s = 0.0;
+  // Seconds added to the frame stamps only, to turn what the recording's stamps mean into the
+  // package's convention (stamp = start of readout of the first row). 0 for cc9pro, whose stamps
+  // are start-of-frame (SOF) already; e.g. -readout_time for stamps taken at the end of readout.
+  double frame_stamp_offset_s = 0.0;
+  // Gyro samples kept before the first and after the last frame stamp, seconds (the gyro flow
+  // of the first and last pair needs samples around them; a time offset moves that window).
+  double imu_margin_s = 0.5;
+  rosbag::compression::CompressionType compression = rosbag::compression::LZ4;
+};
+
+struct PhoneRecordingBagStats {
+  int frames = 0;
+  int first_frame_index = 0;
+  int last_frame_index = 0;
+  int skipped_frame_indices = 0;  // indices between first and last without an image
+  int imu_messages = 0;
+  int width_px = 0;
+  int height_px = 0;
+  std::string encoding;  // rgb8 or mono8
+  ros::Time first_frame_stamp;
+  ros::Time last_frame_stamp;
+};
+
+// Writes the bag at `bag_path`, messages in time order, bag time = header stamp:
+//  - image_topic: sensor_msgs/Image, mono8 for single-channel images, rgb8 otherwise (alpha
+//    dropped); stamp = frame stamp (+ clock and frame offsets), rounded to the nanosecond.
+//  - camera_info_topic: the calibration file's CameraInfo, one per image with the image's header.
+//  - imu_topic: sensor_msgs/Imu per gyro row inside the frames' span +- imu_margin_s; angular
+//    velocity as recorded (IMU frame), orientation covariance[0] = -1 (none), gyro covariance
+//    all zero (unknown), no accelerometer (linear_acceleration_covariance[0] = -1).
+//  - tf_static_topic: imu_frame_id -> camera_frame_id from imu_to_camera_rotation, latched.
+// `progress(frames_done, frames_total)` is called after each frame. Throws RecordingFormatError
+// naming the file (and line) for malformed or inconsistent inputs: all but the image contents are
+// checked before the bag is created; an image that cannot be decoded or does not fit removes the
+// partly written bag. std::invalid_argument for bad options; rosbag::BagException when the bag
+// cannot be written.
+PhoneRecordingBagStats writePhoneRecordingBag(const PhoneRecordingFiles& files, const std::string& bag_path,
+                                              const PhoneRecordingBagOptions& options,
+                                              const std::function<void(int, int)>& progress = nullptr);
+
+}  // namespace deep_ois
