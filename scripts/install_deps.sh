@@ -26,6 +26,8 @@ packages=(
   python3-rostest librostest-dev python3-rosnode python3-rostopic
   # maths, vision, tests
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
+  # the compensation network (CPU libtorch 1.13)
+  libtorch-dev
 )
 
 if [ "${1:-}" = "--visualisation" ]; then

@@ -20,6 +20,14 @@
 namespace deep_ois {
 namespace {
 
+// One torch thread: OpenMP worker threads spin-wait, which turns a 2-core machine running other
+// jobs (CI) into a crawl.
+class OneTorchThread : public ::testing::Environment {
+ public:
+  void SetUp() override { setTorchThreads(1); }
+};
+::testing::Environment* const kOneTorchThread = ::testing::AddGlobalTestEnvironment(new OneTorchThread);
+
 std::string tempPath(const std::string& name) {
   return "/tmp/deep_ois_test_net_" + std::to_string(::getpid()) + "_" + name;
 }
@@ -198,7 +206,6 @@ std::vector<TrainingSample> syntheticSet(int count, unsigned seed) {
 }
 
 TEST(FlowTrainer, AShortRunLowersTheLossAndResumesFromItsCheckpoint) {
-  setTorchThreads(2);
   const std::vector<TrainingSample> train = syntheticSet(48, 1), validation = syntheticSet(16, 2);
   TrainerOptions options;
   options.epochs = 6;
