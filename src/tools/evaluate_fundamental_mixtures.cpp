@@ -15,7 +15,7 @@
 //
 //   evaluate_fundamental_mixtures --bags a.bag [b.bag ...] [--out DIR]
 //       [--sigma FRACTION] [--lambda L] [--unit-norm] [--rotation-tie L]
-//       [--paper-selection] [--max-parallax-share S]
+//       [--paper-selection] [--max-parallax-share S] [--inlier-threshold PX]
 //
 // The tracker and solver run with the offline job's defaults; the flags override solver options
 // (for the study behind the defaults; --paper-selection keeps the F rotations whenever F can be
@@ -51,7 +51,8 @@ int usage(const std::string& problem) {
   std::fprintf(stderr,
                "evaluate_fundamental_mixtures: %s\nusage: evaluate_fundamental_mixtures --bags "
                "FILE.bag [FILE.bag ...] [--out DIR] [--sigma FRACTION] [--lambda L] "
-               "[--unit-norm] [--rotation-tie L] [--paper-selection] [--max-parallax-share S]\n",
+               "[--unit-norm] [--rotation-tie L] [--paper-selection] [--max-parallax-share S] "
+               "[--inlier-threshold PX]\n",
                problem.c_str());
   return 2;
 }
@@ -140,6 +141,8 @@ int main(int argc, char** argv) {
         solver.smoothness_lambda = std::stod(argv[++i]);
       } else if (flag == "--rotation-tie" && has_value) {
         solver.rotation_tie_lambda = std::stod(argv[++i]);
+      } else if (flag == "--inlier-threshold" && has_value) {
+        solver.inlier_threshold_px = std::stod(argv[++i]);
       } else if (flag == "--paper-selection") {
         solver.model_selection = deep_ois::ModelSelection::kFundamental;
       } else if (flag == "--max-parallax-share" && has_value) {

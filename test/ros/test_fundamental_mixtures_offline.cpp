@@ -207,10 +207,12 @@ TEST(FundamentalMixturesOffline, TargetsMatchTheTrueMotionAndABrokenBagCostsOnly
   std::cout << "\n";
   EXPECT_GE(accepted * 4, records.size() * 3)
       << "a textured RE scene should give most pairs a target";
-  // Measured (seed 7, 0.5 s, RE): target 1.21 px median corner difference, gyro 1.98 px;
-  // geometry distance 1.55 px vs 1.98 px. The target is not exact: the translation parallax of
-  // the near planes and the per-patch rotation noise of F (see fundamental_mixtures.h) remain.
-  EXPECT_LT(median(target_px), 1.6);
+  // Measured (seed 7, 0.5 s, RE; all 15 pairs rotation-only, see ModelSelection): target 0.53 px
+  // median corner difference, gyro 1.98 px; geometry distance 0.31 px vs 1.98 px. (With the F
+  // rotations, as the paper: 1.21 px and 1.55 px.) The target is not exact: the translation
+  // parallax of the near planes remains.
+  EXPECT_LT(median(target_px), 0.8);
+  EXPECT_LT(target_distance_px / accepted, 0.5);
   EXPECT_LT(median(target_px), median(gyro_px))
       << "the target must see the OIS motion the gyro misses";
   EXPECT_LT(target_distance_px, gyro_distance_px);
@@ -220,7 +222,7 @@ TEST(FundamentalMixturesOffline, TargetsMatchTheTrueMotionAndABrokenBagCostsOnly
 // problem, keeps every pair it could read before the chunk, goes on with the next bag, and closes
 // the output cleanly.
 TEST(FundamentalMixturesOffline, CorruptChunkKeepsEveryPairBeforeIt) {
-  const std::string intact = writeBag(9, 0.6, "fm_intact_bz2", rosbag::compression::BZ2);
+  const std::string intact = writeBag(9, 0.45, "fm_intact_bz2", rosbag::compression::BZ2);
   const std::string corrupt = ::testing::TempDir() + "/fm_corrupt_chunk.bag";
   int corrupted = -1;
   const int chunks = corruptMiddleChunk(intact, corrupt, &corrupted);
