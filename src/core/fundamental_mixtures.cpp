@@ -731,18 +731,6 @@ RotationFit fitRotations(const Problem& problem, const FundamentalMixturesOption
   return fit;
 }
 
-// Torr's GRIC: sum rho(e^2 / sigma^2) + lambda1 d n + lambda2 k, r = 4 (two 2-D points).
-double gric(const std::vector<double>& squared_errors_px2, double sigma_px, int manifold_dim,
-            int parameter_count) {
-  const double n = static_cast<double>(squared_errors_px2.size());
-  const double cap = 2.0 * (4.0 - manifold_dim);
-  double sum = 0.0;
-  for (double e2 : squared_errors_px2) {
-    sum += std::min(std::isfinite(e2) ? e2 / (sigma_px * sigma_px) : cap, cap);
-  }
-  return sum + std::log(4.0) * manifold_dim * n + std::log(4.0 * n) * parameter_count;
-}
-
 FundamentalMixturesResult reject(FundamentalMixturesStatus status, const std::string& reason) {
   FundamentalMixturesResult result;
   result.status = status;
@@ -842,43 +830,25 @@ FundamentalMixturesResult estimate(const std::vector<FeatureMatch>& matches,
 
   FundamentalMixturesResult result;
   std::vector<Eigen::Matrix3d> R_model;
-  bool use_fundamental = false;
-  std::vector<double> e2_rotation(n), e2_fundamental(n);
-  if (rotation.ok) {
+  // Model selection (see ModelSelection): tracks with visible parallax are the F inliers that the
+  // rotation-only fit rejects.
+  bool use_fundamental = mixture.ok && !rotation.ok;
+  if (mixture.ok && rotation.ok) {
+    int f_inliers = 0, parallax = 0;
     for (int j = 0; j < n; ++j) {
-      const Eigen::Matrix3d H = problem.K * rotation.R[problem.model_patch[j]] * problem.K_inv;
-      // Transfer error ~ sqrt(2) x the orthogonal distance in the joint 4-D space GRIC uses.
-      e2_rotation[j] = 0.5 * std::pow(transferError(H, problem.tracks[j]), 2);
+      if (!mixture.inliers[j]) continue;
+      ++f_inliers;
+      if (!rotation.inliers[j]) ++parallax;
     }
-  }
-  std::vector<Eigen::Matrix3d> R_fundamental;
-  double noise_sigma_px = o.gric_min_noise_sigma_px;
-  if (mixture.ok) {
-    for (int j = 0; j < n; ++j) {
-      const Track& t = problem.tracks[j];
-      e2_fundamental[j] =
-          std::pow(sampsonDistance(mixtureAt(problem, mixture.F_px, j), t.a_px, t.b_px), 2);
-    }
-    // Noise from the general model's inliers (median |Sampson| = 0.6745 sigma), floored so
-    // noise-free data still has a finite scale.
-    std::vector<double> inlier_sampson;
-    for (int j = 0; j < n; ++j) {
-      if (mixture.inliers[j]) inlier_sampson.push_back(std::sqrt(e2_fundamental[j]));
-    }
-    noise_sigma_px = std::max(o.gric_min_noise_sigma_px, 1.4826 * median(inlier_sampson));
-    // Rotation per patch plus a shared translation direction: 3N + 2 parameters.
-    result.gric_fundamental = gric(e2_fundamental, noise_sigma_px, 3, 3 * problem.model_count + 2);
-    if (rotation.ok) {
-      result.gric_rotation = gric(e2_rotation, noise_sigma_px, 2, 3 * problem.model_count);
-    }
-    R_fundamental = mixture.R;
-    use_fundamental = !rotation.ok || result.gric_fundamental < result.gric_rotation;
+    result.parallax_share = static_cast<double>(parallax) / f_inliers;
+    use_fundamental = o.model_selection == ModelSelection::kFundamental ||
+                      result.parallax_share > o.max_parallax_share;
   }
 
   std::vector<bool> inliers;
   if (use_fundamental) {
     result.model = global ? MotionModel::kGlobalFundamental : MotionModel::kFundamentalMixtures;
-    R_model = R_fundamental;
+    R_model = mixture.R;
     inliers = mixture.inliers;
     for (int i = 0; i < N; ++i) result.fundamentals.push_back(mixture.F_px[global ? 0 : i]);
   } else if (rotation.ok) {
@@ -961,9 +931,8 @@ std::string FundamentalMixturesOptions::validate() const {
     why << "ransac_confidence must be in (0, 1) (got " << ransac_confidence << ")";
   } else if (refinement_iterations < 1) {
     why << "refinement_iterations must be at least 1 (got " << refinement_iterations << ")";
-  } else if (!(gric_min_noise_sigma_px > 0.0) || !std::isfinite(gric_min_noise_sigma_px)) {
-    why << "gric_min_noise_sigma_px must be positive and finite (got " << gric_min_noise_sigma_px
-        << ")";
+  } else if (!(max_parallax_share >= 0.0 && max_parallax_share <= 1.0)) {
+    why << "max_parallax_share must be in [0, 1] (got " << max_parallax_share << ")";
   }
   return why.str();
 }

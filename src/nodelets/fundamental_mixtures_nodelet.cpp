@@ -1,7 +1,11 @@
 // Nodelet shell of deep_ois::FundamentalMixturesOffline: runs the offline job once, in its own
-// thread (a long job must not block the manager's onInit), and logs the summary. Unloading the
-// nodelet sets the stop flag; the job closes the output bag after the current pair.
+// thread (a long job must not block the manager's onInit), logs the summary and publishes it,
+// latched, on ~summary (std_msgs/String) so that scripts and tests can wait for the end. Unloading
+// the nodelet (also when its manager shuts down on Ctrl-C) sets the stop flag; the job closes the
+// output bag after the current pair.
 #include <nodelet/nodelet.h>
+#include <ros/publisher.h>
+#include <std_msgs/String.h>
 
 #include <atomic>
 #include <memory>
@@ -29,19 +33,25 @@ class FundamentalMixturesNodelet : public nodelet::Nodelet {
       NODELET_FATAL("%s", e.what());
       throw;
     }
+    summary_publisher_ = getPrivateNodeHandle().advertise<std_msgs::String>("summary", 1, true);
     worker_ = std::thread([this] {
+      std_msgs::String summary_msg;
       try {
         const FundamentalMixturesSummary summary = job_->run(&stop_);
         std::string text = summary.text();
         if (!text.empty() && text.back() == '\n') text.pop_back();
         NODELET_INFO("wrote %s: %s", job_->options().output_path.c_str(), text.c_str());
+        summary_msg.data = "wrote " + job_->options().output_path + ": " + text;
       } catch (const std::exception& e) {
         NODELET_ERROR("%s", e.what());
+        summary_msg.data = std::string("failed: ") + e.what();
       }
+      summary_publisher_.publish(summary_msg);
     });
   }
 
   std::atomic<bool> stop_{false};
+  ros::Publisher summary_publisher_;
   std::unique_ptr<FundamentalMixturesOffline> job_;
   std::thread worker_;  // declared last: joined (in the destructor) before the job goes away
 };

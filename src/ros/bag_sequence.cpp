@@ -1,5 +1,6 @@
 #include "deep_ois/ros/bag_sequence.h"
 
+#include <ros/exception.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -9,6 +10,7 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <Eigen/Geometry>
+#include <sstream>
 #include <stdexcept>
 
 #include "deep_ois/ros/conversions.h"
@@ -22,7 +24,8 @@ ImuSampleBuffer BagSequence::imuBuffer() const {
   return buffer;
 }
 
-BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics) {
+BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics,
+                            BagReadFailure on_failure) {
   BagSequence sequence;
   sequence.path = path;
   auto fail = [&](const std::string& what) { throw std::runtime_error(path + ": " + what); };
@@ -36,6 +39,7 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
   bool have_base = false;
   std::size_t rejected_imu = 0;
   std::string first_imu_problem;
+  ros::Time reading;  // bag time of the message being read
   try {
     rosbag::View view(bag, rosbag::TopicQuery({topics.camera_info, topics.imu, topics.frame_pair_truth,
                                                std::string("/tf_static")}));
@@ -45,6 +49,7 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
         sequence.time_base = ros::Time(m.getTime().sec, 0);
         have_base = true;
       }
+      reading = m.getTime();
       if (m.getTopic() == topics.imu) {
         const auto imu = m.instantiate<sensor_msgs::Imu>();
         if (!imu) continue;
@@ -78,9 +83,16 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
         for (const auto& transform : tf->transforms) tf_buffer.setTransform(transform, "bag", true);
       }
     }
-  } catch (const rosbag::BagException& e) {
-    // A truncated or corrupt bag: report it rather than silently using part of it.
-    fail(std::string("reading failed: ") + e.what());
+  } catch (const ros::Exception& e) {
+    // rosbag::BagException (a chunk that does not decompress) or a serialization error (a message
+    // whose bytes are damaged). A corrupt bag: report it rather than silently using part of it, unless the caller keeps the
+    // part before the failure (and reports it itself).
+    if (on_failure == BagReadFailure::kThrow) fail(std::string("reading failed: ") + e.what());
+    std::ostringstream why;
+    why << path << ": the bag is corrupt: reading stopped at bag time " << reading << ", after "
+        << sequence.frame_stamps.size() << " camera_info and " << sequence.imu_samples.size()
+        << " IMU messages: " << e.what();
+    sequence.read_error = why.str();
   }
   if (!sequence.camera) fail("no camera_info on " + topics.camera_info);
   if (rejected_imu > 0) {

@@ -117,11 +117,14 @@ TrainingPair processPair(const BagContext& bag, const BagFrame& a, const BagFram
 }
 
 // Streams one input bag into `output`. Throws std::runtime_error naming the bag; records written
-// before the error stay in `output`.
+// before the error stay in `output`. A corrupt chunk part-way through costs only the pairs from
+// there on: the pairs before it are computed from what could be read (a pair whose IMU samples
+// lay in the corrupt chunk is written as rejected by the gyro), then the error is thrown.
 void processBag(const std::string& path, const FundamentalMixturesOfflineOptions& options,
                 rosbag::Bag& output, ProgressBar* progress, FundamentalMixturesSummary& summary,
                 const std::atomic<bool>* stop) {
-  const BagSequence sequence = readBagSequence(path, options.topics);
+  const BagSequence sequence =
+      readBagSequence(path, options.topics, BagReadFailure::kKeepPrefix);
   RollingShutterConfig rs = options.gyro.rolling_shutter;
   if (options.gyro.rotation_from_tf) {
     if (!sequence.imu_to_camera_rotation) {
@@ -156,6 +159,8 @@ void processBag(const std::string& path, const FundamentalMixturesOfflineOptions
     if (progress) progress->update(summary.pairs_done);
     std::swap(previous, current);
   }
+  // The images may all be readable while the IMU or camera_info stream was not.
+  if (!sequence.read_error.empty()) throw std::runtime_error(sequence.read_error);
 }
 
 }  // namespace

@@ -4,7 +4,9 @@
 //   fundamental_mixtures --bags a.bag [b.bag ...] --out train.bag [--gyro-config FILE]
 //       [--image-topic T] [--camera-info-topic T] [--imu-topic T] [--global]
 //
-// Progress on stderr, the summary on stdout. Ctrl-C closes the output after the current pair.
+// Progress on stderr, the summary on stdout. Ctrl-C (or SIGTERM) closes the output after the
+// current pair, with every pair done so far; a second Ctrl-C aborts at once (the output is then
+// left unindexed: `rosbag reindex` recovers it).
 // Exit status: 0 all bags done, 1 nothing could be done, 2 usage, 3 some bags failed, 130 stopped.
 #include <ros/package.h>
 
@@ -21,7 +23,11 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 
-void onSigint(int) { g_stop = true; }
+// Async-signal-safe: sets the flag and restores the default action for the next signal.
+void onStopSignal(int signal_number) {
+  g_stop = true;
+  std::signal(signal_number, SIG_DFL);
+}
 
 int usage(const std::string& problem) {
   std::fprintf(
@@ -70,7 +76,8 @@ int main(int argc, char** argv) {
   try {
     options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
     const deep_ois::FundamentalMixturesOffline job(options);
-    std::signal(SIGINT, onSigint);
+    std::signal(SIGINT, onStopSignal);
+    std::signal(SIGTERM, onStopSignal);
     const deep_ois::FundamentalMixturesSummary summary = job.run(&g_stop);
     std::fprintf(stderr, "\n");
     std::printf("fundamental_mixtures: %s: %s", options.output_path.c_str(),

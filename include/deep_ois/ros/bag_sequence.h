@@ -23,6 +23,13 @@ struct BagSequenceTopics {
   std::string frame_pair_truth = "/ground_truth/frame_pair";
 };
 
+// What readBagSequence does when a message cannot be read part-way through an indexed bag (a
+// corrupt chunk: the bag opens, a chunk in the middle does not decompress).
+enum class BagReadFailure {
+  kThrow,       // throw: scores must not silently come from part of a recording
+  kKeepPrefix,  // keep everything read before the failure and say why in read_error
+};
+
 struct BagSequence {
   std::string path;
   ros::Time time_base;  // imu samples' stamps are seconds since this
@@ -36,6 +43,9 @@ struct BagSequence {
   // transform.
   std::optional<Eigen::Matrix3d> imu_to_camera_rotation;
   std::vector<FramePairTruth> truths;  // empty for a real recording
+  // kKeepPrefix only: empty when the whole bag was read; otherwise a sentence naming the bag,
+  // where reading stopped and why. The fields above then hold the messages before that point.
+  std::string read_error;
 
   double secondsSinceBase(const ros::Time& stamp) const { return (stamp - time_base).toSec(); }
   // A buffer holding every IMU sample (duration-bounded buffers would drop the early ones).
@@ -43,7 +53,9 @@ struct BagSequence {
 };
 
 // Throws std::runtime_error naming the file and the problem (unreadable bag, no camera_info, a
-// camera_info that is not usable, IMU samples rejected by the buffer's rules).
-BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics = {});
+// camera_info that is not usable, IMU samples rejected by the buffer's rules, and with kThrow a
+// message that cannot be read).
+BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics = {},
+                            BagReadFailure on_failure = BagReadFailure::kThrow);
 
 }  // namespace deep_ois
