@@ -22,9 +22,11 @@ ImuSampleBuffer BagSequence::imuBuffer() const {
   return buffer;
 }
 
-BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics) {
+BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics,
+                            std::vector<BagFrame>* frames) {
   BagSequence sequence;
   sequence.path = path;
+  if (frames) frames->clear();
   auto fail = [&](const std::string& what) { throw std::runtime_error(path + ": " + what); };
   rosbag::Bag bag;
   try {
@@ -37,8 +39,10 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
   std::size_t rejected_imu = 0;
   std::string first_imu_problem;
   try {
-    rosbag::View view(bag, rosbag::TopicQuery({topics.camera_info, topics.imu, topics.frame_pair_truth,
-                                               std::string("/tf_static")}));
+    std::vector<std::string> wanted = {topics.camera_info, topics.imu, topics.frame_pair_truth,
+                                       std::string("/tf_static")};
+    if (frames) wanted.push_back(topics.image);
+    rosbag::View view(bag, rosbag::TopicQuery(wanted));
     ImuSampleBuffer checker(1e9);  // applies the buffer's sample rules without dropping history
     for (const rosbag::MessageInstance& m : view) {
       if (!have_base) {
@@ -69,6 +73,16 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
           sequence.camera_frame_id = info->header.frame_id;
         }
         sequence.frame_stamps.push_back(info->header.stamp);
+      } else if (frames && m.getTopic() == topics.image) {
+        const auto image = m.instantiate<sensor_msgs::Image>();
+        if (!image) fail(topics.image + ": not a sensor_msgs/Image");
+        BagFrame frame;
+        try {
+          decodeBagFrame(*image, frame);
+        } catch (const std::runtime_error& e) {
+          fail(topics.image + " frame " + std::to_string(frames->size()) + ": " + e.what());
+        }
+        frames->push_back(std::move(frame));
       } else if (m.getTopic() == topics.frame_pair_truth) {
         const auto truth = m.instantiate<FramePairTruth>();
         if (truth) sequence.truths.push_back(*truth);
