@@ -9,6 +9,7 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <Eigen/Geometry>
+#include <memory>
 #include <stdexcept>
 
 #include "deep_ois/ros/conversions.h"
@@ -39,15 +40,44 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
   std::size_t rejected_imu = 0;
   std::string first_imu_problem;
   try {
-    std::vector<std::string> wanted = {topics.camera_info, topics.imu, topics.frame_pair_truth,
-                                       std::string("/tf_static")};
-    if (frames) wanted.push_back(topics.image);
-    rosbag::View view(bag, rosbag::TopicQuery(wanted));
+    // Images get their own view on the same bag, merged here by time with the image first at
+    // equal stamps: a camera driver publishes the image before its camera_info
+    // (image_transport::CameraPublisher), so recorders write it first, and when a chunk closes
+    // right after an image its camera_info opens the next chunk. One view over both would order
+    // such ties arbitrarily and hop between the two chunks, decompressing each chunk about twice
+    // (measured on the simulator's bz2 bags); the bag caches one decompressed chunk.
+    rosbag::View others(bag, rosbag::TopicQuery({topics.camera_info, topics.imu, topics.frame_pair_truth,
+                                                 std::string("/tf_static")}));
+    std::unique_ptr<rosbag::View> images;
+    if (frames) images = std::make_unique<rosbag::View>(bag, rosbag::TopicQuery(topics.image));
+    rosbag::View::iterator other = others.begin(), image_it;
+    if (images) image_it = images->begin();
     ImuSampleBuffer checker(1e9);  // applies the buffer's sample rules without dropping history
-    for (const rosbag::MessageInstance& m : view) {
+    while (other != others.end() || (images && image_it != images->end())) {
+      const bool take_image = images && image_it != images->end() &&
+                              (other == others.end() || image_it->getTime() <= other->getTime());
+      // A copy: an iterator's message changes when the iterator moves on.
+      const rosbag::MessageInstance m = take_image ? *image_it : *other;
+      if (take_image) {
+        ++image_it;
+      } else {
+        ++other;
+      }
       if (!have_base) {
         sequence.time_base = ros::Time(m.getTime().sec, 0);
         have_base = true;
+      }
+      if (take_image) {
+        const auto image = m.instantiate<sensor_msgs::Image>();
+        if (!image) fail(topics.image + ": not a sensor_msgs/Image");
+        BagFrame frame;
+        try {
+          decodeBagFrame(*image, frame);
+        } catch (const std::runtime_error& e) {
+          fail(topics.image + " frame " + std::to_string(frames->size()) + ": " + e.what());
+        }
+        frames->push_back(std::move(frame));
+        continue;
       }
       if (m.getTopic() == topics.imu) {
         const auto imu = m.instantiate<sensor_msgs::Imu>();
@@ -73,16 +103,6 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
           sequence.camera_frame_id = info->header.frame_id;
         }
         sequence.frame_stamps.push_back(info->header.stamp);
-      } else if (frames && m.getTopic() == topics.image) {
-        const auto image = m.instantiate<sensor_msgs::Image>();
-        if (!image) fail(topics.image + ": not a sensor_msgs/Image");
-        BagFrame frame;
-        try {
-          decodeBagFrame(*image, frame);
-        } catch (const std::runtime_error& e) {
-          fail(topics.image + " frame " + std::to_string(frames->size()) + ": " + e.what());
-        }
-        frames->push_back(std::move(frame));
       } else if (m.getTopic() == topics.frame_pair_truth) {
         const auto truth = m.instantiate<FramePairTruth>();
         if (truth) sequence.truths.push_back(*truth);

@@ -59,6 +59,28 @@ double identityMean(const std::vector<FramePairTruth>& truths, std::size_t count
   return sum / static_cast<double>(count);
 }
 
+TEST(BagSequence, OnePassWithImagesGivesTheFrameReadersFramesAndTheSameSequence) {
+  const std::string path = sourcePath("bags/sample.bag");
+  std::vector<BagFrame> frames;
+  const BagSequence with = readBagSequence(path, {}, &frames), without = readBagSequence(path);
+  BagFrameReader reader(path, "/camera/image_raw");
+  BagFrame expected;
+  std::size_t count = 0;
+  while (reader.next(expected)) {
+    ASSERT_LT(count, frames.size());
+    EXPECT_EQ(frames[count].stamp, expected.stamp);
+    EXPECT_EQ(cv::norm(frames[count].rgb, expected.rgb, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(frames[count].gray, expected.gray, cv::NORM_INF), 0.0);
+    ++count;
+  }
+  EXPECT_EQ(count, frames.size());
+  EXPECT_EQ(with.time_base, without.time_base);
+  EXPECT_EQ(with.imu_samples.size(), without.imu_samples.size());
+  EXPECT_EQ(with.frame_stamps, without.frame_stamps);
+  EXPECT_EQ(with.truths.size(), without.truths.size());
+  ASSERT_TRUE(with.imu_to_camera_rotation.has_value());
+}
+
 TEST(EvaluationRunner, ScoresEveryRowOnTheSampleBagWithPluggableMethods) {
   EvaluationOptions options = optionsFor({sourcePath("bags/sample.bag")});
   options.max_pairs_per_bag = 8;
