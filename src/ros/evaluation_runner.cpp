@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <set>
@@ -67,7 +69,43 @@ struct Recording {
   ImuSampleBuffer imu{1.0};
   RollingShutterConfig rolling_shutter;
   std::unique_ptr<HomographyFlowRenderer> flow_renderer;
+  double reading_s = 0.0;  // wall time of loadRecording
 };
+
+// Reads a recording once (IMU, camera_info, tf, truth and every frame) and prepares what its
+// pairs share. Throws std::runtime_error naming the bag and the problem.
+std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& path, const EvaluationOptions& options) {
+  const Clock::time_point started = Clock::now();
+  auto recording = std::make_unique<Recording>();
+  recording->index = index;
+  recording->path = path;
+  recording->sequence = readBagSequence(path, options.topics, &recording->frames);
+  const BagSequence& sequence = recording->sequence;
+  const CameraModel& camera = *sequence.camera;
+  auto fail = [&](const std::string& what) { throw std::runtime_error(path + ": " + what); };
+  if (recording->frames.empty()) fail("no image on " + options.topics.image);
+  for (std::size_t f = 0; f < recording->frames.size(); ++f) {
+    const BagFrame& frame = recording->frames[f];
+    if (frame.rgb.cols != camera.width() || frame.rgb.rows != camera.height()) {
+      fail("frame " + std::to_string(f) + " is " + std::to_string(frame.rgb.cols) + "x" + std::to_string(frame.rgb.rows) +
+           " but camera_info says " + std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+    }
+    recording->frame_of_stamp[static_cast<std::int64_t>(frame.stamp.toNSec())] = f;
+  }
+  recording->rolling_shutter = options.gyro.rolling_shutter;
+  if (options.gyro.rotation_from_tf) {
+    if (!sequence.imu_to_camera_rotation) {
+      fail("no IMU -> camera transform in /tf_static (set imu_to_camera_rotation in the gyro flow config to override)");
+    }
+    recording->rolling_shutter.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
+  }
+  if (sequence.imu_samples.empty()) fail("no IMU sample on " + options.topics.imu);
+  recording->imu = sequence.imuBuffer();
+  recording->flow_renderer =
+      std::make_unique<HomographyFlowRenderer>(camera, options.gyro.grid_size, recording->rolling_shutter.patch_count);
+  recording->reading_s = secondsSince(started);
+  return recording;
+}
 
 }  // namespace
 
@@ -130,42 +168,26 @@ EvaluationReport EvaluationRunner::run() {
   std::size_t pairs_done = 0;
   std::map<std::string, int> ghost_samples;  // per category
 
+  // Reading a bag (mostly bz2 decompression) overlaps scoring the previous one: one thread reads
+  // ahead, the methods run on this thread, so they need not be thread-safe.
+  auto prefetch = [this](std::size_t index) {
+    return std::async(std::launch::async, loadRecording, index, options_.bags[index], std::cref(options_));
+  };
+  std::future<std::unique_ptr<Recording>> next = prefetch(0);
   for (std::size_t index = 0; index < options_.bags.size(); ++index) {
     RecordingOutcome outcome;
     outcome.path = options_.bags[index];
     report.recordings.push_back(outcome);
     RecordingOutcome& result = report.recordings.back();
     try {
-      // ---- Read the recording once: IMU, camera_info, tf, truth and every frame. ----
-      const Clock::time_point reading = Clock::now();
-      Recording recording;
-      recording.index = index;
-      recording.path = result.path;
-      recording.sequence = readBagSequence(recording.path, options_.topics, &recording.frames);
-      report.reading_s += secondsSince(reading);
+      // ---- The recording, read while the previous one was scored. ----
+      const std::unique_ptr<Recording> loaded = next.get();
+      report.reading_s += loaded->reading_s;
+      if (index + 1 < options_.bags.size()) next = prefetch(index + 1);
+      Recording& recording = *loaded;
       const BagSequence& sequence = recording.sequence;
       const CameraModel& camera = *sequence.camera;
       auto fail = [&](const std::string& what) { throw std::runtime_error(recording.path + ": " + what); };
-      if (recording.frames.empty()) fail("no image on " + options_.topics.image);
-      for (std::size_t f = 0; f < recording.frames.size(); ++f) {
-        const BagFrame& frame = recording.frames[f];
-        if (frame.rgb.cols != camera.width() || frame.rgb.rows != camera.height()) {
-          fail("frame " + std::to_string(f) + " is " + std::to_string(frame.rgb.cols) + "x" + std::to_string(frame.rgb.rows) +
-               " but camera_info says " + std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
-        }
-        recording.frame_of_stamp[static_cast<std::int64_t>(frame.stamp.toNSec())] = f;
-      }
-      recording.rolling_shutter = options_.gyro.rolling_shutter;
-      if (options_.gyro.rotation_from_tf) {
-        if (!sequence.imu_to_camera_rotation) {
-          fail("no IMU -> camera transform in /tf_static (set imu_to_camera_rotation in the gyro flow config to override)");
-        }
-        recording.rolling_shutter.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
-      }
-      if (sequence.imu_samples.empty()) fail("no IMU sample on " + options_.topics.imu);
-      recording.imu = sequence.imuBuffer();
-      recording.flow_renderer = std::make_unique<HomographyFlowRenderer>(camera, options_.gyro.grid_size,
-                                                                         recording.rolling_shutter.patch_count);
 
       // ---- The pairs to score. ----
       std::vector<PairToScore> pairs;
@@ -353,6 +375,7 @@ EvaluationReport EvaluationRunner::run() {
       }
     } catch (const std::exception& e) {
       // One unreadable recording must not lose the others; bag readers' messages name the file.
+      if (index + 1 < options_.bags.size() && !next.valid()) next = prefetch(index + 1);
       const std::string what = e.what();
       result.error = what.rfind(result.path, 0) == 0 ? what : result.path + ": " + what;
       if (progress) std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());

@@ -122,9 +122,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", recording.path.c_str(), recording.pairs_scored, skipped.c_str());
   }
   for (const std::string& error : report.errors) std::fprintf(stderr, "evaluate: %s\n", error.c_str());
-  std::fprintf(stderr, "evaluate: %.1f s (reading %.1f s", report.elapsed_s, report.reading_s);
-  for (const auto& [method, seconds] : report.method_s) std::fprintf(stderr, ", %s %.1f s", method.c_str(), seconds);
-  std::fprintf(stderr, ")\n");
+  std::fprintf(stderr, "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
+               report.elapsed_s, report.reading_s);
+  for (const auto& [method, seconds] : report.method_s) std::fprintf(stderr, " %s %.1f s;", method.c_str(), seconds);
+  std::fprintf(stderr, "\n");
 
   if (report.table.methods().empty()) {
     std::fprintf(stderr, "evaluate: no frame pair could be scored\n");

@@ -44,7 +44,7 @@ struct EvaluationReport {
   std::map<std::string, std::map<std::string, std::size_t>> failure_reasons;
   std::vector<GhostSample> ghosts;
   double elapsed_s = 0.0;          // the whole run
-  double reading_s = 0.0;          // of which reading and decoding the recordings
+  double reading_s = 0.0;          // reading and decoding the recordings (ahead, overlapping the rest)
   std::map<std::string, double> method_s;  // of which each method's estimates (scoring excluded)
 
   // True when every recording was read and every annotated pair found.
