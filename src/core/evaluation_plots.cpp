@@ -128,8 +128,8 @@ cv::Mat drawGhostGrid(const std::string& title, const std::vector<GhostSample>& 
       }
       const int x = gap + c * (panel_size.width + gap);
       panel->ghost_rgb.copyTo(grid(cv::Rect(x, y + row_title_height, panel_size.width, panel_size.height)));
-      const std::string caption =
-          formatPx(panel->distance_px) + " px" + (panel->failed ? " (no estimate: identity)" : "");
+      const std::string caption = formatPx(panel->distance_px) + " px" +
+                                  (panel->failed ? " (no estimate: identity)" : panel->capped ? " (capped at identity)" : "");
       cv::putText(grid, caption, cv::Point(x + 4, y + row_title_height + panel_size.height + 15), kFont, 0.45,
                   panel->failed ? cv::Scalar(200, 0, 0) : kBlack, 1, cv::LINE_AA);
     }

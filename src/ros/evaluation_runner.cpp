@@ -360,6 +360,7 @@ EvaluationReport EvaluationRunner::run() {
             panel.method = method.name;
             panel.distance_px = score.scored_px;
             panel.failed = !estimate.ok();
+            panel.capped = estimate.ok() && score.distance_px > identity_px;
             try {
               panel.ghost_rgb = magnifyCentre(
                   ghostOverlay(context.rgb_a, warpFrameBOntoA(context.rgb_b, estimateCameraFlow(estimate, camera))),

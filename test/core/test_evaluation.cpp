@@ -232,8 +232,8 @@ TEST(EvaluationPlots, DrawsBarsAndGhostGrids) {
   GhostSample sample;
   sample.category = "RE";
   sample.label = "pair 1";
-  sample.panels.push_back({"identity", cv::Mat(30, 40, CV_8UC3, cv::Scalar(10, 20, 30)), 2.0, false});
-  sample.panels.push_back({"gyro", cv::Mat(30, 40, CV_8UC3, cv::Scalar(40, 50, 60)), 0.5, false});
+  sample.panels.push_back({"identity", cv::Mat(30, 40, CV_8UC3, cv::Scalar(10, 20, 30)), 2.0, false, false});
+  sample.panels.push_back({"gyro", cv::Mat(30, 40, CV_8UC3, cv::Scalar(40, 50, 60)), 0.5, false, false});
   const cv::Mat grid = drawGhostGrid("ghosts", {sample, sample}, {"identity", "gyro", "absent"});
   ASSERT_FALSE(grid.empty());
   EXPECT_EQ(grid.cols, 3 * (40 + 4) + 4);  // one column per method, blank where absent

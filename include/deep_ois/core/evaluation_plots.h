@@ -26,6 +26,7 @@ struct GhostPanel {
   cv::Mat ghost_rgb;         // CV_8UC3 RGB, camera size
   double distance_px = 0.0;  // the pair's scored (capped) geometry distance
   bool failed = false;       // no estimate: the panel shows the unaligned ghost
+  bool capped = false;       // its own distance was above identity (the ghost shows its own motion)
 };
 
 // The ghosts of one frame pair, one panel per method that scores it.
