@@ -24,7 +24,8 @@ AlignmentEstimate AlignmentEstimate::rawHomography(const Eigen::Matrix3d& H) {
   return estimate;
 }
 
-AlignmentEstimate AlignmentEstimate::patchHomographies(const std::vector<Eigen::Matrix3d>& homographies_undistorted) {
+AlignmentEstimate AlignmentEstimate::patchHomographies(
+    const std::vector<Eigen::Matrix3d>& homographies_undistorted) {
   AlignmentEstimate estimate;
   estimate.kind = Kind::kHomographies;
   estimate.homographies = homographies_undistorted;
@@ -46,9 +47,10 @@ double estimateDistance(const AlignmentEstimate& estimate, const FramePairContex
     case AlignmentEstimate::Kind::kFailed:
       return std::numeric_limits<double>::quiet_NaN();
     case AlignmentEstimate::Kind::kHomographies:
-      return estimate.undistorted_pixels
-                 ? geometryDistance(pair.points_a_px, pair.points_b_px, estimate.homographies, camera)
-                 : geometryDistance(pair.points_a_px, pair.points_b_px, estimate.homographies, camera.height());
+      return estimate.undistorted_pixels ? geometryDistance(pair.points_a_px, pair.points_b_px,
+                                                            estimate.homographies, camera)
+                                         : geometryDistance(pair.points_a_px, pair.points_b_px,
+                                                            estimate.homographies, camera.height());
     case AlignmentEstimate::Kind::kGridFlow:
       return geometryDistanceOfGridFlow(pair.points_a_px, pair.points_b_px, estimate.grid_flow,
                                         cv::Size(camera.width(), camera.height()));
@@ -62,11 +64,15 @@ cv::Mat estimateCameraFlow(const AlignmentEstimate& estimate, const CameraModel&
     case AlignmentEstimate::Kind::kFailed:
       break;
     case AlignmentEstimate::Kind::kHomographies: {
-      if (estimate.homographies.empty()) throw std::invalid_argument("estimateCameraFlow: no homographies");
+      if (estimate.homographies.empty())
+        throw std::invalid_argument("estimateCameraFlow: no homographies");
       // Rendered on a grid of the camera's own size (1 grid pixel = 1 camera pixel); raw-pixel
       // homographies through a distortion-free copy of the camera.
-      const CameraModel model = estimate.undistorted_pixels ? camera : CameraModel(camera.width(), camera.height(), camera.K());
-      const HomographyFlowRenderer renderer(model, camera_size, static_cast<int>(estimate.homographies.size()));
+      const CameraModel model = estimate.undistorted_pixels
+                                    ? camera
+                                    : CameraModel(camera.width(), camera.height(), camera.K());
+      const HomographyFlowRenderer renderer(model, camera_size,
+                                            static_cast<int>(estimate.homographies.size()));
       cv::Mat flow;
       renderer.render(estimate.homographies, flow);
       return flow;

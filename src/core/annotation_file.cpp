@@ -26,7 +26,8 @@ std::vector<std::string> splitFields(const std::string& line) {
   std::string field;
   std::istringstream in(line);
   while (std::getline(in, field, ',')) fields.push_back(trim(field));
-  if (!line.empty() && line.back() == ',') fields.push_back("");  // getline drops a trailing empty field
+  if (!line.empty() && line.back() == ',')
+    fields.push_back("");  // getline drops a trailing empty field
   return fields;
 }
 
@@ -58,9 +59,11 @@ bool parseStampNs(const std::string& text, std::int64_t& stamp_ns) {
   if (whole.empty() || !digits(whole) || !digits(fraction) || fraction.size() > 9) return false;
   if (dot != std::string::npos && fraction.empty()) return false;
   // A ROS stamp's seconds are uint32.
-  if (whole.size() > 10 || std::stoull(whole) > std::numeric_limits<std::uint32_t>::max()) return false;
+  if (whole.size() > 10 || std::stoull(whole) > std::numeric_limits<std::uint32_t>::max())
+    return false;
   std::int64_t nanoseconds = 0;
-  for (std::size_t i = 0; i < 9; ++i) nanoseconds = nanoseconds * 10 + (i < fraction.size() ? fraction[i] - '0' : 0);
+  for (std::size_t i = 0; i < 9; ++i)
+    nanoseconds = nanoseconds * 10 + (i < fraction.size() ? fraction[i] - '0' : 0);
   stamp_ns = static_cast<std::int64_t>(std::stoull(whole)) * 1000000000LL + nanoseconds;
   return true;
 }
@@ -89,7 +92,8 @@ AnnotationFile parseAnnotations(std::istream& in, const std::string& name) {
     const std::string content = trim(line);
     if (content.empty() || content[0] == '#') continue;
     if (!have_header) {
-      if (content != kHeader) fail("expected the header '" + std::string(kHeader) + "', got '" + content + "'");
+      if (content != kHeader)
+        fail("expected the header '" + std::string(kHeader) + "', got '" + content + "'");
       have_header = true;
       continue;
     }
@@ -99,13 +103,18 @@ AnnotationFile parseAnnotations(std::istream& in, const std::string& name) {
            std::to_string(fields.size()));
     }
     std::int64_t stamp_a = 0, stamp_b = 0;
-    if (!parseStampNs(fields[0], stamp_a)) fail("stamp_a '" + fields[0] + "' is not seconds with up to 9 decimals");
-    if (!parseStampNs(fields[1], stamp_b)) fail("stamp_b '" + fields[1] + "' is not seconds with up to 9 decimals");
-    if (stamp_b <= stamp_a) fail("stamp_b " + fields[1] + " is not later than stamp_a " + fields[0] + " (frame a is the earlier frame)");
+    if (!parseStampNs(fields[0], stamp_a))
+      fail("stamp_a '" + fields[0] + "' is not seconds with up to 9 decimals");
+    if (!parseStampNs(fields[1], stamp_b))
+      fail("stamp_b '" + fields[1] + "' is not seconds with up to 9 decimals");
+    if (stamp_b <= stamp_a)
+      fail("stamp_b " + fields[1] + " is not later than stamp_a " + fields[0] +
+           " (frame a is the earlier frame)");
     double xy[4];
     const char* names[4] = {"x_a", "y_a", "x_b", "y_b"};
     for (int k = 0; k < 4; ++k) {
-      if (!parseCoordinate(fields[2 + k], xy[k])) fail(std::string(names[k]) + " '" + fields[2 + k] + "' is not a finite number");
+      if (!parseCoordinate(fields[2 + k], xy[k]))
+        fail(std::string(names[k]) + " '" + fields[2 + k] + "' is not a finite number");
     }
     const std::string& category = fields[6];
     if (category.empty()) fail("the category is empty");
@@ -121,14 +130,16 @@ AnnotationFile parseAnnotations(std::istream& in, const std::string& name) {
     }
     AnnotatedPair& pair = file.pairs[found->second];
     if (pair.category != category) {
-      fail("category '" + category + "' differs from '" + pair.category + "' given for this pair on line " +
-           std::to_string(pair.lines.front()));
+      fail("category '" + category + "' differs from '" + pair.category +
+           "' given for this pair on line " + std::to_string(pair.lines.front()));
     }
     pair.points_a_px.emplace_back(xy[0], xy[1]);
     pair.points_b_px.emplace_back(xy[2], xy[3]);
     pair.lines.push_back(line_number);
   }
-  if (!have_header) throw std::runtime_error(name + ": no header line '" + std::string(kHeader) + "' (empty file?)");
+  if (!have_header)
+    throw std::runtime_error(name + ": no header line '" + std::string(kHeader) +
+                             "' (empty file?)");
   if (file.pairs.empty()) throw std::runtime_error(name + ": no annotated point after the header");
   return file;
 }

@@ -21,13 +21,22 @@ std::string jsonString(const std::string& text) {
   out << '"';
   for (const char c : text) {
     switch (c) {
-      case '"': out << "\\\""; break;
-      case '\\': out << "\\\\"; break;
-      case '\n': out << "\\n"; break;
-      case '\t': out << "\\t"; break;
+      case '"':
+        out << "\\\"";
+        break;
+      case '\\':
+        out << "\\\\";
+        break;
+      case '\n':
+        out << "\\n";
+        break;
+      case '\t':
+        out << "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
-          out << "\\u" << std::hex << std::setw(4) << std::setfill('0') << static_cast<int>(c) << std::dec;
+          out << "\\u" << std::hex << std::setw(4) << std::setfill('0') << static_cast<int>(c)
+              << std::dec;
         } else {
           out << c;
         }
@@ -52,13 +61,15 @@ std::string csvField(const std::string& text) {
 }
 
 std::size_t methodTotal(const EvaluationTable& table, const std::string& method,
-                        std::size_t (EvaluationTable::*field)(const std::string&, const std::string&) const) {
+                        std::size_t (EvaluationTable::*field)(const std::string&,
+                                                              const std::string&) const) {
   std::size_t total = 0;
   for (const std::string& category : table.categories()) total += (table.*field)(method, category);
   return total;
 }
 
-void writeText(const std::string& path, const std::string& text, std::vector<std::string>& written) {
+void writeText(const std::string& path, const std::string& text,
+               std::vector<std::string>& written) {
   std::ofstream out(path);
   out << text;
   if (!out) throw std::runtime_error(path + ": cannot write");
@@ -81,7 +92,8 @@ void writePng(const std::string& path, const cv::Mat& rgb, std::vector<std::stri
 // A file name part from a category (free text in annotation files).
 std::string fileSafe(const std::string& text) {
   std::string safe;
-  for (const char c : text) safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+  for (const char c : text)
+    safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
   return safe.empty() ? "_" : safe;
 }
 
@@ -135,9 +147,12 @@ std::string EvaluationReport::markdown() const {
 std::string EvaluationReport::json() const {
   std::ostringstream out;
   out << "{\n  \"metric\": "
-      << jsonString("geometry distance |p_a + flow(p_a) - p_b| in pixels, mean over the points of a pair, then "
-                    "over the pairs of a category; each pair capped at its identity error, a method without an "
-                    "estimate scored as identity; avg = mean of the category means")
+      << jsonString(
+             "geometry distance |p_a + flow(p_a) - p_b| in pixels, mean over the points of a pair, "
+             "then "
+             "over the pairs of a category; each pair capped at its identity error, a method "
+             "without an "
+             "estimate scored as identity; avg = mean of the category means")
       << ",\n  \"categories\": [";
   for (std::size_t c = 0; c < table.categories().size(); ++c) {
     out << (c ? ", " : "") << jsonString(table.categories()[c]);
@@ -145,15 +160,16 @@ std::string EvaluationReport::json() const {
   out << "],\n  \"methods\": [";
   for (std::size_t m = 0; m < table.methods().size(); ++m) {
     const std::string& method = table.methods()[m];
-    out << (m ? "," : "") << "\n    {\"name\": " << jsonString(method) << ", \"avg_px\": " << jsonNumber(table.average(method))
-        << ", \"categories\": {";
+    out << (m ? "," : "") << "\n    {\"name\": " << jsonString(method)
+        << ", \"avg_px\": " << jsonNumber(table.average(method)) << ", \"categories\": {";
     bool first = true;
     for (const std::string& category : table.categories()) {
       if (table.count(method, category) == 0) continue;
-      out << (first ? "" : ", ") << jsonString(category) << ": {\"pairs\": " << table.count(method, category)
+      out << (first ? "" : ", ") << jsonString(category)
+          << ": {\"pairs\": " << table.count(method, category)
           << ", \"mean_px\": " << jsonNumber(table.mean(method, category))
-          << ", \"failed\": " << table.failures(method, category) << ", \"capped\": " << table.capped(method, category)
-          << "}";
+          << ", \"failed\": " << table.failures(method, category)
+          << ", \"capped\": " << table.capped(method, category) << "}";
       first = false;
     }
     out << "}, \"failure_reasons\": {";
@@ -171,19 +187,20 @@ std::string EvaluationReport::json() const {
   for (std::size_t r = 0; r < recordings.size(); ++r) {
     const RecordingOutcome& recording = recordings[r];
     out << (r ? "," : "") << "\n    {\"path\": " << jsonString(recording.path)
-        << ", \"pairs_scored\": " << recording.pairs_scored << ", \"pairs_skipped\": " << recording.pairs_skipped
-        << ", \"skip_reasons\": {";
+        << ", \"pairs_scored\": " << recording.pairs_scored
+        << ", \"pairs_skipped\": " << recording.pairs_skipped << ", \"skip_reasons\": {";
     bool first = true;
     for (const auto& [reason, count] : recording.skip_reasons) {
       out << (first ? "" : ", ") << jsonString(reason) << ": " << count;
       first = false;
     }
-    out << "}, \"error\": " << (recording.error.empty() ? "null" : jsonString(recording.error)) << "}";
+    out << "}, \"error\": " << (recording.error.empty() ? "null" : jsonString(recording.error))
+        << "}";
   }
   out << "\n  ],\n  \"errors\": [";
   for (std::size_t e = 0; e < errors.size(); ++e) out << (e ? ", " : "") << jsonString(errors[e]);
-  out << "],\n  \"elapsed_s\": " << jsonNumber(elapsed_s) << ",\n  \"reading_s\": " << jsonNumber(reading_s)
-      << ",\n  \"method_s\": {";
+  out << "],\n  \"elapsed_s\": " << jsonNumber(elapsed_s)
+      << ",\n  \"reading_s\": " << jsonNumber(reading_s) << ",\n  \"method_s\": {";
   bool first_method = true;
   for (const auto& [method, seconds] : method_s) {
     out << (first_method ? "" : ", ") << jsonString(method) << ": " << jsonNumber(seconds);
@@ -198,19 +215,23 @@ std::string EvaluationReport::pairsCsv() const {
   out << std::setprecision(6)
       << "recording,stamp_a,stamp_b,category,method,distance_px,identity_px,scored_px,failure\n";
   for (const PairScore& pair : pairs) {
-    out << csvField(pair.recording < recordings.size() ? recordings[pair.recording].path : "") << ","
-        << formatStampNs(pair.stamp_a_ns) << "," << formatStampNs(pair.stamp_b_ns) << "," << csvField(pair.category)
-        << "," << csvField(pair.method) << ",";
+    out << csvField(pair.recording < recordings.size() ? recordings[pair.recording].path : "")
+        << "," << formatStampNs(pair.stamp_a_ns) << "," << formatStampNs(pair.stamp_b_ns) << ","
+        << csvField(pair.category) << "," << csvField(pair.method) << ",";
     if (std::isfinite(pair.distance_px)) out << pair.distance_px;
-    out << "," << pair.identity_px << "," << pair.scored_px << "," << csvField(pair.failure) << "\n";
+    out << "," << pair.identity_px << "," << pair.scored_px << "," << csvField(pair.failure)
+        << "\n";
   }
   return out.str();
 }
 
-std::vector<std::string> writeEvaluationReport(const EvaluationReport& report, const std::string& directory) {
+std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
+                                               const std::string& directory) {
   std::error_code error;
   std::filesystem::create_directories(directory, error);
-  if (error) throw std::runtime_error(directory + ": cannot create the output directory: " + error.message());
+  if (error)
+    throw std::runtime_error(directory +
+                             ": cannot create the output directory: " + error.message());
   std::vector<std::string> written;
   writeText(directory + "/evaluation.csv", report.table.csv(), written);
   writeText(directory + "/evaluation.json", report.json(), written);
@@ -231,9 +252,11 @@ std::vector<std::string> writeEvaluationReport(const EvaluationReport& report, c
       if (!average) pairs = std::max(pairs, table.count(method, column));
     }
     if (labels.empty()) continue;
-    const std::string title = column == "Avg" ? "Avg: mean of the category means"
-                                              : "Category " + column + ": " + std::to_string(pairs) + " frame pairs";
-    writePng(directory + "/bars_" + fileSafe(column) + ".png", drawBarChart(title, labels, values, unit), written);
+    const std::string title =
+        column == "Avg" ? "Avg: mean of the category means"
+                        : "Category " + column + ": " + std::to_string(pairs) + " frame pairs";
+    writePng(directory + "/bars_" + fileSafe(column) + ".png",
+             drawBarChart(title, labels, values, unit), written);
   }
   for (const std::string& category : table.categories()) {
     std::vector<GhostSample> samples;
@@ -251,9 +274,11 @@ std::vector<std::string> writeEvaluationReport(const EvaluationReport& report, c
       }
     }
     const cv::Mat grid = drawGhostGrid(
-        "Ghosts, category " + category + ": red channel of frame b, moved onto frame a by each method, over frame a",
+        "Ghosts, category " + category +
+            ": red channel of frame b, moved onto frame a by each method, over frame a",
         samples, columns);
-    if (!grid.empty()) writePng(directory + "/ghosts_" + fileSafe(category) + ".png", grid, written);
+    if (!grid.empty())
+      writePng(directory + "/ghosts_" + fileSafe(category) + ".png", grid, written);
   }
   return written;
 }

@@ -17,7 +17,8 @@ void remember(std::vector<std::string>& list, const std::string& name) {
 void orderBy(std::vector<std::string>& list, const std::vector<std::string>& preferred) {
   auto rank = [&](const std::string& name) {
     const auto it = std::find(preferred.begin(), preferred.end(), name);
-    return it == preferred.end() ? preferred.size() : static_cast<std::size_t>(it - preferred.begin());
+    return it == preferred.end() ? preferred.size()
+                                 : static_cast<std::size_t>(it - preferred.begin());
   };
   std::stable_sort(list.begin(), list.end(),
                    [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
@@ -70,7 +71,8 @@ std::size_t EvaluationTable::count(const std::string& method, const std::string&
   return field(method, category, &Cell::count);
 }
 
-std::size_t EvaluationTable::failures(const std::string& method, const std::string& category) const {
+std::size_t EvaluationTable::failures(const std::string& method,
+                                      const std::string& category) const {
   return field(method, category, &Cell::failures);
 }
 

@@ -8,17 +8,22 @@ namespace deep_ois {
 
 const char* toString(FeatureDetector detector) {
   switch (detector) {
-    case FeatureDetector::kSift: return "SIFT";
-    case FeatureDetector::kOrb: return "ORB";
-    case FeatureDetector::kAkaze: return "AKAZE";
+    case FeatureDetector::kSift:
+      return "SIFT";
+    case FeatureDetector::kOrb:
+      return "ORB";
+    case FeatureDetector::kAkaze:
+      return "AKAZE";
   }
   return "?";
 }
 
 const char* toString(RobustEstimator estimator) {
   switch (estimator) {
-    case RobustEstimator::kRansac: return "RANSAC";
-    case RobustEstimator::kMagsac: return "MAGSAC";
+    case RobustEstimator::kRansac:
+      return "RANSAC";
+    case RobustEstimator::kMagsac:
+      return "MAGSAC";
   }
   return "?";
 }

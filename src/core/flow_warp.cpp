@@ -17,7 +17,8 @@ cv::Mat warpFrameBOntoA(const cv::Mat& image_b, const cv::Mat& camera_flow) {
     for (int x = 0; x < map.cols; ++x) out[x] = cv::Vec2f(x + flow[x][0], y + flow[x][1]);
   }
   cv::Mat warped;
-  cv::remap(image_b, warped, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+  cv::remap(image_b, warped, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+            cv::Scalar::all(0));
   return warped;
 }
 

@@ -4,9 +4,9 @@
 
 namespace deep_ois {
 
-FundamentalMixturesGroundTruth::FundamentalMixturesGroundTruth(const CornerDetectorOptions& corners,
-                                                               const KltOptions& klt,
-                                                               const FundamentalMixturesOptions& solver)
+FundamentalMixturesGroundTruth::FundamentalMixturesGroundTruth(
+    const CornerDetectorOptions& corners, const KltOptions& klt,
+    const FundamentalMixturesOptions& solver)
     : tracker_(corners, klt), solver_(solver) {
   const std::string problem = solver.validate();
   if (!problem.empty()) throw std::invalid_argument("Fundamental Mixtures solver: " + problem);
@@ -17,11 +17,12 @@ std::vector<FeatureMatch> FundamentalMixturesGroundTruth::track(const cv::Mat& g
   return tracker_.match(gray_a, gray_b);
 }
 
-FundamentalMixturesResult FundamentalMixturesGroundTruth::solve(const std::vector<FeatureMatch>& matches,
-                                                                const CameraModel& camera,
-                                                                GroundTruthModel model) const {
-  return model == GroundTruthModel::kGlobalFundamental ? estimateGlobalFundamental(matches, camera, solver_)
-                                                       : estimateFundamentalMixtures(matches, camera, solver_);
+FundamentalMixturesResult FundamentalMixturesGroundTruth::solve(
+    const std::vector<FeatureMatch>& matches, const CameraModel& camera,
+    GroundTruthModel model) const {
+  return model == GroundTruthModel::kGlobalFundamental
+             ? estimateGlobalFundamental(matches, camera, solver_)
+             : estimateFundamentalMixtures(matches, camera, solver_);
 }
 
 }  // namespace deep_ois

@@ -19,7 +19,8 @@ double meanEndpointDistance(const std::vector<Eigen::Vector2d>& points_a_px,
   }
   if (points_a_px.empty()) return std::numeric_limits<double>::quiet_NaN();
   double sum = 0.0;
-  for (std::size_t k = 0; k < points_a_px.size(); ++k) sum += (moved(points_a_px[k]) - points_b_px[k]).norm();
+  for (std::size_t k = 0; k < points_a_px.size(); ++k)
+    sum += (moved(points_a_px[k]) - points_b_px[k]).norm();
   return sum / static_cast<double>(points_a_px.size());
 }
 
@@ -27,7 +28,8 @@ double meanEndpointDistance(const std::vector<Eigen::Vector2d>& points_a_px,
 
 double geometryDistance(const std::vector<Eigen::Vector2d>& points_a_px,
                         const std::vector<Eigen::Vector2d>& points_b_px,
-                        const std::vector<Eigen::Matrix3d>& patch_homographies, int image_height_px) {
+                        const std::vector<Eigen::Matrix3d>& patch_homographies,
+                        int image_height_px) {
   if (patch_homographies.empty()) throw std::invalid_argument("geometryDistance: no homographies");
   const int patches = static_cast<int>(patch_homographies.size());
   return meanEndpointDistance(points_a_px, points_b_px, [&](const Eigen::Vector2d& p) {
@@ -38,8 +40,10 @@ double geometryDistance(const std::vector<Eigen::Vector2d>& points_a_px,
 
 double geometryDistance(const std::vector<Eigen::Vector2d>& points_a_px,
                         const std::vector<Eigen::Vector2d>& points_b_px,
-                        const std::vector<Eigen::Matrix3d>& patch_homographies, const CameraModel& camera) {
-  if (!camera.hasDistortion()) return geometryDistance(points_a_px, points_b_px, patch_homographies, camera.height());
+                        const std::vector<Eigen::Matrix3d>& patch_homographies,
+                        const CameraModel& camera) {
+  if (!camera.hasDistortion())
+    return geometryDistance(points_a_px, points_b_px, patch_homographies, camera.height());
   if (patch_homographies.empty()) throw std::invalid_argument("geometryDistance: no homographies");
   const int patches = static_cast<int>(patch_homographies.size());
   return meanEndpointDistance(points_a_px, points_b_px, [&](const Eigen::Vector2d& p) {

@@ -10,7 +10,8 @@ namespace {
 
 void checkGridFlow(const cv::Mat& grid_flow, const cv::Size& camera_size, const char* caller) {
   if (grid_flow.empty() || grid_flow.type() != CV_32FC2) {
-    throw std::invalid_argument(std::string(caller) + ": the grid flow must be a non-empty CV_32FC2");
+    throw std::invalid_argument(std::string(caller) +
+                                ": the grid flow must be a non-empty CV_32FC2");
   }
   if (camera_size.width <= 0 || camera_size.height <= 0) {
     throw std::invalid_argument(std::string(caller) + ": the camera size must be positive");
@@ -44,7 +45,8 @@ Eigen::Vector2d sampleGridFlow(const cv::Mat& grid_flow, const cv::Size& camera_
   const cv::Vec2f& f11 = grid_flow.at<cv::Vec2f>(y1, x1);
   Eigen::Vector2d grid_value;
   for (int c = 0; c < 2; ++c) {
-    grid_value[c] = (1 - fy) * ((1 - fx) * f00[c] + fx * f01[c]) + fy * ((1 - fx) * f10[c] + fx * f11[c]);
+    grid_value[c] =
+        (1 - fy) * ((1 - fx) * f00[c] + fx * f01[c]) + fy * ((1 - fx) * f10[c] + fx * f11[c]);
   }
   return grid_value.cwiseProduct(s);
 }

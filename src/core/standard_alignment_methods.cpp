@@ -24,7 +24,8 @@ PairKey pairKey(const FramePairContext& pair) {
 
 // One detector's matches of the current pair, shared by its RANSAC and MAGSAC rows.
 struct SharedMatches {
-  SharedMatches(FeatureDetector detector, const FeatureHomographyOptions& options) : matcher(detector, options) {}
+  SharedMatches(FeatureDetector detector, const FeatureHomographyOptions& options)
+      : matcher(detector, options) {}
   const PointMatches& of(const FramePairContext& pair) {
     if (!valid || key != pairKey(pair)) {
       valid = false;
@@ -75,40 +76,47 @@ AlignmentMethod identityMethod() {
 
 std::vector<AlignmentMethod> gyroMethods() {
   return {gyroMethod(kGyroNonOisMethod, kNonOisCameraPairs | kNonOisTwinPairs),
-          gyroMethod(kGyroOisMethod, kOisCameraPairs), gyroMethod(kGyroMethod, kUnspecifiedCameraPairs)};
+          gyroMethod(kGyroOisMethod, kOisCameraPairs),
+          gyroMethod(kGyroMethod, kUnspecifiedCameraPairs)};
 }
 
 std::vector<AlignmentMethod> featureHomographyMethods(const FeatureHomographyOptions& options) {
   std::vector<AlignmentMethod> methods;
-  for (const FeatureDetector detector : {FeatureDetector::kSift, FeatureDetector::kOrb, FeatureDetector::kAkaze}) {
+  for (const FeatureDetector detector :
+       {FeatureDetector::kSift, FeatureDetector::kOrb, FeatureDetector::kAkaze}) {
     const auto shared = std::make_shared<SharedMatches>(detector, options);
     for (const RobustEstimator estimator : {RobustEstimator::kRansac, RobustEstimator::kMagsac}) {
-      methods.push_back({std::string(toString(detector)) + " + " + toString(estimator), kBenchmarkPairs,
-                         [shared, estimator, options](const FramePairContext& pair) {
-                           const HomographyFit fit = fitHomography(shared->of(pair), estimator, options);
-                           if (!fit.ok) return AlignmentEstimate::failed(fit.reason);
-                           Eigen::Matrix3d H;
-                           for (int r = 0; r < 3; ++r)
-                             for (int c = 0; c < 3; ++c) H(r, c) = fit.H(r, c);
-                           return AlignmentEstimate::rawHomography(H);
-                         }});
+      methods.push_back(
+          {std::string(toString(detector)) + " + " + toString(estimator), kBenchmarkPairs,
+           [shared, estimator, options](const FramePairContext& pair) {
+             const HomographyFit fit = fitHomography(shared->of(pair), estimator, options);
+             if (!fit.ok) return AlignmentEstimate::failed(fit.reason);
+             Eigen::Matrix3d H;
+             for (int r = 0; r < 3; ++r)
+               for (int c = 0; c < 3; ++c) H(r, c) = fit.H(r, c);
+             return AlignmentEstimate::rawHomography(H);
+           }});
     }
   }
   return methods;
 }
 
-std::vector<AlignmentMethod> groundTruthMethods(const CornerDetectorOptions& corners, const KltOptions& klt,
+std::vector<AlignmentMethod> groundTruthMethods(const CornerDetectorOptions& corners,
+                                                const KltOptions& klt,
                                                 const FundamentalMixturesOptions& solver) {
-  const auto shared = std::make_shared<SharedTracks>(FundamentalMixturesGroundTruth(corners, klt, solver));
+  const auto shared =
+      std::make_shared<SharedTracks>(FundamentalMixturesGroundTruth(corners, klt, solver));
   std::vector<AlignmentMethod> methods;
-  for (const auto& [name, model] : {std::make_pair(kGlobalFundamentalMethod, GroundTruthModel::kGlobalFundamental),
-                                    std::make_pair(kFundamentalMixturesMethod, GroundTruthModel::kFundamentalMixtures)}) {
-    methods.push_back({name, kBenchmarkPairs, [shared, model = model](const FramePairContext& pair) {
-                         const FundamentalMixturesResult result =
-                             shared->ground_truth.solve(shared->of(pair), *pair.camera, model);
-                         if (!result.ok()) return AlignmentEstimate::failed(toString(result.status));
-                         return AlignmentEstimate::patchHomographies(result.homographies);
-                       }});
+  for (const auto& [name, model] :
+       {std::make_pair(kGlobalFundamentalMethod, GroundTruthModel::kGlobalFundamental),
+        std::make_pair(kFundamentalMixturesMethod, GroundTruthModel::kFundamentalMixtures)}) {
+    methods.push_back(
+        {name, kBenchmarkPairs, [shared, model = model](const FramePairContext& pair) {
+           const FundamentalMixturesResult result =
+               shared->ground_truth.solve(shared->of(pair), *pair.camera, model);
+           if (!result.ok()) return AlignmentEstimate::failed(toString(result.status));
+           return AlignmentEstimate::patchHomographies(result.homographies);
+         }});
   }
   return methods;
 }
@@ -116,11 +124,13 @@ std::vector<AlignmentMethod> groundTruthMethods(const CornerDetectorOptions& cor
 std::vector<AlignmentMethod> standardAlignmentMethods(const StandardMethodOptions& options) {
   std::vector<AlignmentMethod> methods = {identityMethod()};
   if (options.image_baselines) {
-    for (AlignmentMethod& method : featureHomographyMethods(options.features)) methods.push_back(std::move(method));
+    for (AlignmentMethod& method : featureHomographyMethods(options.features))
+      methods.push_back(std::move(method));
   }
   for (AlignmentMethod& method : gyroMethods()) methods.push_back(std::move(method));
   if (options.ground_truth) {
-    for (AlignmentMethod& method : groundTruthMethods(options.corners, options.klt, options.solver)) {
+    for (AlignmentMethod& method :
+         groundTruthMethods(options.corners, options.klt, options.solver)) {
       methods.push_back(std::move(method));
     }
   }

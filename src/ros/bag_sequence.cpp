@@ -46,8 +46,8 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
     // right after an image its camera_info opens the next chunk. One view over both would order
     // such ties arbitrarily and hop between the two chunks, decompressing each chunk about twice
     // (measured on the simulator's bz2 bags); the bag caches one decompressed chunk.
-    rosbag::View others(bag, rosbag::TopicQuery({topics.camera_info, topics.imu, topics.frame_pair_truth,
-                                                 std::string("/tf_static")}));
+    rosbag::View others(bag, rosbag::TopicQuery({topics.camera_info, topics.imu,
+                                                 topics.frame_pair_truth, std::string("/tf_static")}));
     std::unique_ptr<rosbag::View> images;
     if (frames) images = std::make_unique<rosbag::View>(bag, rosbag::TopicQuery(topics.image));
     rosbag::View::iterator other = others.begin(), image_it;

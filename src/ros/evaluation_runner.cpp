@@ -74,7 +74,8 @@ struct Recording {
 
 // Reads a recording once (IMU, camera_info, tf, truth and every frame) and prepares what its
 // pairs share. Throws std::runtime_error naming the bag and the problem.
-std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& path, const EvaluationOptions& options) {
+std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& path,
+                                         const EvaluationOptions& options) {
   const Clock::time_point started = Clock::now();
   auto recording = std::make_unique<Recording>();
   recording->index = index;
@@ -87,22 +88,25 @@ std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& p
   for (std::size_t f = 0; f < recording->frames.size(); ++f) {
     const BagFrame& frame = recording->frames[f];
     if (frame.rgb.cols != camera.width() || frame.rgb.rows != camera.height()) {
-      fail("frame " + std::to_string(f) + " is " + std::to_string(frame.rgb.cols) + "x" + std::to_string(frame.rgb.rows) +
-           " but camera_info says " + std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+      fail("frame " + std::to_string(f) + " is " + std::to_string(frame.rgb.cols) + "x" +
+           std::to_string(frame.rgb.rows) + " but camera_info says " +
+           std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
     }
     recording->frame_of_stamp[static_cast<std::int64_t>(frame.stamp.toNSec())] = f;
   }
   recording->rolling_shutter = options.gyro.rolling_shutter;
   if (options.gyro.rotation_from_tf) {
     if (!sequence.imu_to_camera_rotation) {
-      fail("no IMU -> camera transform in /tf_static (set imu_to_camera_rotation in the gyro flow config to override)");
+      fail(
+          "no IMU -> camera transform in /tf_static (set imu_to_camera_rotation in the gyro flow "
+          "config to override)");
     }
     recording->rolling_shutter.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   }
   if (sequence.imu_samples.empty()) fail("no IMU sample on " + options.topics.imu);
   recording->imu = sequence.imuBuffer();
-  recording->flow_renderer =
-      std::make_unique<HomographyFlowRenderer>(camera, options.gyro.grid_size, recording->rolling_shutter.patch_count);
+  recording->flow_renderer = std::make_unique<HomographyFlowRenderer>(
+      camera, options.gyro.grid_size, recording->rolling_shutter.patch_count);
   recording->reading_s = secondsSince(started);
   return recording;
 }
@@ -116,7 +120,8 @@ std::string EvaluationOptions::validate() const {
   }
   const std::string problem = gyro.rolling_shutter.validate();
   if (!problem.empty()) return "gyro flow parameters: " + problem;
-  if (gyro.grid_size.width <= 0 || gyro.grid_size.height <= 0) return "gyro flow grid size must be positive";
+  if (gyro.grid_size.width <= 0 || gyro.grid_size.height <= 0)
+    return "gyro flow grid size must be positive";
   if (annotated_scope != kOisCameraPairs && annotated_scope != kNonOisCameraPairs &&
       annotated_scope != kUnspecifiedCameraPairs) {
     return "annotated_scope must be one of the OIS, non-OIS or unspecified camera scopes";
@@ -132,13 +137,18 @@ EvaluationRunner::EvaluationRunner(EvaluationOptions options) : options_(std::mo
 }
 
 void EvaluationRunner::addMethod(AlignmentMethod method) {
-  if (method.name.empty()) throw std::invalid_argument("EvaluationRunner::addMethod: empty method name");
-  if (!method.estimate) throw std::invalid_argument("EvaluationRunner::addMethod: " + method.name + " has no estimate function");
+  if (method.name.empty())
+    throw std::invalid_argument("EvaluationRunner::addMethod: empty method name");
+  if (!method.estimate)
+    throw std::invalid_argument("EvaluationRunner::addMethod: " + method.name +
+                                " has no estimate function");
   if ((method.scope & (kBenchmarkPairs | kNonOisTwinPairs)) == 0) {
-    throw std::invalid_argument("EvaluationRunner::addMethod: " + method.name + " has an empty scope");
+    throw std::invalid_argument("EvaluationRunner::addMethod: " + method.name +
+                                " has an empty scope");
   }
   for (const AlignmentMethod& existing : methods_) {
-    if (existing.name == method.name) throw std::invalid_argument("EvaluationRunner::addMethod: two methods named " + method.name);
+    if (existing.name == method.name)
+      throw std::invalid_argument("EvaluationRunner::addMethod: two methods named " + method.name);
   }
   methods_.push_back(std::move(method));
 }
@@ -171,7 +181,8 @@ EvaluationReport EvaluationRunner::run() {
   // Reading a bag (mostly bz2 decompression) overlaps scoring the previous one: one thread reads
   // ahead, the methods run on this thread, so they need not be thread-safe.
   auto prefetch = [this](std::size_t index) {
-    return std::async(std::launch::async, loadRecording, index, options_.bags[index], std::cref(options_));
+    return std::async(std::launch::async, loadRecording, index, options_.bags[index],
+                      std::cref(options_));
   };
   std::future<std::unique_ptr<Recording>> next = prefetch(0);
   for (std::size_t index = 0; index < options_.bags.size(); ++index) {
@@ -187,7 +198,9 @@ EvaluationReport EvaluationRunner::run() {
       Recording& recording = *loaded;
       const BagSequence& sequence = recording.sequence;
       const CameraModel& camera = *sequence.camera;
-      auto fail = [&](const std::string& what) { throw std::runtime_error(recording.path + ": " + what); };
+      auto fail = [&](const std::string& what) {
+        throw std::runtime_error(recording.path + ": " + what);
+      };
 
       // ---- The pairs to score. ----
       std::vector<PairToScore> pairs;
@@ -215,22 +228,29 @@ EvaluationReport EvaluationRunner::run() {
           const bool has_b = recording.frame_of_stamp.count(annotated_pair.stamp_b_ns) > 0;
           if (!has_a && !has_b) continue;  // another bag's pair
           annotation_used[p] = true;
-          const std::string where = file.path + ":" + std::to_string(annotated_pair.lines.front()) + ": ";
+          const std::string where =
+              file.path + ":" + std::to_string(annotated_pair.lines.front()) + ": ";
           if (!has_a || !has_b) {
-            report.errors.push_back(where + (has_a ? "stamp_b " + formatStampNs(annotated_pair.stamp_b_ns)
-                                                   : "stamp_a " + formatStampNs(annotated_pair.stamp_a_ns)) +
-                                    " is not a frame of " + recording.path + " (the other stamp is)");
+            report.errors.push_back(
+                where +
+                (has_a ? "stamp_b " + formatStampNs(annotated_pair.stamp_b_ns)
+                       : "stamp_a " + formatStampNs(annotated_pair.stamp_a_ns)) +
+                " is not a frame of " + recording.path + " (the other stamp is)");
             ++pairs_done;
             continue;
           }
           bool inside = true;
           for (std::size_t k = 0; k < annotated_pair.points_a_px.size() && inside; ++k) {
-            for (const Eigen::Vector2d& p_px : {annotated_pair.points_a_px[k], annotated_pair.points_b_px[k]}) {
-              if (p_px.x() < -0.5 || p_px.y() < -0.5 || p_px.x() > camera.width() - 0.5 || p_px.y() > camera.height() - 0.5) {
-                report.errors.push_back(file.path + ":" + std::to_string(annotated_pair.lines[k]) + ": point (" +
-                                        std::to_string(p_px.x()) + ", " + std::to_string(p_px.y()) + ") is outside the " +
-                                        std::to_string(camera.width()) + "x" + std::to_string(camera.height()) +
-                                        " image of " + recording.path + "; pair not scored");
+            for (const Eigen::Vector2d& p_px :
+                 {annotated_pair.points_a_px[k], annotated_pair.points_b_px[k]}) {
+              if (p_px.x() < -0.5 || p_px.y() < -0.5 || p_px.x() > camera.width() - 0.5 ||
+                  p_px.y() > camera.height() - 0.5) {
+                report.errors.push_back(file.path + ":" + std::to_string(annotated_pair.lines[k]) +
+                                        ": point (" + std::to_string(p_px.x()) + ", " +
+                                        std::to_string(p_px.y()) + ") is outside the " +
+                                        std::to_string(camera.width()) + "x" +
+                                        std::to_string(camera.height()) + " image of " +
+                                        recording.path + "; pair not scored");
                 inside = false;
                 break;
               }
@@ -277,7 +297,8 @@ EvaluationReport EvaluationRunner::run() {
         };
         const auto frame_a = recording.frame_of_stamp.find(pair.stamp_a_ns);
         const auto frame_b = recording.frame_of_stamp.find(pair.stamp_b_ns);
-        if (frame_a == recording.frame_of_stamp.end() || frame_b == recording.frame_of_stamp.end()) {
+        if (frame_a == recording.frame_of_stamp.end() ||
+            frame_b == recording.frame_of_stamp.end()) {
           skip("truth stamps are not frames of the bag");
           continue;
         }
@@ -311,15 +332,17 @@ EvaluationReport EvaluationRunner::run() {
         recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
         context.points_a_px = pair.points_a_px;
         context.points_b_px = pair.points_b_px;
-        const double identity_px =
-            geometryDistance(pair.points_a_px, pair.points_b_px, {Eigen::Matrix3d::Identity()}, camera.height());
+        const double identity_px = geometryDistance(pair.points_a_px, pair.points_b_px,
+                                                    {Eigen::Matrix3d::Identity()}, camera.height());
 
         GhostSample ghost;
         if (pair.ghost) {
           ghost.category = pair.category;
-          ghost.label = fileName(recording.path) + ", pair " + std::to_string(p) + " (" +
-                        formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) + ")" +
-                        (options_.ghost_zoom > 1 ? ", centre " + std::to_string(options_.ghost_zoom) + "x" : "");
+          ghost.label =
+              fileName(recording.path) + ", pair " + std::to_string(p) + " (" +
+              formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) + ")" +
+              (options_.ghost_zoom > 1 ? ", centre " + std::to_string(options_.ghost_zoom) + "x"
+                                       : "");
         }
         for (AlignmentMethod& method : methods_) {
           if ((method.scope & pair.scope) == 0) continue;
@@ -340,7 +363,8 @@ EvaluationReport EvaluationRunner::run() {
               score.distance_px = estimateDistance(estimate, context);
               if (!std::isfinite(score.distance_px)) score.failure = "non-finite motion";
             } else {
-              score.failure = estimate.failure_reason.empty() ? "no estimate" : estimate.failure_reason;
+              score.failure =
+                  estimate.failure_reason.empty() ? "no estimate" : estimate.failure_reason;
             }
           } catch (const std::exception& e) {
             report.method_s[method.name] += secondsSince(estimating);
@@ -352,7 +376,8 @@ EvaluationReport EvaluationRunner::run() {
             ++report.failure_reasons[method.name][score.failure];
             score.scored_px = identity_px;
           } else {
-            score.scored_px = report.table.addCapped(method.name, pair.category, score.distance_px, identity_px);
+            score.scored_px =
+                report.table.addCapped(method.name, pair.category, score.distance_px, identity_px);
           }
           report.pairs.push_back(score);
           if (pair.ghost) {
@@ -363,11 +388,14 @@ EvaluationReport EvaluationRunner::run() {
             panel.capped = estimate.ok() && score.distance_px > identity_px;
             try {
               panel.ghost_rgb = magnifyCentre(
-                  ghostOverlay(context.rgb_a, warpFrameBOntoA(context.rgb_b, estimateCameraFlow(estimate, camera))),
+                  ghostOverlay(
+                      context.rgb_a,
+                      warpFrameBOntoA(context.rgb_b, estimateCameraFlow(estimate, camera))),
                   options_.ghost_zoom);
               ghost.panels.push_back(std::move(panel));
             } catch (const std::exception&) {
-              // A motion that cannot be drawn was already scored (as a failure); the panel stays blank.
+              // A motion that cannot be drawn was already scored (as a failure); the panel stays
+              // blank.
             }
           }
         }
@@ -386,9 +414,10 @@ EvaluationReport EvaluationRunner::run() {
     for (std::size_t p = 0; p < annotation_used.size(); ++p) {
       if (annotation_used[p]) continue;
       const AnnotatedPair& pair = options_.annotations->pairs[p];
-      report.errors.push_back(options_.annotations->path + ":" + std::to_string(pair.lines.front()) + ": pair " +
-                              formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) +
-                              " matches no frame of the bags given");
+      report.errors.push_back(
+          options_.annotations->path + ":" + std::to_string(pair.lines.front()) + ": pair " +
+          formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) +
+          " matches no frame of the bags given");
     }
   }
   if (progress) {

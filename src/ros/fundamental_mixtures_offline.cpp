@@ -101,9 +101,10 @@ TrainingPair processPair(const BagContext& bag, const BagFrame& a, const BagFram
   // The evaluator's ground-truth rows run this same code (fundamental_mixtures_ground_truth.h).
   const std::vector<FeatureMatch> matches = bag.ground_truth.track(a.gray, b.gray);
   msg.match_count = matches.size();
-  const FundamentalMixturesResult result = bag.ground_truth.solve(
-      matches, camera,
-      options.global_fundamental ? GroundTruthModel::kGlobalFundamental : GroundTruthModel::kFundamentalMixtures);
+  const FundamentalMixturesResult result =
+      bag.ground_truth.solve(matches, camera,
+                             options.global_fundamental ? GroundTruthModel::kGlobalFundamental
+                                                        : GroundTruthModel::kFundamentalMixtures);
   msg.inlier_count = result.inlier_count;
   msg.patch_inlier_counts.assign(result.inlier_counts.begin(), result.inlier_counts.end());
   if (!result.ok()) {

@@ -25,7 +25,8 @@ namespace {
 
 const char* const kUsage =
     "usage: evaluate --bags FILE.bag [FILE.bag ...] [--out DIR] [--gyro-config FILE.yaml]\n"
-    "                [--annotations FILE.csv [--camera ois|non-ois]] [--ghost-pairs N] [--ghost-zoom N]\n"
+    "                [--annotations FILE.csv [--camera ois|non-ois]] [--ghost-pairs N] "
+    "[--ghost-zoom N]\n"
     "                [--max-pairs N] [--no-image-baselines] [--no-ground-truth] [--no-progress]\n";
 
 int usage(const std::string& problem) {
@@ -53,7 +54,8 @@ int main(int argc, char** argv) {
     const bool has_value = i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0;
     long count = 0;
     if (flag == "--bags") {
-      while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0) options.bags.push_back(argv[++i]);
+      while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0)
+        options.bags.push_back(argv[++i]);
     } else if (flag == "--gyro-config" && has_value) {
       gyro_config = argv[++i];
     } else if (flag == "--out" && has_value) {
@@ -62,8 +64,10 @@ int main(int argc, char** argv) {
       annotations = argv[++i];
     } else if (flag == "--camera" && has_value) {
       camera = argv[++i];
-    } else if ((flag == "--ghost-pairs" || flag == "--ghost-zoom" || flag == "--max-pairs") && has_value) {
-      if (!parseCount(argv[++i], count)) return usage(flag + " needs a whole number >= 0, got '" + argv[i] + "'");
+    } else if ((flag == "--ghost-pairs" || flag == "--ghost-zoom" || flag == "--max-pairs") &&
+               has_value) {
+      if (!parseCount(argv[++i], count))
+        return usage(flag + " needs a whole number >= 0, got '" + argv[i] + "'");
       if (flag == "--ghost-pairs") options.ghost_pairs_per_category = static_cast<int>(count);
       if (flag == "--ghost-zoom") options.ghost_zoom = static_cast<int>(count);
       if (flag == "--max-pairs") options.max_pairs_per_bag = static_cast<std::size_t>(count);
@@ -81,8 +85,10 @@ int main(int argc, char** argv) {
     }
   }
   if (options.bags.empty()) return usage("--bags needs at least one bag");
-  if (gyro_config.empty()) return usage("package deep_ois not found (source its setup.bash), so pass --gyro-config");
-  if (!camera.empty() && annotations.empty()) return usage("--camera applies to --annotations recordings only");
+  if (gyro_config.empty())
+    return usage("package deep_ois not found (source its setup.bash), so pass --gyro-config");
+  if (!camera.empty() && annotations.empty())
+    return usage("--camera applies to --annotations recordings only");
   if (camera == "ois") {
     options.annotated_scope = deep_ois::kOisCameraPairs;
   } else if (camera == "non-ois") {
@@ -102,7 +108,8 @@ int main(int argc, char** argv) {
     // The shipped model is registered here as one more method (issue 5), e.g.
     //   runner.addMethod({"DeepOIS (shipped model)", deep_ois::kOisCameraPairs,
     //                     [&model](const deep_ois::FramePairContext& pair) {
-    //                       return deep_ois::AlignmentEstimate::gridFlow(model.compensate(pair.gyro_flow_grid));
+    //                       return
+    //                       deep_ois::AlignmentEstimate::gridFlow(model.compensate(pair.gyro_flow_grid));
     //                     }});
     report = runner.run();
   } catch (const std::exception& e) {
@@ -119,12 +126,17 @@ int main(int argc, char** argv) {
     for (const auto& [reason, count] : recording.skip_reasons) {
       skipped += ", " + std::to_string(count) + " skipped (" + reason + ")";
     }
-    std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", recording.path.c_str(), recording.pairs_scored, skipped.c_str());
+    std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", recording.path.c_str(),
+                 recording.pairs_scored, skipped.c_str());
   }
-  for (const std::string& error : report.errors) std::fprintf(stderr, "evaluate: %s\n", error.c_str());
-  std::fprintf(stderr, "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
-               report.elapsed_s, report.reading_s);
-  for (const auto& [method, seconds] : report.method_s) std::fprintf(stderr, " %s %.1f s;", method.c_str(), seconds);
+  for (const std::string& error : report.errors)
+    std::fprintf(stderr, "evaluate: %s\n", error.c_str());
+  std::fprintf(
+      stderr,
+      "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
+      report.elapsed_s, report.reading_s);
+  for (const auto& [method, seconds] : report.method_s)
+    std::fprintf(stderr, " %s %.1f s;", method.c_str(), seconds);
   std::fprintf(stderr, "\n");
 
   if (report.table.methods().empty()) {

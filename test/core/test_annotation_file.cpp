@@ -59,29 +59,36 @@ TEST(AnnotationFile, StampsRoundTripToTheNanosecond) {
   EXPECT_EQ(formatStampNs(ns), "1594117812.000000001");
   ASSERT_TRUE(parseStampNs("7", ns));
   EXPECT_EQ(formatStampNs(ns), "7.000000000");
-  for (const char* bad : {"", "-1.5", "1.", ".5", "1.0000000001", "1e9", "12a.3", "99999999999.0", " 1.0"}) {
+  for (const char* bad :
+       {"", "-1.5", "1.", ".5", "1.0000000001", "1e9", "12a.3", "99999999999.0", " 1.0"}) {
     EXPECT_FALSE(parseStampNs(bad, ns)) << bad;
   }
 }
 
 TEST(AnnotationFile, MalformedFilesNameTheFileAndLine) {
   const std::string row = "1.000000000,1.033333333,1,2,3,4,RE\n";
-  EXPECT_EQ(errorOf(""), "pairs.csv: no header line 'stamp_a,stamp_b,x_a,y_a,x_b,y_b,category' (empty file?)");
+  EXPECT_EQ(errorOf(""),
+            "pairs.csv: no header line 'stamp_a,stamp_b,x_a,y_a,x_b,y_b,category' (empty file?)");
   EXPECT_EQ(errorOf(kHeader), "pairs.csv: no annotated point after the header");
-  EXPECT_NE(errorOf("# c\nstamp_a,stamp_b,x,y,x_b,y_b,category\n").find("pairs.csv:2: expected the header"),
+  EXPECT_NE(errorOf("# c\nstamp_a,stamp_b,x,y,x_b,y_b,category\n")
+                .find("pairs.csv:2: expected the header"),
             std::string::npos);
   EXPECT_EQ(errorOf(kHeader + row + "1.0,2.0,1,2,3,RE\n"),
-            "pairs.csv:3: expected 7 comma-separated fields (stamp_a,stamp_b,x_a,y_a,x_b,y_b,category), got 6");
+            "pairs.csv:3: expected 7 comma-separated fields "
+            "(stamp_a,stamp_b,x_a,y_a,x_b,y_b,category), got 6");
   EXPECT_EQ(errorOf(kHeader + "1.0,2.0,1,2,3,4,RE,extra\n").substr(0, 13), "pairs.csv:2: ");
   EXPECT_EQ(errorOf(kHeader + "1.0,2.0,1,2,3,4,\n"), "pairs.csv:2: the category is empty");
   EXPECT_EQ(errorOf(kHeader + "1.0x,2.0,1,2,3,4,RE\n"),
             "pairs.csv:2: stamp_a '1.0x' is not seconds with up to 9 decimals");
   EXPECT_EQ(errorOf(kHeader + "1.0,2.0000000001,1,2,3,4,RE\n"),
             "pairs.csv:2: stamp_b '2.0000000001' is not seconds with up to 9 decimals");
-  EXPECT_EQ(errorOf(kHeader + "2.0,1.0,1,2,3,4,RE\n"),
-            "pairs.csv:2: stamp_b 1.0 is not later than stamp_a 2.0 (frame a is the earlier frame)");
-  EXPECT_EQ(errorOf(kHeader + "1.0,2.0,1,two,3,4,RE\n"), "pairs.csv:2: y_a 'two' is not a finite number");
-  EXPECT_EQ(errorOf(kHeader + "1.0,2.0,1,2,nan,4,RE\n"), "pairs.csv:2: x_b 'nan' is not a finite number");
+  EXPECT_EQ(
+      errorOf(kHeader + "2.0,1.0,1,2,3,4,RE\n"),
+      "pairs.csv:2: stamp_b 1.0 is not later than stamp_a 2.0 (frame a is the earlier frame)");
+  EXPECT_EQ(errorOf(kHeader + "1.0,2.0,1,two,3,4,RE\n"),
+            "pairs.csv:2: y_a 'two' is not a finite number");
+  EXPECT_EQ(errorOf(kHeader + "1.0,2.0,1,2,nan,4,RE\n"),
+            "pairs.csv:2: x_b 'nan' is not a finite number");
   EXPECT_EQ(errorOf(kHeader + row + "# comment\n" + "1.000000000,1.033333333,5,6,7,8,LT\n"),
             "pairs.csv:4: category 'LT' differs from 'RE' given for this pair on line 2");
 }

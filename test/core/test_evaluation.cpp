@@ -57,7 +57,8 @@ TEST(GridFlow, ScalesGridPixelsToCameraPixels) {
   const cv::Size camera(8, 6);
   const cv::Mat constant(3, 4, CV_32FC2, cv::Scalar(0.5, -1.0));  // grid pixels
   EXPECT_MATRIX_NEAR(Eigen::Vector2d(2.0, 2.0), gridScale(camera, constant.size()), 0.0);
-  for (const Eigen::Vector2d& p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(3.3, 2.7), Eigen::Vector2d(7, 5)}) {
+  for (const Eigen::Vector2d& p :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(3.3, 2.7), Eigen::Vector2d(7, 5)}) {
     EXPECT_MATRIX_NEAR(Eigen::Vector2d(1.0, -2.0), sampleGridFlow(constant, camera, p), 1e-12);
   }
   // The paper's distance: a = (1, 1) lands on b exactly; (5, 4) lands on (6, 2), 3 px from (6, 5).
@@ -87,7 +88,8 @@ TEST(GridFlow, TheCameraResolutionFlowAgreesWithPointSampling) {
   std::uniform_real_distribution<float> value(-3.0f, 3.0f);
   cv::Mat grid(9, 12, CV_32FC2);
   for (int y = 0; y < grid.rows; ++y)
-    for (int x = 0; x < grid.cols; ++x) grid.at<cv::Vec2f>(y, x) = cv::Vec2f(value(random), value(random));
+    for (int x = 0; x < grid.cols; ++x)
+      grid.at<cv::Vec2f>(y, x) = cv::Vec2f(value(random), value(random));
   for (const cv::Size camera : {cv::Size(36, 27), cv::Size(12, 9), cv::Size(30, 20)}) {
     const cv::Mat dense = gridFlowToCameraFlow(grid, camera);
     ASSERT_EQ(dense.size(), camera);
@@ -96,7 +98,9 @@ TEST(GridFlow, TheCameraResolutionFlowAgreesWithPointSampling) {
     for (int y = 0; y < camera.height; ++y) {
       for (int x = 0; x < camera.width; ++x) {
         const cv::Vec2f d = dense.at<cv::Vec2f>(y, x);
-        worst = std::max(worst, (Eigen::Vector2d(d[0], d[1]) - sampleGridFlow(grid, camera, Eigen::Vector2d(x, y))).norm());
+        worst = std::max(worst, (Eigen::Vector2d(d[0], d[1]) -
+                                 sampleGridFlow(grid, camera, Eigen::Vector2d(x, y)))
+                                    .norm());
       }
     }
     EXPECT_LT(worst, 1e-3) << camera;  // cv::resize's float interpolation vs double
@@ -119,8 +123,8 @@ TEST(GridFlow, AGridFlowScoresLikeTheHomographiesItWasRenderedFrom) {
   // Points on the grid's sample positions of each patch (camera (2g + 0.5)): flows are exact there.
   const std::vector<Eigen::Vector2d> a = {{10.5, 10.5}, {70.5, 40.5}, {30.5, 90.5}, {150.5, 110.5}};
   const std::vector<Eigen::Vector2d> b = {{13, 9}, {72, 40}, {29, 91}, {149, 110}};
-  EXPECT_NEAR(geometryDistanceOfGridFlow(a, b, grid, cv::Size(160, 120)), geometryDistance(a, b, {top, bottom}, camera),
-              1e-5);
+  EXPECT_NEAR(geometryDistanceOfGridFlow(a, b, grid, cv::Size(160, 120)),
+              geometryDistance(a, b, {top, bottom}, camera), 1e-5);
 }
 
 TEST(AlignmentEstimate, EveryKindOfMotionIsScoredByTheSameDistance) {
@@ -136,7 +140,9 @@ TEST(AlignmentEstimate, EveryKindOfMotionIsScoredByTheSameDistance) {
   shift(1, 2) = 1.0;  // exact for the first point, 1 px off in x for the second
   const double expected = 0.5;
   EXPECT_DOUBLE_EQ(estimateDistance(AlignmentEstimate::rawHomography(shift), pair), expected);
-  EXPECT_DOUBLE_EQ(estimateDistance(AlignmentEstimate::patchHomographies({shift, shift, shift}), pair), expected);
+  EXPECT_DOUBLE_EQ(
+      estimateDistance(AlignmentEstimate::patchHomographies({shift, shift, shift}), pair),
+      expected);
   const cv::Mat grid(40, 50, CV_32FC2, cv::Scalar(1.0, 0.5));  // s = 2: (2, 1) camera pixels
   EXPECT_NEAR(estimateDistance(AlignmentEstimate::gridFlow(grid), pair), expected, 1e-12);
   EXPECT_TRUE(std::isnan(estimateDistance(AlignmentEstimate::failed("too few matches"), pair)));
@@ -144,14 +150,16 @@ TEST(AlignmentEstimate, EveryKindOfMotionIsScoredByTheSameDistance) {
   const cv::Mat from_h = estimateCameraFlow(AlignmentEstimate::rawHomography(shift), camera);
   const cv::Mat from_grid = estimateCameraFlow(AlignmentEstimate::gridFlow(grid), camera);
   EXPECT_LT(cv::norm(from_h, from_grid, cv::NORM_INF), 1e-5);
-  EXPECT_EQ(cv::norm(estimateCameraFlow(AlignmentEstimate::failed("x"), camera), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(estimateCameraFlow(AlignmentEstimate::failed("x"), camera), cv::NORM_INF),
+            0.0);
 }
 
 TEST(FlowWarp, BringsFrameBOntoFrameA) {
   cv::Mat b(20, 30, CV_8UC3);
   for (int y = 0; y < b.rows; ++y)
     for (int x = 0; x < b.cols; ++x) b.at<cv::Vec3b>(y, x) = cv::Vec3b(x * 8, y * 12, 7);
-  const cv::Mat flow(20, 30, CV_32FC2, cv::Scalar(2.0, 1.0));  // frame a's pixel p is b's p + (2, 1)
+  const cv::Mat flow(20, 30, CV_32FC2,
+                     cv::Scalar(2.0, 1.0));  // frame a's pixel p is b's p + (2, 1)
   const cv::Mat warped = warpFrameBOntoA(b, flow);
   EXPECT_EQ(warped.at<cv::Vec3b>(5, 4), b.at<cv::Vec3b>(6, 6));
   EXPECT_EQ(warped.at<cv::Vec3b>(19, 29), cv::Vec3b(0, 0, 0));  // lands outside frame b
@@ -208,12 +216,15 @@ TEST(EvaluationReport, NotesFailuresCappingAndErrorsUnderTheTable) {
   report.table.addCapped("gyro", "RE", 3.0, 2.0);
   report.recordings.push_back({"good.bag", 1, 0, {}, ""});
   report.recordings.push_back({"bad.bag", 0, 0, {}, "bad.bag: cannot open the bag"});
-  report.errors.push_back("pairs.csv:7: pair 1.000000000 -> 2.000000000 matches no frame of the bags given");
+  report.errors.push_back(
+      "pairs.csv:7: pair 1.000000000 -> 2.000000000 matches no frame of the bags given");
   const std::string markdown = report.markdown();
-  EXPECT_NE(markdown.find("- ORB + RANSAC: 1 pairs; 1 without an estimate, scored as identity (too few matches (< 8): 1)"),
+  EXPECT_NE(markdown.find("- ORB + RANSAC: 1 pairs; 1 without an estimate, scored as identity (too "
+                          "few matches (< 8): 1)"),
             std::string::npos)
       << markdown;
-  EXPECT_NE(markdown.find("- gyro: 1 pairs; 1 worse than identity, capped"), std::string::npos) << markdown;
+  EXPECT_NE(markdown.find("- gyro: 1 pairs; 1 worse than identity, capped"), std::string::npos)
+      << markdown;
   EXPECT_NE(markdown.find("bad.bag: cannot open the bag"), std::string::npos) << markdown;
   EXPECT_NE(markdown.find("pairs.csv:7:"), std::string::npos) << markdown;
   EXPECT_FALSE(report.complete());
@@ -225,15 +236,18 @@ TEST(EvaluationReport, NotesFailuresCappingAndErrorsUnderTheTable) {
 }
 
 TEST(EvaluationPlots, DrawsBarsAndGhostGrids) {
-  const cv::Mat chart = drawBarChart("RE", {"identity", "gyro", "none"}, {2.0, 0.5, std::nan("")}, "px");
+  const cv::Mat chart =
+      drawBarChart("RE", {"identity", "gyro", "none"}, {2.0, 0.5, std::nan("")}, "px");
   ASSERT_EQ(chart.type(), CV_8UC3);
   EXPECT_GT(chart.cols, 500);
   EXPECT_THROW(drawBarChart("RE", {"a"}, {1.0, 2.0}, "px"), std::invalid_argument);
   GhostSample sample;
   sample.category = "RE";
   sample.label = "pair 1";
-  sample.panels.push_back({"identity", cv::Mat(30, 40, CV_8UC3, cv::Scalar(10, 20, 30)), 2.0, false, false});
-  sample.panels.push_back({"gyro", cv::Mat(30, 40, CV_8UC3, cv::Scalar(40, 50, 60)), 0.5, false, false});
+  sample.panels.push_back(
+      {"identity", cv::Mat(30, 40, CV_8UC3, cv::Scalar(10, 20, 30)), 2.0, false, false});
+  sample.panels.push_back(
+      {"gyro", cv::Mat(30, 40, CV_8UC3, cv::Scalar(40, 50, 60)), 0.5, false, false});
   const cv::Mat grid = drawGhostGrid("ghosts", {sample, sample}, {"identity", "gyro", "absent"});
   ASSERT_FALSE(grid.empty());
   EXPECT_EQ(grid.cols, 3 * (40 + 4) + 4);  // one column per method, blank where absent

@@ -12,14 +12,17 @@ namespace {
 // A textured grey image: random blobs of several sizes (corners and blobs for every detector).
 cv::Mat texturedImage(cv::Size size, unsigned seed) {
   std::mt19937 random(seed);
-  std::uniform_int_distribution<int> x(0, size.width - 1), y(0, size.height - 1), radius(2, 12), grey(0, 255);
+  std::uniform_int_distribution<int> x(0, size.width - 1), y(0, size.height - 1), radius(2, 12),
+      grey(0, 255);
   cv::Mat image(size, CV_8UC1, cv::Scalar(128));
   for (int k = 0; k < 400; ++k) {
     const int r = radius(random);
     if (k % 2) {
-      cv::circle(image, {x(random), y(random)}, r, cv::Scalar(grey(random)), cv::FILLED, cv::LINE_AA);
+      cv::circle(image, {x(random), y(random)}, r, cv::Scalar(grey(random)), cv::FILLED,
+                 cv::LINE_AA);
     } else {
-      cv::rectangle(image, cv::Rect(x(random), y(random), 2 * r, r), cv::Scalar(grey(random)), cv::FILLED);
+      cv::rectangle(image, cv::Rect(x(random), y(random), 2 * r, r), cv::Scalar(grey(random)),
+                    cv::FILLED);
     }
   }
   cv::GaussianBlur(image, image, cv::Size(3, 3), 0.8);
@@ -32,7 +35,8 @@ double largestTransferDifference(const cv::Matx33d& a, const cv::Matx33d& b, cv:
   for (int y = 20; y < size.height - 20; y += 20) {
     for (int x = 20; x < size.width - 20; x += 20) {
       const cv::Vec3d p(x, y, 1.0), pa = a * p, pb = b * p;
-      worst = std::max(worst, std::hypot(pa[0] / pa[2] - pb[0] / pb[2], pa[1] / pa[2] - pb[1] / pb[2]));
+      worst =
+          std::max(worst, std::hypot(pa[0] / pa[2] - pb[0] / pb[2], pa[1] / pa[2] - pb[1] / pb[2]));
     }
   }
   return worst;
@@ -46,15 +50,18 @@ TEST(FeatureHomography, EveryDetectorAndEstimatorRecoversAKnownHomography) {
   cv::Mat b;
   cv::warpPerspective(a, b, cv::Mat(truth), size, cv::INTER_LINEAR, cv::BORDER_REFLECT);
   FeatureHomographyOptions options;
-  for (const FeatureDetector detector : {FeatureDetector::kSift, FeatureDetector::kOrb, FeatureDetector::kAkaze}) {
+  for (const FeatureDetector detector :
+       {FeatureDetector::kSift, FeatureDetector::kOrb, FeatureDetector::kAkaze}) {
     FeatureMatcher matcher(detector, options);
     const PointMatches matches = matcher.match({0, 1}, a, {0, 2}, b);
     EXPECT_GT(matches.points_a_px.size(), 30u) << toString(detector);
     for (const RobustEstimator estimator : {RobustEstimator::kRansac, RobustEstimator::kMagsac}) {
       const HomographyFit fit = fitHomography(matches, estimator, options);
-      ASSERT_TRUE(fit.ok) << toString(detector) << " + " << toString(estimator) << ": " << fit.reason;
+      ASSERT_TRUE(fit.ok) << toString(detector) << " + " << toString(estimator) << ": "
+                          << fit.reason;
       EXPECT_GT(fit.inliers, 20);
-      EXPECT_LT(largestTransferDifference(fit.H, truth, size), 1.0) << toString(detector) << " + " << toString(estimator);
+      EXPECT_LT(largestTransferDifference(fit.H, truth, size), 1.0)
+          << toString(detector) << " + " << toString(estimator);
     }
   }
 }
@@ -75,7 +82,8 @@ TEST(FeatureHomography, FramesAreDescribedOnceAcrossConsecutivePairs) {
   // for frame 2 the second time still uses frame 2's real features, so the match count equals the
   // one computed from the real image.
   const cv::Size size(360, 270);
-  const cv::Mat f1 = texturedImage(size, 8), f2 = texturedImage(size, 8), f3 = texturedImage(size, 8);
+  const cv::Mat f1 = texturedImage(size, 8), f2 = texturedImage(size, 8),
+                f3 = texturedImage(size, 8);
   const cv::Mat blank(size, CV_8UC1, cv::Scalar(0));
   FeatureHomographyOptions options;
   FeatureMatcher cached(FeatureDetector::kOrb, options), fresh(FeatureDetector::kOrb, options);

@@ -18,7 +18,9 @@
 namespace deep_ois {
 namespace {
 
-std::string sourcePath(const std::string& relative) { return std::string(DEEP_OIS_SOURCE_DIR) + "/" + relative; }
+std::string sourcePath(const std::string& relative) {
+  return std::string(DEEP_OIS_SOURCE_DIR) + "/" + relative;
+}
 
 EvaluationOptions optionsFor(const std::vector<std::string>& bags) {
   EvaluationOptions options;
@@ -41,7 +43,8 @@ StandardMethodOptions standardOptions(const EvaluationOptions& options, bool ima
 std::string writeBag(const std::string& name, bool ois, double duration_s,
                      const std::string& truth_topic = "/ground_truth/frame_pair") {
   const std::string path = ::testing::TempDir() + "/" + name + ".bag";
-  sim::SimulatorConfig config = sim::loadSimulatorConfig(sourcePath("config/simulator/sample.yaml"));
+  sim::SimulatorConfig config =
+      sim::loadSimulatorConfig(sourcePath("config/simulator/sample.yaml"));
   config.ois.enabled = ois;
   const sim::Simulator simulator(config, 3, duration_s);
   SimulationBagTopics topics;
@@ -53,8 +56,9 @@ std::string writeBag(const std::string& name, bool ois, double duration_s,
 double identityMean(const std::vector<FramePairTruth>& truths, std::size_t count) {
   double sum = 0.0;
   for (std::size_t k = 0; k < count; ++k) {
-    sum += geometryDistance(unflattenPoints(truths[k].points_a), unflattenPoints(truths[k].points_b),
-                            {Eigen::Matrix3d::Identity()}, static_cast<int>(truths[k].image_height));
+    sum +=
+        geometryDistance(unflattenPoints(truths[k].points_a), unflattenPoints(truths[k].points_b),
+                         {Eigen::Matrix3d::Identity()}, static_cast<int>(truths[k].image_height));
   }
   return sum / static_cast<double>(count);
 }
@@ -94,21 +98,30 @@ TEST(EvaluationRunner, ScoresEveryRowOnTheSampleBagWithPluggableMethods) {
   runner.addMethod({"throws", kBenchmarkPairs, [](const FramePairContext&) -> AlignmentEstimate {
                       throw std::runtime_error("boom");
                     }});
-  EXPECT_THROW(runner.addMethod({"throws", kBenchmarkPairs, [](const FramePairContext&) {
-                                   return AlignmentEstimate::failed("x");
-                                 }}),
-               std::invalid_argument);
+  EXPECT_THROW(
+      runner.addMethod({"throws", kBenchmarkPairs,
+                        [](const FramePairContext&) { return AlignmentEstimate::failed("x"); }}),
+      std::invalid_argument);
   const EvaluationReport report = runner.run();
   ASSERT_TRUE(report.complete()) << report.markdown();
   const EvaluationTable& table = report.table;
   // The sample bag has OIS on: no non-OIS or unspecified gyro row; rows in registration order.
-  const std::vector<std::string> expected_rows = {
-      "identity",        "SIFT + RANSAC",   "SIFT + MAGSAC",   "ORB + RANSAC",         "ORB + MAGSAC",
-      "AKAZE + RANSAC",  "AKAZE + MAGSAC",  kGyroOisMethod,    kGlobalFundamentalMethod, kFundamentalMixturesMethod,
-      "gyro flow grid",  "throws"};
+  const std::vector<std::string> expected_rows = {"identity",
+                                                  "SIFT + RANSAC",
+                                                  "SIFT + MAGSAC",
+                                                  "ORB + RANSAC",
+                                                  "ORB + MAGSAC",
+                                                  "AKAZE + RANSAC",
+                                                  "AKAZE + MAGSAC",
+                                                  kGyroOisMethod,
+                                                  kGlobalFundamentalMethod,
+                                                  kFundamentalMixturesMethod,
+                                                  "gyro flow grid",
+                                                  "throws"};
   EXPECT_EQ(table.methods(), expected_rows);
   EXPECT_EQ(table.categories(), std::vector<std::string>{"RE"});
-  for (const std::string& method : expected_rows) EXPECT_EQ(table.count(method, "RE"), 8u) << method;
+  for (const std::string& method : expected_rows)
+    EXPECT_EQ(table.count(method, "RE"), 8u) << method;
   EXPECT_EQ(report.pairs.size(), 8u * expected_rows.size());
   EXPECT_EQ(report.recordings.at(0).pairs_scored, 8u);
 
@@ -117,7 +130,8 @@ TEST(EvaluationRunner, ScoresEveryRowOnTheSampleBagWithPluggableMethods) {
   const double identity = identityMean(bag.truths, 8);
   EXPECT_NEAR(table.mean("identity", "RE"), identity, 1e-9);
   // Nothing is worse than identity after capping; the image baselines align a textured scene.
-  for (const std::string& method : expected_rows) EXPECT_LE(table.mean(method, "RE"), identity + 1e-12) << method;
+  for (const std::string& method : expected_rows)
+    EXPECT_LE(table.mean(method, "RE"), identity + 1e-12) << method;
   EXPECT_LT(table.mean("SIFT + RANSAC", "RE"), 0.5 * identity);
   EXPECT_EQ(table.failures("SIFT + RANSAC", "RE"), 0u);
   // The grid flow (360x270 grid for a 256x192 camera, bilinear) scores like the homographies.
@@ -135,8 +149,8 @@ TEST(EvaluationRunner, ScoresEveryRowOnTheSampleBagWithPluggableMethods) {
   const std::string out = ::testing::TempDir() + "/evaluation_out";
   std::filesystem::remove_all(out);
   const std::vector<std::string> written = writeEvaluationReport(report, out);
-  for (const char* file : {"evaluation.csv", "evaluation.json", "evaluation_pairs.csv", "bars_RE.png", "bars_Avg.png",
-                           "ghosts_RE.png"}) {
+  for (const char* file : {"evaluation.csv", "evaluation.json", "evaluation_pairs.csv",
+                           "bars_RE.png", "bars_Avg.png", "ghosts_RE.png"}) {
     EXPECT_TRUE(std::filesystem::is_regular_file(out + "/" + file)) << file;
     EXPECT_GT(std::filesystem::file_size(out + "/" + file), 100u) << file;
   }
@@ -152,14 +166,16 @@ TEST(EvaluationRunner, TwinsScoreOnlyTheNonOisGyroRowAndABrokenBagCostsOnlyItsel
   const EvaluationReport report = runner.run();
   ASSERT_EQ(report.recordings.size(), 3u);
   EXPECT_EQ(report.recordings[0].error, "");
-  EXPECT_EQ(report.recordings[1].error.rfind(missing + ": cannot open the bag", 0), 0u) << report.recordings[1].error;
+  EXPECT_EQ(report.recordings[1].error.rfind(missing + ": cannot open the bag", 0), 0u)
+      << report.recordings[1].error;
   EXPECT_EQ(report.recordings[2].error, "");
   EXPECT_FALSE(report.complete());
   const EvaluationTable& table = report.table;
   const std::size_t pairs = report.recordings[0].pairs_scored;
   ASSERT_GE(pairs, 4u);
   EXPECT_EQ(report.recordings[2].pairs_scored, pairs);
-  EXPECT_EQ(table.methods(), (std::vector<std::string>{"identity", kGyroNonOisMethod, kGyroOisMethod}));
+  EXPECT_EQ(table.methods(),
+            (std::vector<std::string>{"identity", kGyroNonOisMethod, kGyroOisMethod}));
   // Identity is the OIS camera's (the benchmark); the twin adds only its gyro row.
   EXPECT_EQ(table.count("identity", "RE"), pairs);
   EXPECT_EQ(table.count(kGyroOisMethod, "RE"), pairs);
@@ -173,7 +189,9 @@ TEST(EvaluationRunner, TwinsScoreOnlyTheNonOisGyroRowAndABrokenBagCostsOnlyItsel
 // Writes an annotation file; returns its path.
 std::string writeAnnotations(const std::string& name, const std::string& body) {
   const std::string path = ::testing::TempDir() + "/" + name + ".csv";
-  std::ofstream(path) << "# written by test_evaluation_runner\nstamp_a,stamp_b,x_a,y_a,x_b,y_b,category\n" << body;
+  std::ofstream(path)
+      << "# written by test_evaluation_runner\nstamp_a,stamp_b,x_a,y_a,x_b,y_b,category\n"
+      << body;
   return path;
 }
 
@@ -192,7 +210,8 @@ TEST(EvaluationRunner, AnnotationFilesScoreARecordingWithoutTruth) {
     EvaluationRunner runner(optionsFor({bag}));
     runner.addMethods(gyroMethods());
     const EvaluationReport report = runner.run();
-    EXPECT_NE(report.recordings[0].error.find("needs --annotations"), std::string::npos) << report.recordings[0].error;
+    EXPECT_NE(report.recordings[0].error.find("needs --annotations"), std::string::npos)
+        << report.recordings[0].error;
   }
 
   // The annotation file holds the simulator's points of every pair.
@@ -200,8 +219,9 @@ TEST(EvaluationRunner, AnnotationFilesScoreARecordingWithoutTruth) {
   for (const FramePairTruth& truth : truth_view.truths) {
     const auto a = unflattenPoints(truth.points_a), b = unflattenPoints(truth.points_b);
     for (std::size_t k = 0; k < a.size(); ++k) {
-      body += formatStampNs(truth.previous_stamp.toNSec()) + "," + formatStampNs(truth.header.stamp.toNSec()) + "," +
-              std::to_string(a[k].x()) + "," + std::to_string(a[k].y()) + "," + std::to_string(b[k].x()) + "," +
+      body += formatStampNs(truth.previous_stamp.toNSec()) + "," +
+              formatStampNs(truth.header.stamp.toNSec()) + "," + std::to_string(a[k].x()) + "," +
+              std::to_string(a[k].y()) + "," + std::to_string(b[k].x()) + "," +
               std::to_string(b[k].y()) + ",real\n";
     }
   }
@@ -223,7 +243,8 @@ TEST(EvaluationRunner, AnnotationFilesScoreARecordingWithoutTruth) {
   const EvaluationReport reference = simulated_runner.run();
   // std::to_string keeps 6 decimals: the points moved by < 1e-6 px.
   EXPECT_NEAR(report.table.mean("identity", "real"), reference.table.mean("identity", "RE"), 1e-5);
-  EXPECT_NEAR(report.table.mean(kGyroMethod, "real"), reference.table.mean(kGyroOisMethod, "RE"), 1e-5);
+  EXPECT_NEAR(report.table.mean(kGyroMethod, "real"), reference.table.mean(kGyroOisMethod, "RE"),
+              1e-5);
 
   // Said to be an OIS camera, the gyro row is the OIS camera's.
   annotated.annotated_scope = kOisCameraPairs;
@@ -237,17 +258,18 @@ TEST(EvaluationRunner, AnnotationFilesScoreARecordingWithoutTruth) {
   const std::string b0 = formatStampNs(truth_view.truths[0].header.stamp.toNSec());
   const std::string b1 = formatStampNs(truth_view.truths[1].header.stamp.toNSec());
   const std::string b0_plus_1ns = formatStampNs(truth_view.truths[0].header.stamp.toNSec() + 1);
-  const std::string bad_path = writeAnnotations("eval_real_bad", a0 + "," + b0 + ",10,10,11,11,real\n" +  // line 3
-                                                                      a0 + ",1.5,10,10,11,11,real\n" +  // line 4 (b earlier)
-                                                                      a0 + "," + b0_plus_1ns + ",10,10,11,11,real\n" +  // line 5
-                                                                      "1.0,2.0,10,10,11,11,real\n" +        // line 6
-                                                                      b0 + "," + b1 + ",10,10,900,11,real\n");  // line 7
+  const std::string bad_path = writeAnnotations(
+      "eval_real_bad", a0 + "," + b0 + ",10,10,11,11,real\n" +               // line 3
+                           a0 + ",1.5,10,10,11,11,real\n" +                  // line 4 (b earlier)
+                           a0 + "," + b0_plus_1ns + ",10,10,11,11,real\n" +  // line 5
+                           "1.0,2.0,10,10,11,11,real\n" +                    // line 6
+                           b0 + "," + b1 + ",10,10,900,11,real\n");          // line 7
   EXPECT_THROW(readAnnotationFile(bad_path), std::runtime_error);  // line 4: stamp_b before stamp_a
-  const std::string fixed_path =
-      writeAnnotations("eval_real_fixed", a0 + "," + b0 + ",10,10,11,11,real\n" +  // line 3: good
-                                              a0 + "," + b0_plus_1ns + ",10,10,11,11,real\n" +  // line 4: 1 ns off
-                                              "1.0,2.0,10,10,11,11,real\n" +          // line 5: no frame at all
-                                              b0 + "," + b1 + ",10,10,900,11,real\n");  // line 6: outside the image
+  const std::string fixed_path = writeAnnotations(
+      "eval_real_fixed", a0 + "," + b0 + ",10,10,11,11,real\n" +               // line 3: good
+                             a0 + "," + b0_plus_1ns + ",10,10,11,11,real\n" +  // line 4: 1 ns off
+                             "1.0,2.0,10,10,11,11,real\n" +            // line 5: no frame at all
+                             b0 + "," + b1 + ",10,10,900,11,real\n");  // line 6: outside the image
   EvaluationOptions broken = optionsFor({bag});
   broken.annotations = readAnnotationFile(fixed_path);
   EvaluationRunner broken_runner(broken);
@@ -256,11 +278,16 @@ TEST(EvaluationRunner, AnnotationFilesScoreARecordingWithoutTruth) {
   EXPECT_FALSE(partial.complete());
   EXPECT_EQ(partial.table.count(kGyroMethod, "real"), 1u);
   ASSERT_EQ(partial.errors.size(), 3u) << partial.markdown();
-  EXPECT_EQ(partial.errors[0].rfind(fixed_path + ":4: stamp_b " + b0_plus_1ns + " is not a frame of " + bag, 0), 0u)
+  EXPECT_EQ(partial.errors[0].rfind(
+                fixed_path + ":4: stamp_b " + b0_plus_1ns + " is not a frame of " + bag, 0),
+            0u)
       << partial.errors[0];
-  EXPECT_EQ(partial.errors[1].rfind(fixed_path + ":6: point (900.000000, 11.000000) is outside the 256x192 image", 0), 0u)
+  EXPECT_EQ(partial.errors[1].rfind(
+                fixed_path + ":6: point (900.000000, 11.000000) is outside the 256x192 image", 0),
+            0u)
       << partial.errors[1];
-  EXPECT_EQ(partial.errors[2], fixed_path + ":5: pair 1.000000000 -> 2.000000000 matches no frame of the bags given");
+  EXPECT_EQ(partial.errors[2],
+            fixed_path + ":5: pair 1.000000000 -> 2.000000000 matches no frame of the bags given");
 }
 
 }  // namespace

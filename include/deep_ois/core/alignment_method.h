@@ -24,10 +24,11 @@ namespace deep_ois {
 
 // Which recordings a pair comes from, as bit flags; a method scores the pairs its scope includes.
 enum PairScope : unsigned {
-  kOisCameraPairs = 1u,          // an OIS camera: simulator bags with OIS on, or annotated recordings said to be OIS
+  kOisCameraPairs =
+      1u,  // an OIS camera: simulator bags with OIS on, or annotated recordings said to be OIS
   kNonOisCameraPairs = 2u,       // annotated recordings said to be without OIS
   kUnspecifiedCameraPairs = 4u,  // annotated recordings whose OIS state is not given
-  kNonOisTwinPairs = 8u,         // simulator non-OIS twins: they exist only for the gyro reference row
+  kNonOisTwinPairs = 8u,  // simulator non-OIS twins: they exist only for the gyro reference row
   kBenchmarkPairs = kOisCameraPairs | kNonOisCameraPairs | kUnspecifiedCameraPairs,
 };
 
@@ -50,15 +51,14 @@ struct FramePairContext {
   // The correspondences the pair is scored on (raw pixels). Methods other than references must
   // not use them.
   std::vector<Eigen::Vector2d> points_a_px, points_b_px;
-
 };
 
 // A method's answer for one pair.
 struct AlignmentEstimate {
   enum class Kind {
-    kFailed,       // no motion (too few matches, solver failure): scored as identity and counted
-    kHomographies, // one homography (global) or N row patch homographies, camera pixels
-    kGridFlow,     // a dense CV_32FC2 flow on a working grid (grid_flow.h convention)
+    kFailed,        // no motion (too few matches, solver failure): scored as identity and counted
+    kHomographies,  // one homography (global) or N row patch homographies, camera pixels
+    kGridFlow,      // a dense CV_32FC2 flow on a working grid (grid_flow.h convention)
   };
   Kind kind = Kind::kFailed;
   std::string failure_reason;
@@ -71,13 +71,14 @@ struct AlignmentEstimate {
 
   static AlignmentEstimate failed(const std::string& reason);
   static AlignmentEstimate rawHomography(const Eigen::Matrix3d& H);
-  static AlignmentEstimate patchHomographies(const std::vector<Eigen::Matrix3d>& homographies_undistorted);
+  static AlignmentEstimate patchHomographies(
+      const std::vector<Eigen::Matrix3d>& homographies_undistorted);
   static AlignmentEstimate gridFlow(const cv::Mat& flow);
   bool ok() const { return kind != Kind::kFailed; }
 };
 
 struct AlignmentMethod {
-  std::string name;  // the table row
+  std::string name;                  // the table row
   unsigned scope = kBenchmarkPairs;  // PairScope flags of the pairs it scores
   // Called once per pair in scope, from one thread, pairs in recording order. May throw: the
   // evaluator records the message as that pair's failure.

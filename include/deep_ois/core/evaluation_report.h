@@ -30,21 +30,22 @@ struct PairScore {
 struct RecordingOutcome {
   std::string path;
   std::size_t pairs_scored = 0;
-  std::size_t pairs_skipped = 0;                        // pairs no method could be scored on
-  std::map<std::string, std::size_t> skip_reasons;      // reason -> pairs
-  std::string error;                                    // why the recording failed; empty when it did not
+  std::size_t pairs_skipped = 0;                    // pairs no method could be scored on
+  std::map<std::string, std::size_t> skip_reasons;  // reason -> pairs
+  std::string error;  // why the recording failed; empty when it did not
 };
 
 struct EvaluationReport {
   EvaluationTable table;  // capped means per method and category (failures scored as identity)
   std::vector<RecordingOutcome> recordings;
-  std::vector<std::string> errors;  // problems outside a single recording, e.g. unmatched annotations
+  std::vector<std::string>
+      errors;  // problems outside a single recording, e.g. unmatched annotations
   std::vector<PairScore> pairs;
   // Failures per method by reason, e.g. "SIFT + RANSAC" -> {"too few matches (< 8)": 12}.
   std::map<std::string, std::map<std::string, std::size_t>> failure_reasons;
   std::vector<GhostSample> ghosts;
-  double elapsed_s = 0.0;          // the whole run
-  double reading_s = 0.0;          // reading and decoding the recordings (ahead, overlapping the rest)
+  double elapsed_s = 0.0;  // the whole run
+  double reading_s = 0.0;  // reading and decoding the recordings (ahead, overlapping the rest)
   std::map<std::string, double> method_s;  // of which each method's estimates (scoring excluded)
 
   // True when every recording was read and every annotated pair found.
@@ -62,6 +63,7 @@ struct EvaluationReport {
 // Writes evaluation.csv, evaluation.json, evaluation_pairs.csv, bars_<category>.png per category
 // plus bars_Avg.png, and ghosts_<category>.png into `directory` (created when missing). Returns the
 // paths written. Throws std::runtime_error naming the file that cannot be written.
-std::vector<std::string> writeEvaluationReport(const EvaluationReport& report, const std::string& directory);
+std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
+                                               const std::string& directory);
 
 }  // namespace deep_ois

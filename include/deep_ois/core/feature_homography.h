@@ -22,7 +22,7 @@ namespace deep_ois {
 enum class FeatureDetector { kSift, kOrb, kAkaze };
 enum class RobustEstimator { kRansac, kMagsac };
 
-const char* toString(FeatureDetector detector);  // "SIFT", "ORB", "AKAZE"
+const char* toString(FeatureDetector detector);   // "SIFT", "ORB", "AKAZE"
 const char* toString(RobustEstimator estimator);  // "RANSAC", "MAGSAC"
 
 struct FeatureHomographyOptions {
@@ -65,7 +65,8 @@ class FeatureMatcher {
 
   // Ratio-test matches from gray_a to gray_b (CV_8UC1). Ids must identify the image content:
   // a different image under a known id would reuse stale features.
-  PointMatches match(const FrameId& id_a, const cv::Mat& gray_a, const FrameId& id_b, const cv::Mat& gray_b);
+  PointMatches match(const FrameId& id_a, const cv::Mat& gray_a, const FrameId& id_b,
+                     const cv::Mat& gray_b);
 
   FeatureDetector detector() const { return detector_; }
 

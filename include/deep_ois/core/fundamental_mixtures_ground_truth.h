@@ -28,8 +28,8 @@ class FundamentalMixturesGroundTruth {
   std::vector<FeatureMatch> track(const cv::Mat& gray_a, const cv::Mat& gray_b) const;
   // The rotation-only per-patch homographies of the model from the tracks (raw pixels; undistorted
   // with `camera` inside the solver).
-  FundamentalMixturesResult solve(const std::vector<FeatureMatch>& matches, const CameraModel& camera,
-                                  GroundTruthModel model) const;
+  FundamentalMixturesResult solve(const std::vector<FeatureMatch>& matches,
+                                  const CameraModel& camera, GroundTruthModel model) const;
 
   const FundamentalMixturesOptions& solverOptions() const { return solver_; }
 

@@ -18,14 +18,16 @@ namespace deep_ois {
 // Throws std::invalid_argument when the point lists differ in length or there are no homographies.
 double geometryDistance(const std::vector<Eigen::Vector2d>& points_a_px,
                         const std::vector<Eigen::Vector2d>& points_b_px,
-                        const std::vector<Eigen::Matrix3d>& patch_homographies, int image_height_px);
+                        const std::vector<Eigen::Matrix3d>& patch_homographies,
+                        int image_height_px);
 
 // The same for homographies between undistorted pixels (rotation models: gyro, Fundamental
 // Mixtures): p_a moves to distort(H_i undistort(p_a)), the flow the gyro flow nodelet renders.
 // Without distortion in `camera` this equals the overload above.
 double geometryDistance(const std::vector<Eigen::Vector2d>& points_a_px,
                         const std::vector<Eigen::Vector2d>& points_b_px,
-                        const std::vector<Eigen::Matrix3d>& patch_homographies, const CameraModel& camera);
+                        const std::vector<Eigen::Matrix3d>& patch_homographies,
+                        const CameraModel& camera);
 
 // The same for a dense CV_32FC2 flow on the working grid (grid_flow.h convention: values in grid
 // pixels, sampled bilinearly at p_a's grid position and scaled to camera pixels).

@@ -16,10 +16,10 @@
 namespace deep_ois {
 
 // Row names.
-extern const char* const kIdentityMethod;         // "identity"
-extern const char* const kGyroNonOisMethod;       // "gyro, non-OIS camera"
-extern const char* const kGyroOisMethod;          // "gyro, OIS camera (uncompensated)"
-extern const char* const kGyroMethod;             // "gyro" (recordings whose OIS state is not given)
+extern const char* const kIdentityMethod;    // "identity"
+extern const char* const kGyroNonOisMethod;  // "gyro, non-OIS camera"
+extern const char* const kGyroOisMethod;     // "gyro, OIS camera (uncompensated)"
+extern const char* const kGyroMethod;        // "gyro" (recordings whose OIS state is not given)
 extern const char* const kGlobalFundamentalMethod;    // "global F ground truth"
 extern const char* const kFundamentalMixturesMethod;  // "Fundamental Mixtures ground truth"
 
@@ -45,7 +45,8 @@ std::vector<AlignmentMethod> gyroMethods();
 std::vector<AlignmentMethod> featureHomographyMethods(const FeatureHomographyOptions& options);
 // Global F then Fundamental Mixtures, sharing the KLT tracks of a pair. A solver rejection is a
 // failure (scored as identity). Throws std::invalid_argument on invalid options.
-std::vector<AlignmentMethod> groundTruthMethods(const CornerDetectorOptions& corners, const KltOptions& klt,
+std::vector<AlignmentMethod> groundTruthMethods(const CornerDetectorOptions& corners,
+                                                const KltOptions& klt,
                                                 const FundamentalMixturesOptions& solver);
 // All of the above in the paper's order.
 std::vector<AlignmentMethod> standardAlignmentMethods(const StandardMethodOptions& options);
