@@ -309,8 +309,8 @@ EvaluationReport EvaluationRunner::run() {
         // The gyro flow nodelet's computation for this pair.
         const RollingShutterHomographies gyro = computeRollingShutterHomographies(
             recording.imu, options_.gyro.integration, recording.rolling_shutter, camera.K(),
-            (ros::Time().fromNSec(pair.stamp_a_ns) - sequence.time_base).toSec(),
-            (ros::Time().fromNSec(pair.stamp_b_ns) - sequence.time_base).toSec());
+            sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns)),
+            sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns)));
         if (!gyro.ok()) {
           skip(std::string("gyro: ") + toString(gyro.status));
           continue;
