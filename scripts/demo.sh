@@ -31,8 +31,9 @@ if grep -qE "WARN|ERROR|FATAL" "$out/roslaunch.log"; then
   grep -E "WARN|ERROR|FATAL" "$out/roslaunch.log" | head -20
 fi
 
-# Geometry distance on the bag's annotated correspondences (pixels): identity vs the gyro flow,
-# uncompensated on this OIS camera (the error the compensation network is there to remove).
+# Geometry distance on the bag's annotated correspondences (pixels): every row of the paper's
+# table that applies (identity, image baselines, the gyro uncompensated on this OIS camera - the
+# error the compensation network is there to remove - and the ground truths); figures in $out.
 echo
 echo "==== geometry distance on the annotated correspondences of $(basename "$bag") ===="
 rosrun deep_ois evaluate --bags "$bag" --out "$out" || status=$?

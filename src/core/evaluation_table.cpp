@@ -12,6 +12,17 @@ namespace {
 void remember(std::vector<std::string>& list, const std::string& name) {
   if (std::find(list.begin(), list.end(), name) == list.end()) list.push_back(name);
 }
+
+// Stable sort of `list` so that the names in `preferred` come first, in that order.
+void orderBy(std::vector<std::string>& list, const std::vector<std::string>& preferred) {
+  auto rank = [&](const std::string& name) {
+    const auto it = std::find(preferred.begin(), preferred.end(), name);
+    return it == preferred.end() ? preferred.size()
+                                 : static_cast<std::size_t>(it - preferred.begin());
+  };
+  std::stable_sort(list.begin(), list.end(),
+                   [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
+}
 }  // namespace
 
 void EvaluationTable::add(const std::string& method, const std::string& category, double distance_px) {
@@ -22,13 +33,26 @@ void EvaluationTable::add(const std::string& method, const std::string& category
   ++cell.count;
 }
 
+double EvaluationTable::addCapped(const std::string& method, const std::string& category,
+                                  double distance_px, double identity_px) {
+  const double recorded = capAtIdentity(distance_px, identity_px);
+  add(method, category, recorded);
+  if (recorded != distance_px) ++cells_[{method, category}].capped;
+  return recorded;
+}
+
+void EvaluationTable::addFailure(const std::string& method, const std::string& category,
+                                 double identity_px) {
+  add(method, category, identity_px);
+  ++cells_[{method, category}].failures;
+}
+
 void EvaluationTable::orderCategories(const std::vector<std::string>& preferred) {
-  auto rank = [&](const std::string& category) {
-    const auto it = std::find(preferred.begin(), preferred.end(), category);
-    return it == preferred.end() ? preferred.size() : static_cast<std::size_t>(it - preferred.begin());
-  };
-  std::stable_sort(categories_.begin(), categories_.end(),
-                   [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
+  orderBy(categories_, preferred);
+}
+
+void EvaluationTable::orderMethods(const std::vector<std::string>& preferred) {
+  orderBy(methods_, preferred);
 }
 
 double EvaluationTable::mean(const std::string& method, const std::string& category) const {
@@ -37,9 +61,23 @@ double EvaluationTable::mean(const std::string& method, const std::string& categ
   return it->second.sum / static_cast<double>(it->second.count);
 }
 
-std::size_t EvaluationTable::count(const std::string& method, const std::string& category) const {
+std::size_t EvaluationTable::field(const std::string& method, const std::string& category,
+                                   std::size_t Cell::*member) const {
   const auto it = cells_.find({method, category});
-  return it == cells_.end() ? 0 : it->second.count;
+  return it == cells_.end() ? 0 : it->second.*member;
+}
+
+std::size_t EvaluationTable::count(const std::string& method, const std::string& category) const {
+  return field(method, category, &Cell::count);
+}
+
+std::size_t EvaluationTable::failures(const std::string& method,
+                                      const std::string& category) const {
+  return field(method, category, &Cell::failures);
+}
+
+std::size_t EvaluationTable::capped(const std::string& method, const std::string& category) const {
+  return field(method, category, &Cell::capped);
 }
 
 double EvaluationTable::average(const std::string& method) const {
@@ -79,14 +117,19 @@ std::string EvaluationTable::markdown() const {
 
 std::string EvaluationTable::csv() const {
   std::ostringstream out;
-  out << std::setprecision(6) << "method,category,pairs,mean_px\n";
+  out << std::setprecision(6) << "method,category,pairs,mean_px,failed,capped\n";
   for (const auto& method : methods_) {
+    std::size_t failed_total = 0, capped_total = 0;
     for (const auto& category : categories_) {
       if (count(method, category) == 0) continue;
       out << '"' << method << "\"," << category << "," << count(method, category) << ","
-          << mean(method, category) << "\n";
+          << mean(method, category) << "," << failures(method, category) << ","
+          << capped(method, category) << "\n";
+      failed_total += failures(method, category);
+      capped_total += capped(method, category);
     }
-    out << '"' << method << "\",Avg,," << average(method) << "\n";
+    out << '"' << method << "\",Avg,," << average(method) << "," << failed_total << ","
+        << capped_total << "\n";
   }
   return out.str();
 }

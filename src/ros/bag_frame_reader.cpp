@@ -11,6 +11,20 @@
 
 namespace deep_ois {
 
+void decodeBagFrame(const sensor_msgs::Image& image, BagFrame& frame) {
+  const std::string problem = validateImage(image);
+  if (!problem.empty()) throw std::runtime_error(problem);
+  try {
+    // toCvCopy: the result owns its pixels (the message buffer goes with the bag iterator).
+    frame.rgb = cv_bridge::toCvCopy(image, sensor_msgs::image_encodings::RGB8)->image;
+  } catch (const cv_bridge::Exception& e) {
+    throw std::runtime_error(std::string("cannot decode the image: ") + e.what());
+  }
+  frame.stamp = image.header.stamp;
+  frame.frame_id = image.header.frame_id;
+  cv::cvtColor(frame.rgb, frame.gray, cv::COLOR_RGB2GRAY);
+}
+
 BagFrameReader::BagFrameReader(const std::string& path, const std::string& image_topic)
     : path_(path), topic_(image_topic) {
   try {
@@ -30,18 +44,10 @@ bool BagFrameReader::next(BagFrame& frame) {
     if (it_ == view_->end()) return false;
     const sensor_msgs::ImageConstPtr image = it_->instantiate<sensor_msgs::Image>();
     if (!image) throw std::runtime_error("not a sensor_msgs/Image");
-    const std::string problem = validateImage(*image);
-    if (!problem.empty()) throw std::runtime_error(problem);
-    const cv_bridge::CvImageConstPtr rgb = cv_bridge::toCvShare(image, sensor_msgs::image_encodings::RGB8);
-    frame.stamp = image->header.stamp;
-    frame.frame_id = image->header.frame_id;
-    frame.rgb = rgb->image.clone();  // the message buffer goes with the iterator
-    cv::cvtColor(frame.rgb, frame.gray, cv::COLOR_RGB2GRAY);
+    decodeBagFrame(*image, frame);
     ++it_;
   } catch (const rosbag::BagException& e) {
     throw std::runtime_error(where + "the bag is corrupt: " + e.what());
-  } catch (const cv_bridge::Exception& e) {
-    throw std::runtime_error(where + "cannot decode the image: " + e.what());
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(where + e.what());
   }

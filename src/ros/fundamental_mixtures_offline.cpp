@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "deep_ois/core/fundamental_mixtures_ground_truth.h"
 #include "deep_ois/core/progress_bar.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
 #include "deep_ois/ros/bag_frame_reader.h"
@@ -37,6 +38,7 @@ struct BagContext {
   const BagSequence& sequence;
   const ImuSampleBuffer& imu;
   RollingShutterConfig rolling_shutter;
+  const FundamentalMixturesGroundTruth& ground_truth;
 };
 
 // A failure of the output bag, kept apart from the input errors: it ends the job.
@@ -96,12 +98,13 @@ TrainingPair processPair(const BagContext& bag, const BagFrame& a, const BagFram
   }
   msg.gyro_homographies = flattenMatrices(gyro.homographies);
 
-  const std::vector<cv::Point2f> corners = detectUniformCorners(a.gray, options.corners);
-  const std::vector<FeatureMatch> matches = trackFeatures(a.gray, b.gray, corners, options.klt);
+  // The evaluator's ground-truth rows run this same code (fundamental_mixtures_ground_truth.h).
+  const std::vector<FeatureMatch> matches = bag.ground_truth.track(a.gray, b.gray);
   msg.match_count = matches.size();
   const FundamentalMixturesResult result =
-      options.global_fundamental ? estimateGlobalFundamental(matches, camera, options.solver)
-                                 : estimateFundamentalMixtures(matches, camera, options.solver);
+      bag.ground_truth.solve(matches, camera,
+                             options.global_fundamental ? GroundTruthModel::kGlobalFundamental
+                                                        : GroundTruthModel::kFundamentalMixtures);
   msg.inlier_count = result.inlier_count;
   msg.patch_inlier_counts.assign(result.inlier_counts.begin(), result.inlier_counts.end());
   if (!result.ok()) {
@@ -135,7 +138,8 @@ void processBag(const std::string& path, const FundamentalMixturesOfflineOptions
     rs.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   }
   const ImuSampleBuffer imu = sequence.imuBuffer();
-  const BagContext context{path, sequence, imu, rs};
+  const FundamentalMixturesGroundTruth ground_truth(options.corners, options.klt, options.solver);
+  const BagContext context{path, sequence, imu, rs, ground_truth};
   const cv::Size camera_size(sequence.camera->width(), sequence.camera->height());
 
   BagFrameReader reader(path, options.topics.image);

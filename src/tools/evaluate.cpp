@@ -1,122 +1,198 @@
-// Scores frame pairs with annotated correspondences (simulator bags) and prints the paper's table:
-// mean geometry distance |p_a + flow(p_a) - p_b| per category and method, errors capped at the
-// identity error of the pair, Avg = mean of the category means.
+// Scores recordings with annotated correspondences and prints the paper's table: mean geometry
+// distance |p_a + flow(p_a) - p_b| per category and method, each pair capped at its identity
+// error, a method without an estimate scored as identity, Avg = mean of the category means.
 //
-//   evaluate --bags a.bag [b.bag ...] [--gyro-config config/gyro_flow.yaml] [--out DIR]
+//   evaluate --bags a.bag [b.bag ...] [--out DIR] [--gyro-config config/gyro_flow.yaml]
+//            [--annotations FILE.csv [--camera ois|non-ois]] [--ghost-pairs N] [--ghost-zoom N]
+//            [--max-pairs N] [--no-image-baselines] [--no-ground-truth] [--no-progress]
+//            [--model models/fast.pt | --no-model] [--torch-threads 1] [--recorded LIVE.bag]
 //
-// Rows today: identity; gyro on the non-OIS twin (bags whose truth says OIS off); gyro on the OIS
-// camera, uncompensated. The gyro flow runs the nodelet's code with the nodelet's parameters.
+// Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC (one global homography); the gyro on the
+// non-OIS camera (the simulator's twins) and on the OIS camera, uncompensated; the global F and
+// Fundamental Mixtures ground truths; then the shipped model (the compensation nodelet's network
+// on the gyro flow nodelet's flow). With --recorded, the gyro_flow and compensated_flow messages
+// the live nodelets published during a replay of the same bags (rosbag record) are scored too, as
+// rows of their own: they must equal the offline rows. The work is EvaluationRunner's
+// (ros/evaluation_runner.h); this file parses flags and writes the outputs.
 #include <ros/package.h>
 
 #include <cstdio>
-#include <fstream>
+#include <cstdlib>
+#include <map>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/evaluation_table.h"
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/core/rolling_shutter_homographies.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/conversions.h"
-#include "deep_ois/ros/gyro_flow_parameters.h"
+#include "deep_ois/core/standard_alignment_methods.h"
+#include "deep_ois/net/compensation_model.h"
+#include "deep_ois/ros/evaluation_runner.h"
+#include "deep_ois/ros/recorded_flows.h"
 
 namespace {
 
+const char* const kUsage =
+    "usage: evaluate --bags FILE.bag [FILE.bag ...] [--out DIR] [--gyro-config FILE.yaml]\n"
+    "                [--annotations FILE.csv [--camera ois|non-ois]] [--ghost-pairs N] "
+    "[--ghost-zoom N]\n"
+    "                [--max-pairs N] [--no-image-baselines] [--no-ground-truth] [--no-progress]\n"
+    "                [--model FILE.pt | --no-model] [--torch-threads N] [--recorded LIVE.bag]\n";
+
 int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "evaluate: %s\nusage: evaluate --bags FILE.bag [FILE.bag ...] "
-               "[--gyro-config config/gyro_flow.yaml] [--out DIR]\n",
-               problem.c_str());
+  std::fprintf(stderr, "evaluate: %s\n%s", problem.c_str(), kUsage);
   return 2;
+}
+
+bool parseCount(const std::string& text, long& value) {
+  char* end = nullptr;
+  value = std::strtol(text.c_str(), &end, 10);
+  return !text.empty() && *end == '\0' && value >= 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> bags;
+  deep_ois::EvaluationOptions options;
+  deep_ois::StandardMethodOptions standard;
   // The nodelet's own parameter file, wherever the package is (source checkout or install).
-  std::string gyro_config = ros::package::getPath("deep_ois") + "/config/gyro_flow.yaml";
-  std::string out_dir;
+  const std::string package = ros::package::getPath("deep_ois");
+  std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
+  std::string out_dir, annotations, camera, recorded;
+  std::string model_path = package.empty() ? "" : package + "/models/fast.pt";
+  int torch_threads = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
+    const bool has_value = i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0;
+    long count = 0;
     if (flag == "--bags") {
-      while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0) bags.push_back(argv[++i]);
-    } else if (flag == "--gyro-config" && i + 1 < argc) {
+      while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0)
+        options.bags.push_back(argv[++i]);
+    } else if (flag == "--gyro-config" && has_value) {
       gyro_config = argv[++i];
-    } else if (flag == "--out" && i + 1 < argc) {
+    } else if (flag == "--out" && has_value) {
       out_dir = argv[++i];
+    } else if (flag == "--annotations" && has_value) {
+      annotations = argv[++i];
+    } else if (flag == "--camera" && has_value) {
+      camera = argv[++i];
+    } else if ((flag == "--ghost-pairs" || flag == "--ghost-zoom" || flag == "--max-pairs") &&
+               has_value) {
+      if (!parseCount(argv[++i], count))
+        return usage(flag + " needs a whole number >= 0, got '" + argv[i] + "'");
+      if (flag == "--ghost-pairs") options.ghost_pairs_per_category = static_cast<int>(count);
+      if (flag == "--ghost-zoom") options.ghost_zoom = static_cast<int>(count);
+      if (flag == "--max-pairs") options.max_pairs_per_bag = static_cast<std::size_t>(count);
+    } else if (flag == "--no-image-baselines") {
+      standard.image_baselines = false;
+    } else if (flag == "--no-ground-truth") {
+      standard.ground_truth = false;
+    } else if (flag == "--model" && has_value) {
+      model_path = argv[++i];
+    } else if (flag == "--no-model") {
+      model_path.clear();
+    } else if (flag == "--recorded" && has_value) {
+      recorded = argv[++i];
+    } else if (flag == "--torch-threads" && has_value) {
+      if (!parseCount(argv[++i], count) || count < 1) return usage("--torch-threads needs a whole number >= 1");
+      torch_threads = static_cast<int>(count);
+    } else if (flag == "--no-progress") {
+      options.show_progress = false;
+    } else if (flag == "--help" || flag == "-h") {
+      std::printf("%s", kUsage);
+      return 0;
     } else {
       return usage("unknown flag or missing value: " + flag);
     }
   }
-  if (bags.empty()) return usage("--bags needs at least one bag");
-  if (gyro_config == "/config/gyro_flow.yaml") {
+  if (options.bags.empty()) return usage("--bags needs at least one bag");
+  if (gyro_config.empty())
     return usage("package deep_ois not found (source its setup.bash), so pass --gyro-config");
+  if (!camera.empty() && annotations.empty())
+    return usage("--camera applies to --annotations recordings only");
+  if (camera == "ois") {
+    options.annotated_scope = deep_ois::kOisCameraPairs;
+  } else if (camera == "non-ois") {
+    options.annotated_scope = deep_ois::kNonOisCameraPairs;
+  } else if (!camera.empty()) {
+    return usage("--camera is ois or non-ois, got '" + camera + "'");
   }
 
-  const std::string kIdentity = "identity", kGyroTwin = "gyro, non-OIS camera (twin)",
-                    kGyroOis = "gyro, OIS camera (uncompensated)";
-  deep_ois::EvaluationTable scores;
-  int failures = 0;
+  deep_ois::EvaluationReport report;
   try {
-    const deep_ois::GyroFlowParameters params =
-        deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
-    for (const std::string& path : bags) {
-      try {
-        const deep_ois::BagSequence bag = deep_ois::readBagSequence(path);
-        if (bag.truths.empty()) throw std::runtime_error("no annotated frame pairs (/ground_truth/frame_pair)");
-        deep_ois::RollingShutterConfig rs = params.rolling_shutter;
-        if (params.rotation_from_tf) {
-          if (!bag.imu_to_camera_rotation) throw std::runtime_error("no IMU -> camera transform in /tf_static");
-          rs.imu_to_camera_rotation = *bag.imu_to_camera_rotation;
-        }
-        const deep_ois::ImuSampleBuffer buffer = bag.imuBuffer();
-        int skipped = 0;
-        for (const auto& truth : bag.truths) {
-          const auto points_a = deep_ois::unflattenPoints(truth.points_a),
-                     points_b = deep_ois::unflattenPoints(truth.points_b);
-          if (points_a.empty()) continue;
-          const int h = static_cast<int>(truth.image_height);
-          const double identity = deep_ois::geometryDistance(points_a, points_b, {Eigen::Matrix3d::Identity()}, h);
-          const auto gyro = deep_ois::computeRollingShutterHomographies(
-              buffer, params.integration, rs, bag.camera->K(), bag.secondsSinceBase(truth.previous_stamp),
-              bag.secondsSinceBase(truth.header.stamp));
-          if (!gyro.ok()) {
-            ++skipped;
-            continue;
-          }
-          const double gyro_px = deep_ois::geometryDistance(points_a, points_b, gyro.homographies, h);
-          scores.add(kIdentity, truth.category, identity);
-          scores.add(truth.ois_enabled ? kGyroOis : kGyroTwin, truth.category,
-                     deep_ois::capAtIdentity(gyro_px, identity));
-        }
-        std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", path.c_str(), bag.truths.size(),
-                     skipped ? (", " + std::to_string(skipped) + " without IMU coverage skipped").c_str() : "");
-      } catch (const std::exception& e) {
-        // One bad bag must not lose the others' results.
-        std::fprintf(stderr, "evaluate: %s: %s (skipped)\n", path.c_str(), e.what());
-        ++failures;
-      }
+    options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
+    if (!annotations.empty()) options.annotations = deep_ois::readAnnotationFile(annotations);
+    // The ground truth must describe the gyro's row patches.
+    standard.solver.patch_count = options.gyro.rolling_shutter.patch_count;
+    deep_ois::EvaluationRunner runner(options);
+    runner.addMethods(deep_ois::standardAlignmentMethods(standard));
+    // The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow.
+    std::unique_ptr<deep_ois::CompensationModel> model;
+    if (!model_path.empty()) {
+      deep_ois::setTorchThreads(torch_threads);
+      model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(model_path));
+      runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")", deep_ois::kOisCameraPairs,
+                        [&model](const deep_ois::FramePairContext& pair) {
+                          return deep_ois::AlignmentEstimate::gridFlow(model->compensate(pair.gyro_flow_grid));
+                        }});
     }
+    // Replay parity: what the live nodelets published, looked up by frame b's stamp.
+    std::map<std::int64_t, cv::Mat> live_gyro, live_compensated;
+    if (!recorded.empty()) {
+      live_gyro = deep_ois::readRecordedFlows(recorded, "/deep_ois/gyro_flow");
+      live_compensated = deep_ois::readRecordedFlows(recorded, "/deep_ois/compensated_flow");
+      auto recordedMethod = [](const std::map<std::int64_t, cv::Mat>& flows) {
+        return [&flows](const deep_ois::FramePairContext& pair) {
+          const auto found = flows.find(pair.stamp_b_ns);
+          if (found == flows.end()) return deep_ois::AlignmentEstimate::failed("not in the recording");
+          return deep_ois::AlignmentEstimate::gridFlow(found->second);
+        };
+      };
+      runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs, recordedMethod(live_gyro)});
+      runner.addMethod({"DeepOIS (live nodelets, recorded)", deep_ois::kOisCameraPairs, recordedMethod(live_compensated)});
+    }
+    report = runner.run();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "evaluate: %s\n", e.what());
     return 1;
   }
-  if (scores.methods().empty()) {
+
+  for (const deep_ois::RecordingOutcome& recording : report.recordings) {
+    if (!recording.error.empty()) {
+      std::fprintf(stderr, "evaluate: %s (not scored)\n", recording.error.c_str());
+      continue;
+    }
+    std::string skipped;
+    for (const auto& [reason, count] : recording.skip_reasons) {
+      skipped += ", " + std::to_string(count) + " skipped (" + reason + ")";
+    }
+    std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", recording.path.c_str(),
+                 recording.pairs_scored, skipped.c_str());
+  }
+  for (const std::string& error : report.errors)
+    std::fprintf(stderr, "evaluate: %s\n", error.c_str());
+  std::fprintf(
+      stderr,
+      "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
+      report.elapsed_s, report.reading_s);
+  for (const auto& [method, seconds] : report.method_s)
+    std::fprintf(stderr, " %s %.1f s;", method.c_str(), seconds);
+  std::fprintf(stderr, "\n");
+
+  if (report.table.methods().empty()) {
     std::fprintf(stderr, "evaluate: no frame pair could be scored\n");
     return 1;
   }
-  scores.orderCategories({"RE", "LT", "LL", "MF"});  // the paper's column order
-  std::printf("%s", scores.markdown().c_str());
+  std::printf("%s", report.markdown().c_str());
+  std::fflush(stdout);
   if (!out_dir.empty()) {
-    const std::string csv_path = out_dir + "/evaluation.csv";
-    std::ofstream csv(csv_path);
-    csv << scores.csv();
-    if (!csv) {
-      std::fprintf(stderr, "evaluate: cannot write %s\n", csv_path.c_str());
+    try {
+      const std::vector<std::string> written = deep_ois::writeEvaluationReport(report, out_dir);
+      std::fprintf(stderr, "evaluate: wrote %zu files to %s\n", written.size(), out_dir.c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evaluate: %s\n", e.what());
       return 1;
     }
   }
-  return failures > 0 ? 3 : 0;
+  // The table above holds every recording that could be read; say that some could not.
+  return report.complete() ? 0 : 3;
 }

@@ -1,5 +1,6 @@
-// Aligning frame a onto frame b with a forward flow (a -> b), as the compensation nodelet
-// publishes it.
+// Warping one frame of a pair onto the other with the pair's forward flow (a -> b): frame a onto
+// frame b (the compensation nodelet's aligned image) needs the flow inverted; frame b into frame
+// a's pixels (the evaluator's ghost images) does not.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -21,5 +22,12 @@ cv::Mat warpWithInverseMap(const cv::Mat& image, const cv::Mat& inverse_map);
 // Frame a resampled into frame b's pixel grid (bilinear; pixels that come from outside frame a
 // are black): where the flow is right, the result lines up with frame b.
 cv::Mat warpOntoLaterFrame(const cv::Mat& image_a, const cv::Mat& flow_grid, int iterations = 3);
+
+// Brings frame b into frame a's pixels: result(p) = image_b(p + flow(p)), bilinear, black where
+// p + flow(p) falls outside frame b. `camera_flow` is CV_32FC2 of image_b's size, in camera
+// pixels, defined at the pixels of frame a (the flow convention of deep_ois), so no inversion is
+// needed and the result is exact wherever the flow is. Throws std::invalid_argument on a size or
+// type mismatch.
+cv::Mat warpFrameBOntoA(const cv::Mat& image_b, const cv::Mat& camera_flow);
 
 }  // namespace deep_ois

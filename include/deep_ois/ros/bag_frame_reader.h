@@ -3,6 +3,7 @@
 #pragma once
 
 #include <ros/time.h>
+#include <sensor_msgs/Image.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
@@ -18,6 +19,10 @@ struct BagFrame {
   cv::Mat rgb;   // CV_8UC3, RGB order
   cv::Mat gray;  // CV_8UC1
 };
+
+// Decodes one image message into `frame` (RGB and grey copies that own their data). Throws
+// std::runtime_error naming the problem (invalid header, undecodable encoding) but not the bag.
+void decodeBagFrame(const sensor_msgs::Image& image, BagFrame& frame);
 
 class BagFrameReader {
  public:

@@ -13,6 +13,7 @@
 
 #include "deep_ois/core/camera_model.h"
 #include "deep_ois/core/imu_sample_buffer.h"
+#include "deep_ois/ros/bag_frame_reader.h"
 
 namespace deep_ois {
 
@@ -55,7 +56,12 @@ struct BagSequence {
 // Throws std::runtime_error naming the file and the problem (unreadable bag, no camera_info, a
 // camera_info that is not usable, IMU samples rejected by the buffer's rules, and with kThrow a
 // message that cannot be read).
+//
+// When `frames` is not null, the images on topics.image are decoded into it (bag order) in the same
+// pass: images and IMU share the bag's compressed chunks, so reading both at once decompresses each
+// chunk once instead of twice (an image that cannot be decoded is then an error naming the bag).
 BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& topics = {},
-                            BagReadFailure on_failure = BagReadFailure::kThrow);
+                            BagReadFailure on_failure = BagReadFailure::kThrow,
+                            std::vector<BagFrame>* frames = nullptr);
 
 }  // namespace deep_ois

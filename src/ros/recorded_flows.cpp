@@ -1,0 +1,36 @@
+#include "deep_ois/ros/recorded_flows.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <stdexcept>
+
+#include "deep_ois/GyroFlow.h"
+#include "deep_ois/ros/conversions.h"
+
+namespace deep_ois {
+
+std::map<std::int64_t, cv::Mat> readRecordedFlows(const std::string& bag_path, const std::string& topic) {
+  std::map<std::int64_t, cv::Mat> flows;
+  try {
+    rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+    rosbag::View view(bag, rosbag::TopicQuery(topic));
+    for (const rosbag::MessageInstance& m : view) {
+      const GyroFlow::ConstPtr msg = m.instantiate<GyroFlow>();
+      if (!msg) throw std::runtime_error("a message on " + topic + " is not a deep_ois/GyroFlow");
+      std::vector<Eigen::Matrix3d> homographies;
+      cv::Mat flow_view;
+      const std::string problem = readGyroFlowMsg(*msg, homographies, flow_view);
+      if (!problem.empty()) throw std::runtime_error(topic + " at " + std::to_string(msg->header.stamp.toSec()) + ": " + problem);
+      flows[static_cast<std::int64_t>(msg->header.stamp.toNSec())] = flow_view.clone();
+    }
+  } catch (const rosbag::BagException& e) {
+    throw std::runtime_error(bag_path + ": " + e.what());
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(bag_path + ": " + e.what());
+  }
+  if (flows.empty()) throw std::runtime_error(bag_path + ": no deep_ois/GyroFlow on " + topic);
+  return flows;
+}
+
+}  // namespace deep_ois
