@@ -118,8 +118,8 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
     }
   } catch (const ros::Exception& e) {
     // rosbag::BagException (a chunk that does not decompress) or a serialization error (a message
-    // whose bytes are damaged). A corrupt bag: report it rather than silently using part of it, unless the caller keeps the
-    // part before the failure (and reports it itself).
+    // whose bytes are damaged). Reported rather than silently using part of the bag, unless the
+    // caller keeps the part before the failure (and reports it itself).
     if (on_failure == BagReadFailure::kThrow) fail(std::string("reading failed: ") + e.what());
     std::ostringstream why;
     why << path << ": the bag is corrupt: reading stopped at bag time " << reading << ", after "

@@ -285,7 +285,7 @@ TEST(FundamentalMixtures, SmallParallaxKeepsTheRotationOnlyFit) {
   scene.rotations =
       rampRotations(Eigen::Vector3d(0.3, -0.4, 0.1), Eigen::Vector3d(0.03, 0.05, -0.02));
   scene.translation_m = Eigen::Vector3d(0.003, -0.002, 0.001);  // 4 mm: 0.12 m/s at 30 fps
-  scene.min_depth_m = 2.0;  // parallax up to 0.45 px
+  scene.min_depth_m = 2.0;                                      // parallax up to 0.45 px
   scene.max_depth_m = 20.0;
   scene.noise_px = 0.1;
   scene.outlier_fraction = 0.05;
@@ -309,9 +309,10 @@ TEST(FundamentalMixtures, SmallParallaxKeepsTheRotationOnlyFit) {
   }
   const double selected_mean = selected_sum / (5 * kPatches);
   const double paper_mean = paper_sum / (5 * kPatches);
-  std::printf("4 mm translation, 0.1 px noise: mean patch rotation error %.4f deg (default), "
-              "%.4f deg (F rotations, the paper's choice)\n",
-              selected_mean, paper_mean);
+  std::printf(
+      "4 mm translation, 0.1 px noise: mean patch rotation error %.4f deg (default), "
+      "%.4f deg (F rotations, the paper's choice)\n",
+      selected_mean, paper_mean);
   EXPECT_LT(selected_mean * 1.5, paper_mean);
 }
 

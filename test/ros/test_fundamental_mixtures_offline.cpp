@@ -32,9 +32,9 @@ std::string sourcePath(const std::string& relative) {
   return std::string(DEEP_OIS_SOURCE_DIR) + "/" + relative;
 }
 
-std::string writeBag(std::uint32_t seed, double duration_s, const std::string& name,
-                     rosbag::compression::CompressionType compression =
-                         rosbag::compression::Uncompressed) {
+std::string writeBag(
+    std::uint32_t seed, double duration_s, const std::string& name,
+    rosbag::compression::CompressionType compression = rosbag::compression::Uncompressed) {
   const std::string path = ::testing::TempDir() + "/" + name + ".bag";
   const sim::Simulator simulator(sim::loadSimulatorConfig(sourcePath("config/simulator/RE.yaml")),
                                  seed, duration_s);
@@ -180,7 +180,8 @@ TEST(FundamentalMixturesOffline, TargetsMatchTheTrueMotionAndABrokenBagCostsOnly
     ASSERT_EQ(truth.patch_count, record.patch_count);
     ASSERT_EQ(truth.previous_stamp, record.previous_stamp);
     ++models[record.model];
-    const auto points_a = unflattenPoints(truth.points_a), points_b = unflattenPoints(truth.points_b);
+    const auto points_a = unflattenPoints(truth.points_a),
+               points_b = unflattenPoints(truth.points_b);
     target_distance_px += geometryDistance(
         points_a, points_b, unflattenMatrices(record.target_homographies), record.image_height);
     gyro_distance_px += geometryDistance(
@@ -250,7 +251,8 @@ TEST(FundamentalMixturesOffline, CorruptChunkKeepsEveryPairBeforeIt) {
   ASSERT_TRUE(reference_summary.bag_errors.empty()) << reference_summary.text();
   const std::vector<TrainingPair> full = readRecords(reference);
 
-  const FundamentalMixturesOfflineOptions options = optionsFor({corrupt, intact}, "fm_corrupt_train");
+  const FundamentalMixturesOfflineOptions options =
+      optionsFor({corrupt, intact}, "fm_corrupt_train");
   const FundamentalMixturesSummary summary = FundamentalMixturesOffline(options).run();
   std::cout << "[ measured ] chunk " << corrupted << " of " << chunks << " damaged, "
             << readable_frames << " frames readable; " << summary.text();
