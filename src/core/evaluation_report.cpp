@@ -6,10 +6,12 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include "deep_ois/core/annotation_file.h"
 
@@ -281,6 +283,29 @@ std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
       writePng(directory + "/ghosts_" + fileSafe(category) + ".png", grid, written);
   }
   return written;
+}
+
+MethodAgreement compareMethods(const EvaluationReport& report, const std::string& first, const std::string& second) {
+  using PairKey = std::tuple<std::size_t, std::int64_t, std::int64_t>;
+  std::map<PairKey, double> second_distance;
+  for (const PairScore& pair : report.pairs) {
+    if (pair.method == second && pair.failure.empty()) {
+      second_distance[{pair.recording, pair.stamp_a_ns, pair.stamp_b_ns}] = pair.distance_px;
+    }
+  }
+  MethodAgreement agreement;
+  for (const PairScore& pair : report.pairs) {
+    if (pair.method != first || !pair.failure.empty()) continue;
+    const auto found = second_distance.find({pair.recording, pair.stamp_a_ns, pair.stamp_b_ns});
+    if (found == second_distance.end()) {
+      ++agreement.missing_in_second;
+      continue;
+    }
+    ++agreement.pairs_compared;
+    agreement.max_abs_difference_px =
+        std::max(agreement.max_abs_difference_px, std::abs(pair.distance_px - found->second));
+  }
+  return agreement;
 }
 
 }  // namespace deep_ois

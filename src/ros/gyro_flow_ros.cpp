@@ -100,6 +100,7 @@ void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
   std::lock_guard<std::mutex> lock(mutex_);
   checkRosTimeJump();
   ++imu_received_;
+  last_imu_arrival_ = ros::Time::now();
   secondsSinceBase(imu->header.stamp);  // sets the time base on the first message
   const ImuSample sample = toImuSample(*imu, *time_base_);
   if (!imu_buffer_.empty() && sample.stamp_s < imu_buffer_.newestStamp() - params_.time_jump_reset_s) {
@@ -251,7 +252,13 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   if (!result.ok()) {
     const bool may_still_come = result.status == IntegrationStatus::kNotYetAvailable ||
                                 result.status == IntegrationStatus::kEmptyBuffer;
-    if (may_still_come && (ros::Time::now() - frame.received).toSec() < params_.imu_wait_timeout_s) {
+    // Give up only when the IMU stream itself went quiet: a frame whose samples are still
+    // queued behind a stalled callback thread (a loaded machine) keeps waiting, as IMU messages
+    // keep arriving; kMaxPendingFrames bounds the wait when the IMU lags for good.
+    const ros::Time now = ros::Time::now();
+    const double waited_s = (now - frame.received).toSec();
+    const double imu_quiet_s = last_imu_arrival_.isZero() ? waited_s : (now - last_imu_arrival_).toSec();
+    if (may_still_come && (waited_s < params_.imu_wait_timeout_s || imu_quiet_s < params_.imu_wait_timeout_s)) {
       return Outcome::kWaitForImu;
     }
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",

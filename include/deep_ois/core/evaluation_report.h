@@ -60,6 +60,15 @@ struct EvaluationReport {
   std::string pairsCsv() const;
 };
 
+// Agreement of two rows pair by pair (replay parity: a row of flows the live nodelets published
+// against the same computation offline). Compared are the pairs where both gave an estimate.
+struct MethodAgreement {
+  std::size_t pairs_compared = 0;
+  std::size_t missing_in_second = 0;  // pairs the first row scored but the second has no estimate for
+  double max_abs_difference_px = 0.0; // of the uncapped distances
+};
+MethodAgreement compareMethods(const EvaluationReport& report, const std::string& first, const std::string& second);
+
 // Writes evaluation.csv, evaluation.json, evaluation_pairs.csv, bars_<category>.png per category
 // plus bars_Avg.png, and ghosts_<category>.png into `directory` (created when missing). Returns the
 // paths written. Throws std::runtime_error naming the file that cannot be written.

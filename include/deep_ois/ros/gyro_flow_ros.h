@@ -98,6 +98,7 @@ class GyroFlowRos {
 
   // Counters for the "still waiting" diagnostics.
   std::size_t imu_received_ = 0;
+  ros::Time last_imu_arrival_;  // ROS time the latest IMU message was handled
   std::size_t frames_received_ = 0;
   std::size_t flows_published_ = 0;
   std::size_t flows_published_at_last_check_ = 0;
