@@ -139,20 +139,26 @@ int main(int argc, char** argv) {
                           return deep_ois::AlignmentEstimate::gridFlow(model->compensate(pair.gyro_flow_grid));
                         }});
     }
-    // Replay parity: what the live nodelets published, looked up by frame b's stamp.
-    std::map<std::int64_t, cv::Mat> live_gyro, live_compensated;
+    // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
+    std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
     if (!recorded.empty()) {
       live_gyro = deep_ois::readRecordedFlows(recorded, "/deep_ois/gyro_flow");
       live_compensated = deep_ois::readRecordedFlows(recorded, "/deep_ois/compensated_flow");
-      auto recordedMethod = [](const std::map<std::int64_t, cv::Mat>& flows) {
-        return [&flows](const deep_ois::FramePairContext& pair) {
-          const auto found = flows.find(pair.stamp_b_ns);
+      // The gyro row is scored on the recorded homographies (as the offline gyro row), the model's
+      // on the recorded grid flow (as the offline model row): like with like, so they must agree.
+      auto recordedMethod = [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
+                               bool use_homographies) {
+        return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
+          const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
           if (found == flows.end()) return deep_ois::AlignmentEstimate::failed("not in the recording");
-          return deep_ois::AlignmentEstimate::gridFlow(found->second);
+          return use_homographies ? deep_ois::AlignmentEstimate::patchHomographies(found->second.homographies)
+                                  : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
         };
       };
-      runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs, recordedMethod(live_gyro)});
-      runner.addMethod({"DeepOIS (live nodelets, recorded)", deep_ois::kOisCameraPairs, recordedMethod(live_compensated)});
+      runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs,
+                        recordedMethod(live_gyro, true)});
+      runner.addMethod({"DeepOIS (live nodelets, recorded)", deep_ois::kOisCameraPairs,
+                        recordedMethod(live_compensated, false)});
     }
     report = runner.run();
   } catch (const std::exception& e) {
