@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "deep_ois/core/flow_color.h"
+#include "deep_ois/core/flow_resample.h"
 #include "deep_ois/core/flow_warp.h"
 #include "deep_ois/core/ghost_overlay.h"
 #include "deep_ois/core/homography_flow.h"
@@ -139,6 +140,7 @@ int main(int argc, char** argv) {
     const deep_ois::ImuSampleBuffer buffer = sequence.imuBuffer();
     const deep_ois::HomographyFlowRenderer renderer(*sequence.camera, params.grid_size, rs.patch_count);
     std::vector<double> chain_ms;
+    double resample_mean_px = 0.0, resample_max_px = 0.0, mean_flow_px = 0.0;  // per flow component
     double unaligned_diff = 0.0, gyro_diff = 0.0, aligned_diff = 0.0;
     cv::Mat gyro_flow;
     const auto chain_start = Clock::now();
@@ -150,12 +152,24 @@ int main(int argc, char** argv) {
       if (!h.ok()) continue;
       renderer.render(h.homographies, gyro_flow);
       const cv::Mat gyro_color = deep_ois::colorizeFlow(gyro_flow, params.color_max_flow_px);
+      cv::Mat magnitude;
+      cv::absdiff(gyro_flow, cv::Scalar::all(0), magnitude);
       const cv::Mat compensated = model.compensate(gyro_flow);
       const cv::Mat map = deep_ois::inverseFlowMap(compensated, images[k].rgb.size());
       const cv::Mat aligned = deep_ois::warpWithInverseMap(images[k - 1].rgb, map);
       const cv::Mat ghost = deep_ois::ghostOverlay(aligned, images[k].rgb);
       const cv::Mat color = deep_ois::colorizeFlow(compensated, params.color_max_flow_px);
       chain_ms.push_back(msSince(start));
+      // What the working grid loses: the gyro flow resampled to it and back.
+      const cv::Mat round_trip =
+          deep_ois::resampleFlow(deep_ois::resampleFlow(gyro_flow, model.metadata().working_grid), gyro_flow.size());
+      cv::Mat error;
+      cv::absdiff(round_trip, gyro_flow, error);
+      resample_mean_px += cv::mean(error.reshape(1))[0];
+      mean_flow_px += cv::mean(magnitude.reshape(1))[0];
+      double largest = 0.0;
+      cv::minMaxLoc(error.reshape(1), nullptr, &largest);
+      resample_max_px = std::max(resample_max_px, largest);
       unaligned_diff += centralDifference(images[k - 1].gray, images[k].gray);
       const cv::Mat gray_map = deep_ois::inverseFlowMap(gyro_flow, images[k].rgb.size());
       gyro_diff += centralDifference(deep_ois::warpWithInverseMap(images[k - 1].gray, gray_map), images[k].gray);
@@ -168,6 +182,10 @@ int main(int argc, char** argv) {
                 sequence.camera->width(), sequence.camera->height(), chain_ms.size(), model_path.c_str(), fps);
     report("per frame (both nodelets' work)", chain_ms);
     const double n = static_cast<double>(chain_ms.size());
+    std::printf("  gyro flow through the %dx%d working grid and back: mean |change| %.4f, largest %.4f grid px "
+                "(per component; mean |flow| %.3f)\n",
+                model.metadata().working_grid.width, model.metadata().working_grid.height, resample_mean_px / n,
+                resample_max_px, mean_flow_px / n);
     std::printf("  mean central grey difference to frame b: frame a %.2f, warped by gyro flow %.2f, by model %.2f\n",
                 unaligned_diff / n, gyro_diff / n, aligned_diff / n);
     const bool met = fps >= kTargetFps && percentile(chain_ms, 0.95) <= kTargetP95Ms;
