@@ -147,7 +147,8 @@ cv::Mat CompensationModel::compensate(const cv::Mat& gyro_flow) const {
   }
   const cv::Size working = impl_->metadata.working_grid;
   const cv::Mat input = resampleFlow(gyro_flow, working);
-  torch::NoGradGuard no_grad;
+  // Inference mode: no autograd bookkeeping at all (cheaper than NoGradGuard for small tensors).
+  c10::InferenceMode inference;
   const torch::Tensor output = impl_->forward(flowToTensor(input));
   return resampleFlow(tensorToFlow(output), gyro_flow.size());
 }
