@@ -215,6 +215,74 @@ struct Evaluation {
   Eigen::MatrixXd shift_gain;
 };
 
+// What one track contributes at a state, before the parallax is removed.
+struct PointTerms {
+  double weight = 1.0;
+  Eigen::Vector2d error = Eigen::Vector2d::Zero();                 // predicted - observed, px
+  Eigen::Matrix<double, 2, 3> D = Eigen::Matrix<double, 2, 3>::Zero();  // d(pixel)/d(camera point)
+  Eigen::Matrix<double, 2, kParameterCount> J = Eigen::Matrix<double, 2, kParameterCount>::Zero();
+  ShiftBasis G_a = ShiftBasis::Zero();  // d(error)/d(shift of frame a), d(error)/d(shift of frame b)
+  ShiftBasis G_b = ShiftBasis::Zero();
+  Eigen::Matrix2d projector = Eigen::Matrix2d::Identity();  // removes the parallax direction
+};
+
+// A camera translation t between the frames moves track i by (inverse depth_i) D_i t on top of the
+// rotation: a known direction per track (for a given t), an unknown amount. The translation
+// direction u of the pair is fitted to the residuals (the one whose per-track directions
+// D_i u explain most of them, by alternating per-track amounts and u), then each track keeps only
+// the residual component across its own parallax direction: depth, and so parallax, no longer
+// matters, at the price of one of the two components of every track. Exact for any depth; without
+// translation it removes the component the noise happens to favour (information, not accuracy, is
+// lost).
+void removeParallax(std::vector<PointTerms>& terms) {
+  auto explained = [&](const Eigen::Vector3d& u) {
+    double sum = 0.0;
+    for (const PointTerms& term : terms) {
+      const Eigen::Vector2d v = term.D * u;
+      const double norm2 = v.squaredNorm();
+      if (norm2 > 0.0) sum += term.weight * std::pow(v.dot(term.error), 2) / norm2;
+    }
+    return sum;
+  };
+  // Start from the best of a few directions (forward, sideways, diagonals), then alternate.
+  const double r = std::sqrt(0.5);
+  const Eigen::Vector3d starts[] = {{0, 0, 1}, {1, 0, 0}, {0, 1, 0}, {r, r, 0}, {r, -r, 0},
+                                    {r, 0, r}, {-r, 0, r}, {0, r, r}, {0, -r, r}};
+  Eigen::Vector3d u = starts[0];
+  double best = explained(u);
+  for (const Eigen::Vector3d& start : starts) {
+    const double value = explained(start);
+    if (value > best) {
+      best = value;
+      u = start;
+    }
+  }
+  for (int iteration = 0; iteration < 4; ++iteration) {
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (const PointTerms& term : terms) {
+      const Eigen::Vector2d v = term.D * u;
+      const double norm2 = v.squaredNorm();
+      if (!(norm2 > 0.0)) continue;
+      const double amount = v.dot(term.error) / norm2;
+      M.noalias() += term.weight * amount * amount * term.D.transpose() * term.D;
+      b.noalias() += term.weight * amount * term.D.transpose() * term.error;
+    }
+    const Eigen::Vector3d next = M.ldlt().solve(b);
+    if (!next.allFinite() || next.norm() == 0.0) break;
+    const double value = explained(next.normalized());
+    if (!(value > best)) break;
+    best = value;
+    u = next.normalized();
+  }
+  for (PointTerms& term : terms) {
+    const Eigen::Vector2d v = term.D * u;
+    const double norm = v.norm();
+    term.projector = Eigen::Matrix2d::Identity();
+    if (norm > 0.0) term.projector -= (v / norm) * (v / norm).transpose();
+  }
+}
+
 // The reprojection model over all prepared pairs:
 //   x_b = pi(K R_b_a K^-1 (x_a - s_a(row_a))) + s_b(row_b)
 // with s the lens shift of each frame (zero for a fixed lens). The gyro table is rebuilt when the
@@ -223,9 +291,9 @@ class ReprojectionProblem {
  public:
   ReprojectionProblem(const std::vector<PreparedPair>& pairs, const ImuSampleBuffer& gyro,
                       const Eigen::Matrix3d& K, RateInterpolation interpolation, double max_gap_s,
-                      LensShiftHandling lens_shift, int shift_order)
+                      LensShiftHandling lens_shift, int shift_order, bool eliminate_parallax)
       : pairs_(pairs), gyro_(gyro), K_(K), K_inv_(K.inverse()), shift_order_(shift_order),
-        model_shift_(lens_shift == LensShiftHandling::kPerFrameShift) {
+        model_shift_(lens_shift == LensShiftHandling::kPerFrameShift), eliminate_parallax_(eliminate_parallax) {
     integration_.interpolation = interpolation;
     integration_.max_sample_gap_s = max_gap_s;
     for (const PreparedPair& pair : pairs_) {
@@ -261,18 +329,16 @@ class ReprojectionProblem {
     }
     const Eigen::Matrix3d& R = state.R_cam_imu;
     std::size_t index = 0;
+    std::vector<PointTerms> terms;
     for (const PreparedPair& pair : pairs_) {
       const int block_a = blocks > 0 ? shift_block_.at(pair.frame_a) : -1;
       const int block_b = blocks > 0 ? shift_block_.at(pair.frame_b) : -1;
-      ShiftBlock* between = nullptr;
-      if (jacobian && blocks > 0) {
-        auto inserted = off_diagonal.emplace(std::make_pair(block_a, block_b), ShiftBlock::Zero());
-        between = &inserted.first->second;
-      }
-      for (const TrackPoint& point : pair.points) {
-        const double w = weights.empty() ? 1.0 : weights[index];
-        ++index;
-        ShiftBasis A_a, A_b;
+      terms.resize(pair.points.size());
+      for (std::size_t k = 0; k < pair.points.size(); ++k) {
+        const TrackPoint& point = pair.points[k];
+        PointTerms& term = terms[k];
+        term.weight = weights.empty() ? 1.0 : weights[index + k];
+        ShiftBasis A_a = ShiftBasis::Zero(), A_b = ShiftBasis::Zero();
         Eigen::Vector2d x_a = point.x_a, shift_b = Eigen::Vector2d::Zero();
         if (blocks > 0) {
           A_a = shiftBasis(point.row_fraction_a, shift_order_);
@@ -288,23 +354,21 @@ class ReprojectionProblem {
         const Eigen::Vector3d Y = R_b_a * ray_a;
         const Eigen::Vector3d q = K_ * Y;
         const Eigen::Vector2d projected = q.head<2>() / q.z();
-        const Eigen::Vector2d error = projected + shift_b - point.x_b;
-        out.residual_norms_px.push_back(error.norm());
-        out.cost += w * error.squaredNorm();
-        out.weight_sum += w;
+        term.error = projected + shift_b - point.x_b;
+        // d(projected)/dY of the pinhole projection: also the direction in which a translation
+        // of the camera moves the point (parallax), scaled by its inverse depth.
+        term.D.row(0) = (K_.row(0) - projected.x() * K_.row(2)) / q.z();
+        term.D.row(1) = (K_.row(1) - projected.y() * K_.row(2)) / q.z();
         if (!jacobian) continue;
 
-        // d(projected)/dY of the pinhole projection.
-        Eigen::Matrix<double, 2, 3> D;
-        D.row(0) = (K_.row(0) - projected.x() * K_.row(2)) / q.z();
-        D.row(1) = (K_.row(1) - projected.y() * K_.row(2)) / q.z();
         // Camera-frame rates at both capture times: moving t_b by dt turns the camera by c_b dt
         // more (Y -> Y - c_b x Y dt); moving t_a turns the start (ray -> ray + c_a x ray dt).
+        const Eigen::Matrix<double, 2, 3>& D = term.D;
         const Eigen::Vector3d c_a = R * table.rate(t_a);
         const Eigen::Vector3d c_b = R * table.rate(t_b);
         const Eigen::Vector3d dY_dta = R_b_a * c_a.cross(ray_a);
         const Eigen::Vector3d dY_dtb = -c_b.cross(Y);
-        Eigen::Matrix<double, 2, kParameterCount> J;
+        Eigen::Matrix<double, 2, kParameterCount>& J = term.J;
         J.col(kOffset) = D * (dY_dta + dY_dtb);
         J.col(kReadout) = D * (point.row_fraction_a * dY_dta + point.row_fraction_b * dY_dtb);
         // A bias increment e removes e (t_b - t_a) of rotation: R_b_a -> exp(R e dt) R_b_a (first
@@ -312,21 +376,45 @@ class ReprojectionProblem {
         J.block<2, 3>(0, kBias) = D * (-(t_b - t_a) * skew(Y) * R);
         // R_cam_imu -> exp(e) R_cam_imu: R_b_a -> exp(e) R_b_a exp(-e).
         J.block<2, 3>(0, kRotation) = D * (-skew(Y) + R_b_a * skew(ray_a));
-        out.H.noalias() += w * J.transpose() * J;
-        out.g.noalias() += w * J.transpose() * error;
         if (blocks > 0) {
           // The shift of frame a moves the point before the rotation, that of frame b after it.
           const Eigen::Matrix2d homography_jacobian = D * R_b_a * K_inv_.leftCols<2>();
-          const ShiftBasis G_a = -homography_jacobian * A_a;
-          const ShiftBasis& G_b = A_b;
+          term.G_a = -homography_jacobian * A_a;
+          term.G_b = A_b;
+        }
+      }
+      index += pair.points.size();
+
+      // Parallax: remove from every residual the component along its own parallax direction.
+      if (eliminate_parallax_) removeParallax(terms);
+
+      ShiftBlock between = ShiftBlock::Zero();
+      for (const PointTerms& term : terms) {
+        const double w = term.weight;
+        const Eigen::Matrix2d& P = term.projector;
+        const Eigen::Vector2d error = P * term.error;
+        out.residual_norms_px.push_back(error.norm());
+        out.cost += w * error.squaredNorm();
+        out.weight_sum += w;
+        if (!jacobian) continue;
+        const Eigen::Matrix<double, 2, kParameterCount> J = P * term.J;
+        out.H.noalias() += w * J.transpose() * J;
+        out.g.noalias() += w * J.transpose() * error;
+        if (blocks > 0) {
+          const ShiftBasis G_a = P * term.G_a;
+          const ShiftBasis G_b = P * term.G_b;
           diagonal[block_a].noalias() += w * G_a.transpose() * G_a;
           diagonal[block_b].noalias() += w * G_b.transpose() * G_b;
-          between->noalias() += w * G_a.transpose() * G_b;
+          between.noalias() += w * G_a.transpose() * G_b;
           coupling[block_a].noalias() += w * G_a.transpose() * J;
           coupling[block_b].noalias() += w * G_b.transpose() * J;
           gradient[block_a].noalias() += w * G_a.transpose() * error;
           gradient[block_b].noalias() += w * G_b.transpose() * error;
         }
+      }
+      if (jacobian && blocks > 0) {
+        auto inserted = off_diagonal.emplace(std::make_pair(block_a, block_b), ShiftBlock::Zero());
+        inserted.first->second += between;
       }
     }
     for (int b = 0; b < blocks; ++b) out.cost += kShiftPriorWeight * state.shifts[b].squaredNorm();
@@ -388,6 +476,7 @@ class ReprojectionProblem {
   Eigen::Matrix3d K_inv_;
   int shift_order_;
   bool model_shift_;
+  bool eliminate_parallax_;
   std::map<int, int> shift_block_;  // frame index -> shift block
   IntegrationOptions integration_;
   std::size_t track_count_ = 0;
@@ -395,11 +484,16 @@ class ReprojectionProblem {
   Eigen::Vector3d table_bias_ = Eigen::Vector3d::Zero();
 };
 
+bool removesParallax(const CalibrationOptions& options) {
+  return options.eliminate_parallax && options.lens_shift == LensShiftHandling::kNone;
+}
+
 // Cauchy weights from the residuals: scale = factor x robust sigma (MAD of the 2-D residual
-// norm: median |e| = 1.1774 sigma for isotropic Gaussian noise).
+// norm: median |e| = 1.1774 sigma for isotropic Gaussian noise in 2-D, 0.6745 sigma once the
+// parallax direction is removed and one component is left).
 std::vector<double> cauchyWeights(const std::vector<double>& residual_norms_px,
                                   const CalibrationOptions& options, double* scale_px) {
-  const double sigma = median(residual_norms_px) / 1.1774;
+  const double sigma = median(residual_norms_px) / (removesParallax(options) ? 0.6745 : 1.1774);
   const double scale = std::max(options.robust_scale_factor * sigma, options.min_robust_scale_px);
   if (scale_px) *scale_px = scale;
   std::vector<double> weights(residual_norms_px.size());
@@ -592,7 +686,7 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     throw std::invalid_argument(why.str());
   }
   ReprojectionProblem problem(refined_pairs, gyro, data.camera.K(), options.interpolation, options.max_imu_gap_s,
-                              options.lens_shift, options.lens_shift_row_order);
+                              options.lens_shift, options.lens_shift_row_order, removesParallax(options));
   result.pairs_used = static_cast<int>(refined_pairs.size());
   result.tracks_used = static_cast<int>(problem.trackCount());
   state.shifts.assign(problem.shiftBlockCount(), ShiftVector::Zero());
@@ -678,9 +772,13 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     ParameterMatrix H;
     ParameterVector unused_gradient;
     restrictToActive(final_evaluation, H, unused_gradient);
-    // Degrees of freedom: two per track, less the parameters and the eliminated lens shifts.
+    // Degrees of freedom: per track, less the parameters and the eliminated nuisances.
     const double nuisance = problem.shiftUnknownCount();
-    const double dof = std::max(2.0 * final_evaluation.weight_sum - n - nuisance, 1.0);
+    // One component per track is left when the parallax is removed, and a direction per pair
+    // is spent on it.
+    const double components = removesParallax(options) ? 1.0 : 2.0;
+    const double parallax = removesParallax(options) ? 2.0 * refined_pairs.size() : 0.0;
+    const double dof = std::max(components * final_evaluation.weight_sum - n - nuisance - parallax, 1.0);
     const double variance = final_evaluation.cost / dof;
     // A direction the data does not constrain has a (near) zero eigenvalue: its variance is
     // then effectively infinite, which the checks below turn into a refusal.
@@ -768,7 +866,7 @@ std::vector<double> trackResidualsPx(const CalibrationData& data, const CameraIm
   state.bias = calibration.gyro_bias_rad_s;
   state.R_cam_imu = calibration.imu_to_camera_rotation;
   ReprojectionProblem problem(pairs, gyro, data.camera.K(), interpolation, integration.max_sample_gap_s,
-                              LensShiftHandling::kNone, 0);
+                              LensShiftHandling::kNone, 0, false);
   return problem.evaluate(state, {}, false).residual_norms_px;
 }
 

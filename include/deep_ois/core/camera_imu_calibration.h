@@ -85,6 +85,14 @@ struct CalibrationOptions {
   Eigen::Matrix3d imu_to_camera_rotation = Eigen::Matrix3d::Identity();  // R_cam_imu
 
   LensShiftHandling lens_shift = LensShiftHandling::kNone;
+  // Remove the parallax of camera translation (fixed lens only): per pair a translation direction
+  // is fitted and every track keeps only its residual across its own parallax direction (depth no
+  // longer matters). Hand-held recordings translate by millimetres per frame, which near objects
+  // turn into tenths of a pixel: enough to bias the rotation by most of a degree. Costs half the
+  // residual components; turn it off only for a camera that truly only rotates. Not used with
+  // kPerFrameShift: the lens shifts already absorb the common part of the parallax, and what is
+  // left to fit under OIS is too weak to give up a component of every track (measured worse).
+  bool eliminate_parallax = true;
   // With kPerFrameShift: each frame's shift is a polynomial of the row of this order (0 = a
   // translation, 1 = + a translation growing with the row, ...; at most 3).
   int lens_shift_row_order = 2;
