@@ -5,8 +5,6 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <Eigen/SVD>
 #include <Eigen/SparseCholesky>
@@ -70,6 +68,12 @@ std::string CalibrationOptions::validate() const {
   return why.str();
 }
 
+KltOptions calibrationKltOptions() {
+  KltOptions options;
+  options.window_size_px = 11;
+  return options;
+}
+
 std::string CalibrationResult::reason() const {
   std::string joined;
   for (const std::string& refusal : refusals) joined += (joined.empty() ? "" : "; ") + refusal;
@@ -91,6 +95,10 @@ constexpr int kRotation = 5;
 using ParameterVector = Eigen::Matrix<double, kParameterCount, 1>;
 using ParameterMatrix = Eigen::Matrix<double, kParameterCount, kParameterCount>;
 
+// Pairs per cluster of the cluster-robust covariance: 5 pairs (1/6 s at 30 fps), about the time
+// over which hand-held translation and the lens stay correlated.
+constexpr std::size_t kPairsPerCluster = 5;
+
 // OIS lens shift of each frame: a translation of the image (a principal-point shift) that is a
 // polynomial of the row, since the lens moves during the readout. Coefficients per power (x, y);
 // storage for the cubic, powers above the configured order stay zero (only the prior sees them).
@@ -100,10 +108,10 @@ using ShiftBasis = Eigen::Matrix<double, 2, kShiftCount>;
 using ShiftBlock = Eigen::Matrix<double, kShiftCount, kShiftCount>;
 using ShiftByParameter = Eigen::Matrix<double, kShiftCount, kParameterCount>;
 using ShiftVector = Eigen::Matrix<double, kShiftCount, 1>;
-// A vanishing prior on every shift coefficient (px^-2, against unit track weights), only to keep
-// the shift system invertible: the shift common to all frames is observable only through the
-// perspective of the rotation (it is, to first order, a rotation of the camera), and a real prior
-// would pull the rotation towards "lens centred on average" by the mean lens offset / focal.
+// Prior on every shift coefficient (px^-2, against unit track weights): (0.1 px track noise / 3 px
+// lens stroke)^2, i.e. the lens stays within a few pixels of its centre. Without it a lens that
+// drifts steadily is, to first order, a gyro bias about the pan/tilt axes, and a lens decentred
+// on average is a tilt of the mount; the stroke limit is what tells them apart.
 constexpr double kShiftPriorWeight = 1e-3;
 
 ShiftBasis shiftBasis(double row_fraction, int order) {
@@ -313,7 +321,12 @@ class ReprojectionProblem {
   // Shift coefficients that are estimated (the prior alone holds the others).
   int shiftUnknownCount() const { return shiftBlockCount() * 2 * (shift_order_ + 1); }
 
-  Evaluation evaluate(const State& state, const std::vector<double>& weights, bool jacobian) {
+  // With `pair_scores` (needs `jacobian` and, when shifts are modelled, the `shift_gain` of an
+  // evaluation at the same state): each pair's score sum_i w_i J_i^T r_i with the shifts' response
+  // to the parameters folded into J, for the cluster-robust covariance.
+  Evaluation evaluate(const State& state, const std::vector<double>& weights, bool jacobian,
+                      const Eigen::MatrixXd* shift_gain = nullptr,
+                      std::vector<ParameterVector>* pair_scores = nullptr) {
     const GyroOrientationTable& table = tableFor(state.bias);
     const int blocks = shiftBlockCount();
     Evaluation out;
@@ -389,6 +402,7 @@ class ReprojectionProblem {
       if (eliminate_parallax_) removeParallax(terms);
 
       ShiftBlock between = ShiftBlock::Zero();
+      ParameterVector score = ParameterVector::Zero();
       for (const PointTerms& term : terms) {
         const double w = term.weight;
         const Eigen::Matrix2d& P = term.projector;
@@ -400,6 +414,15 @@ class ReprojectionProblem {
         const Eigen::Matrix<double, 2, kParameterCount> J = P * term.J;
         out.H.noalias() += w * J.transpose() * J;
         out.g.noalias() += w * J.transpose() * error;
+        if (pair_scores) {
+          Eigen::Matrix<double, 2, kParameterCount> J_total = J;
+          if (blocks > 0 && shift_gain) {
+            // The shifts re-fit when the parameters move: d(shift)/d(parameters) = -shift_gain.
+            J_total.noalias() -= P * term.G_a * shift_gain->middleRows<kShiftCount>(block_a * kShiftCount);
+            J_total.noalias() -= P * term.G_b * shift_gain->middleRows<kShiftCount>(block_b * kShiftCount);
+          }
+          score.noalias() += w * J_total.transpose() * error;
+        }
         if (blocks > 0) {
           const ShiftBasis G_a = P * term.G_a;
           const ShiftBasis G_b = P * term.G_b;
@@ -412,6 +435,7 @@ class ReprojectionProblem {
           gradient[block_b].noalias() += w * G_b.transpose() * error;
         }
       }
+      if (pair_scores) pair_scores->push_back(score);
       if (jacobian && blocks > 0) {
         auto inserted = off_diagonal.emplace(std::make_pair(block_a, block_b), ShiftBlock::Zero());
         inserted.first->second += between;
@@ -758,8 +782,9 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
 
   // ---- Uncertainty and observability. ------------------------------------------------------
   const Evaluation final_evaluation = problem.evaluate(state, weights, true);
+  std::vector<ParameterVector> pair_scores;
+  problem.evaluate(state, weights, true, &final_evaluation.shift_gain, &pair_scores);
   result.median_residual_px = median(final_evaluation.residual_norms_px);
-  if (std::getenv("DEEP_OIS_DEBUG")) std::fprintf(stderr, "DEBUG final cost %.6f\n", final_evaluation.cost);
   result.inlier_fraction =
       static_cast<double>(std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0.5; })) /
       std::max<std::size_t>(weights.size(), 1);
@@ -793,12 +818,31 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
       const double value = svd.singularValues()(i);
       inverse_values(i) = value > 1e-12 ? 1.0 / value : 1e30;
     }
-    const ParameterMatrix covariance = variance * scale.asDiagonal() * svd.matrixV() *
-                                       inverse_values.asDiagonal() * svd.matrixU().transpose() *
-                                       scale.asDiagonal();
+    const ParameterMatrix H_inverse = scale.asDiagonal() * svd.matrixV() * inverse_values.asDiagonal() *
+                                      svd.matrixU().transpose() * scale.asDiagonal();
+    const ParameterMatrix covariance = variance * H_inverse;
+    // Tracks of one moment share what the model misses (parallax of that moment's translation,
+    // the lens shift's misfit, a tracking bias of that image content), so treating them as
+    // independent overstates the information. The cluster-robust ("sandwich") covariance
+    // H^-1 (sum_c s_c s_c^T) H^-1 over clusters of consecutive pairs (s_c the sum of their
+    // scores) counts each stretch of the recording once; the larger of the two is reported.
+    ParameterMatrix meat = ParameterMatrix::Zero();
+    int clusters = 0;
+    for (std::size_t start = 0; start < pair_scores.size(); start += kPairsPerCluster, ++clusters) {
+      ParameterVector cluster = ParameterVector::Zero();
+      for (std::size_t p = start; p < std::min(start + kPairsPerCluster, pair_scores.size()); ++p) {
+        cluster += pair_scores[p];
+      }
+      for (int i = 0; i < kParameterCount; ++i) {
+        if (!active[i]) cluster(i) = 0.0;
+      }
+      meat.noalias() += cluster * cluster.transpose();
+    }
+    const double small_sample = clusters > 1 ? clusters / (clusters - 1.0) : 1.0;
+    const ParameterMatrix sandwich = small_sample * H_inverse * meat * H_inverse;
     ParameterVector sigma = ParameterVector::Zero();
     for (int i = 0; i < kParameterCount; ++i) {
-      if (active[i]) sigma(i) = std::sqrt(std::max(covariance(i, i), 0.0));
+      if (active[i]) sigma(i) = std::sqrt(std::max({covariance(i, i), sandwich(i, i), 0.0}));
     }
     calibration.time_offset_sigma_s = sigma(kOffset);
     calibration.readout_time_sigma_s = sigma(kReadout);
@@ -806,12 +850,18 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     calibration.rotation_sigma_rad = sigma.segment<3>(kRotation);
   }
 
+  // Under OIS the usual motion advice is not enough: the lens absorbs most pan and tilt.
+  const std::string ois_advice =
+      options.lens_shift == LensShiftHandling::kPerFrameShift
+          ? " (with OIS the lens absorbs most of the pan and tilt: hold the mount with its known value, "
+            "e.g. calibrated with OIS off, and record longer)"
+          : "";
   if (options.estimate_time_offset && calibration.time_offset_sigma_s > options.max_time_offset_sigma_s) {
     result.refusals.push_back(
         "time offset: 1-sigma " + describeSeconds(calibration.time_offset_sigma_s) + " exceeds " +
         describeSeconds(options.max_time_offset_sigma_s) +
         ": the rotation rate hardly changes during the recording (a steady turn looks the same at any "
-        "offset); shake the camera, so that its rate changes within fractions of a second");
+        "offset); shake the camera, so that its rate changes within fractions of a second" + ois_advice);
   }
   if (options.estimate_readout_time && calibration.readout_time_sigma_s > options.max_readout_time_sigma_s) {
     result.refusals.push_back(
@@ -819,7 +869,7 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
         describeSeconds(options.max_readout_time_sigma_s) +
         ": the top and bottom rows move alike (it needs vertical image motion, i.e. tilt about the camera x "
         "axis, roll about the optical axis, or rates that change within a frame); tilt and roll the camera "
-        "while recording, or hold the readout at its known value");
+        "while recording, or hold the readout at its known value" + ois_advice);
   }
   if (options.estimate_rotation &&
       calibration.rotation_sigma_rad.maxCoeff() > options.max_rotation_sigma_rad) {
@@ -829,7 +879,8 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
         << ", " << calibration.rotation_sigma_rad(2) * kRadToDeg << ") deg about the camera x, y, z axes exceeds "
         << options.max_rotation_sigma_rad * kRadToDeg
         << " deg: it needs clear rotation about at least two axes (gyro RMS about its principal axes "
-        << rates.str() << "); turn the camera about all three axes, or hold the rotation at a known value";
+        << rates.str() << "); turn the camera about all three axes, or hold the rotation at a known value"
+        << ois_advice;
     result.refusals.push_back(why.str());
   }
   if (options.estimate_gyro_bias &&
@@ -837,7 +888,7 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     std::ostringstream why;
     why << std::scientific << std::setprecision(2) << "gyro bias: 1-sigma "
         << calibration.gyro_bias_sigma_rad_s.maxCoeff() << " rad/s exceeds " << options.max_gyro_bias_sigma_rad_s
-        << " rad/s: record longer or with more texture, or hold the bias";
+        << " rad/s: record longer or with more texture, or hold the bias" << ois_advice;
     result.refusals.push_back(why.str());
   }
   return finish();

@@ -14,7 +14,6 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -131,10 +130,6 @@ int main(int argc, char** argv) {
     return usage("--rotation must be 'tf' or 9 comma-separated numbers (row-major R_cam_imu), got '" +
                  rotation_text + "'");
   }
-  if (std::getenv("TMP_KEEP_PARALLAX")) options.eliminate_parallax = false;
-  if (std::getenv("TMP_WINDOW")) bag_options.klt.window_size_px = std::atoi(std::getenv("TMP_WINDOW"));
-  if (std::getenv("TMP_LEVELS")) bag_options.klt.pyramid_levels = std::atoi(std::getenv("TMP_LEVELS"));
-  if (std::getenv("TMP_ORDER")) options.lens_shift_row_order = std::atoi(std::getenv("TMP_ORDER"));
   const std::string problem = options.validate();
   if (!problem.empty()) return usage(problem);
 

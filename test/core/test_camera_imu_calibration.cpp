@@ -241,8 +241,10 @@ TEST(CameraImuCalibration, NegativeOffsetAndGlobalShutter) {
   const CalibrationResult result = calibrateCameraImu(recording.data, CalibrationOptions());
   const Errors e = errorsOf(result, recording.truth, "global shutter, -48 ms");
   ASSERT_TRUE(result.ok()) << result.reason();
-  EXPECT_LT(std::abs(e.offset_ms), 0.1);
-  EXPECT_LT(std::abs(e.readout_ms), 0.2);
+  // Within ~3 sigma of 80 tracks per pair with 0.1 px noise (the parallax removal keeps one
+  // component of each).
+  EXPECT_LT(std::abs(e.offset_ms), 0.2);
+  EXPECT_LT(std::abs(e.readout_ms), 0.3);
   EXPECT_LT(e.rotation_deg, 0.3);
 }
 

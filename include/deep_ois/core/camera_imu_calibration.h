@@ -25,17 +25,21 @@
 //
 // OIS cameras (LensShiftHandling::kPerFrameShift): the stabilizer shifts the lens against pan and
 // tilt (never roll about the optical axis), so the images move less than the gyro says and a fit
-// that ignores it is biased by milliseconds and degrees. The lens shift acts as a principal-point
-// shift, so the model becomes x_b = pi(K R_b_a K^-1 (x_a - s_a(row))) + s_b(row'), with s_k the
-// shift of frame k as a polynomial of the row (the lens moves during the readout; quadratic by
-// default). Every frame's shift is shared by the two pairs it belongs to and is estimated jointly
-// with the calibration, eliminated by a sparse Schur complement at each iteration (as landmarks
-// in bundle adjustment). Subtracting it before the rotation matters: a pure image translation
-// after the rotation would miss the coupling of shift and rotation (the perspective of a pan
-// about a shifted principal point), which biases the IMU-camera rotation by about shift / focal
-// (a degree for 4 px at 230 px). What the shifts cannot absorb pins the calibration: roll, and
-// the perspective (keystone) part of pan and tilt with their rolling-shutter shear. That is less
-// signal than a fixed lens gives, so OIS precision is lower and reported apart.
+// that ignores it is off by milliseconds and tens of degrees. The lens shift acts as a
+// principal-point shift, so the model becomes x_b = pi(K R_b_a K^-1 (x_a - s_a(row))) + s_b(row'),
+// with s_k the shift of frame k as a polynomial of the row (the lens moves during the readout).
+// Every frame's shift is shared by the two pairs it belongs to and is estimated jointly with the
+// calibration, eliminated by a sparse Schur complement at each iteration (as landmarks in bundle
+// adjustment), under a prior that keeps the lens within a few pixels of its centre (its stroke).
+// Subtracting the shift before the rotation matters: a translation added after it would miss the
+// perspective of a pan about a shifted principal point, which biases the mount by about
+// shift / focal (a degree for 4 px at 230 px). What the shifts cannot absorb pins the
+// calibration: roll about the optical axis, the perspective (keystone) part of pan and tilt, and
+// pans too slow or too large for the lens. That is far less signal than a fixed lens gives: the
+// timing stays within about a millisecond, but the mount's rotation about the optical axis and
+// the gyro bias about the pan/tilt axes are weak (a lens drifting steadily looks like a bias, one
+// decentred on average like a tilted mount). Hold the rotation (calibrate --rotation) from a
+// recording with OIS off or from CAD when the camera allows it.
 #pragma once
 
 #include <Eigen/Core>
@@ -94,8 +98,10 @@ struct CalibrationOptions {
   // left to fit under OIS is too weak to give up a component of every track (measured worse).
   bool eliminate_parallax = true;
   // With kPerFrameShift: each frame's shift is a polynomial of the row of this order (0 = a
-  // translation, 1 = + a translation growing with the row, ...; at most 3).
-  int lens_shift_row_order = 2;
+  // translation, 1 = + a translation growing with the row, ...; at most 3). The cubic follows the
+  // lens through a long readout (33 ms: readout error -1.25 ms with the quadratic, -0.24 ms with
+  // the cubic on a simulator bag).
+  int lens_shift_row_order = 3;
   RateInterpolation interpolation = RateInterpolation::kLinear;
   double max_imu_gap_s = 0.05;  // a pair whose interval crosses a longer gap is not used
 
@@ -170,6 +176,13 @@ struct CalibrationResult {
   // The refusals joined with "; " (empty when ok).
   std::string reason() const;
 };
+
+// KLT settings for calibration tracks: the tracker's defaults with an 11 px window instead of
+// 21. A window spans rows read out at different times that moved differently, and a wide one
+// shifts each track's effective capture time. Measured on a 5 s simulator bag: time offset /
+// readout errors +0.17 / -0.27 ms with 21 px, +0.05 / -0.07 ms with 11 px (31 px: +0.32 /
+// -0.55 ms), the number of tracks unchanged.
+KltOptions calibrationKltOptions();
 
 // Runs the coarse stage, the refinement and the observability checks. Throws
 // std::invalid_argument naming the problem for malformed input (bad options, no camera, stamps

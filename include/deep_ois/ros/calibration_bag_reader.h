@@ -17,15 +17,7 @@ namespace deep_ois {
 struct CalibrationBagOptions {
   BagSequenceTopics topics;
   CornerDetectorOptions corners;
-  // An 11 px window instead of the tracker's 21: a window spans rows read out at different times
-  // that moved differently, and a wide one shifts each track's effective capture time. Measured on
-  // a 5 s simulator bag: time offset / readout errors +0.17 / -0.27 ms with 21 px, +0.05 / -0.07 ms
-  // with 11 px (31 px: +0.32 / -0.55 ms), the number of tracks unchanged.
-  KltOptions klt = [] {
-    KltOptions options;
-    options.window_size_px = 11;
-    return options;
-  }();
+  KltOptions klt = calibrationKltOptions();  // an 11 px window (see there)
   // Frame pairs further apart than this are not tracked (frames dropped upstream), seconds.
   double max_frame_interval_s = 0.25;
 };
