@@ -5,7 +5,7 @@
 //
 // The manifest (scripts/make_calibration_bags.sh writes it) has one line per bag,
 // "<bag> <config.yaml>", paths relative to the manifest's folder. Whether a bag has OIS is read
-// from its ground truth; OIS bags are calibrated with the per-pair lens shift (calibrate --ois on),
+// from its ground truth; OIS bags are calibrated with the per-frame lens shift (calibrate --ois on),
 // the others without. The bias truth is the config's gyro_initial_bias_vector_rad_s (the bias
 // random walk moves it by ~1e-5 rad/s over a few seconds). --ois-rotation tf holds the rotation of
 // OIS bags at their /tf_static (calibrate --ois on --rotation tf: the mount known from a

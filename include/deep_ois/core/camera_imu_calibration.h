@@ -17,11 +17,13 @@
 //     permutations; the best cell, refined by Procrustes, starts stage 2. No initial guess needed.
 //  2. Continuous refinement: Levenberg-Marquardt on the reprojection residuals of all tracks over
 //     (time offset, readout, bias, rotation), analytic Jacobians, Cauchy loss by iteratively
-//     reweighted least squares (moving objects, parallax and bad tracks get down-weighted).
-//  3. Uncertainty: covariance = sigma^2 (J^T W J)^-1 with sigma^2 the weighted residual variance.
-//     Tracks are treated as independent, so this is a lower bound when the model misses
-//     something correlated (parallax, an unmodelled lens shift). A quantity whose uncertainty
-//     exceeds its limit, or whose motion prerequisite is missing, is refused with the reason.
+//     reweighted least squares (moving objects and bad tracks get down-weighted). The parallax
+//     of camera translation is removed per track (see eliminate_parallax).
+//  3. Uncertainty: the larger of sigma^2 (J^T W J)^-1 (sigma^2 the weighted residual variance)
+//     and the cluster-robust covariance over stretches of consecutive pairs, which counts what
+//     the tracks of one moment share (parallax, a lens-shift misfit) once. A quantity whose
+//     uncertainty exceeds its limit, or whose motion prerequisite is missing, is refused with the
+//     reason and the remedy.
 //
 // OIS cameras (LensShiftHandling::kPerFrameShift): the stabilizer shifts the lens against pan and
 // tilt (never roll about the optical axis), so the images move less than the gyro says and a fit
