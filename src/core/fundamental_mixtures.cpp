@@ -10,6 +10,7 @@
 
 #include "deep_ois/core/portable_random.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/core/rotation_alignment.h"
 
 namespace deep_ois {
 
@@ -116,14 +117,6 @@ Eigen::Matrix3d eightPoint(const Problem& problem, const std::vector<int>& indic
 
 Eigen::Matrix3d denormalise(const Problem& problem, const Eigen::Matrix3d& F_n) {
   return problem.T_b.transpose() * F_n * problem.T_a;
-}
-
-// R maximising sum w f_b^T R f_a, given M = sum w f_b f_a^T (orthogonal Procrustes).
-Eigen::Matrix3d kabsch(const Eigen::Matrix3d& M) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
-  return svd.matrixU() * D * svd.matrixV().transpose();
 }
 
 double median(std::vector<double> values) {

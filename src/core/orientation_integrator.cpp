@@ -58,7 +58,8 @@ std::string describeInterval(double t0_s, double t1_s) {
   return out.str();
 }
 
-// Rate at time t inside [sample k, sample k+1], bias removed.
+}  // namespace
+
 Eigen::Vector3d rateAt(const ImuSample& before, const ImuSample& after, double t_s,
                        const IntegrationOptions& options) {
   if (options.interpolation == RateInterpolation::kZeroOrderHold) {
@@ -68,8 +69,6 @@ Eigen::Vector3d rateAt(const ImuSample& before, const ImuSample& after, double t
   return (1.0 - alpha) * before.angular_velocity_rad_s + alpha * after.angular_velocity_rad_s -
          options.gyro_bias_rad_s;
 }
-
-}  // namespace
 
 IntegrationResult checkCoverage(const ImuSampleBuffer& buffer, double t0_s, double t1_s,
                                 const IntegrationOptions& options) {

@@ -56,6 +56,11 @@ IntegrationResult integrateRotation(const ImuSampleBuffer& buffer, double t0_s, 
 IntegrationResult checkCoverage(const ImuSampleBuffer& buffer, double t0_s, double t1_s,
                                 const IntegrationOptions& options);
 
+// The modelled rate (bias removed, IMU frame, rad/s) at time t_s inside [before, after], two
+// consecutive samples: what integrateRotation() integrates there.
+Eigen::Vector3d rateAt(const ImuSample& before, const ImuSample& after, double t_s,
+                       const IntegrationOptions& options);
+
 // Whether `R` is a proper rotation: finite, orthonormal and det +1 (to 1e-6).
 bool isProperRotation(const Eigen::Matrix3d& R);
 

@@ -32,6 +32,8 @@ std::string ImuConfig::validate() const {
     why << "gyro_bias_random_walk: must be non-negative (got " << gyro_bias_random_walk << ")";
   } else if (!nonNegative(gyro_initial_bias_rad_s)) {
     why << "gyro_initial_bias_rad_s: must be non-negative (got " << gyro_initial_bias_rad_s << ")";
+  } else if (gyro_initial_bias_vector_rad_s && !gyro_initial_bias_vector_rad_s->allFinite()) {
+    why << "gyro_initial_bias_vector_rad_s: must hold finite numbers";
   } else if (!nonNegative(accel_noise_density)) {
     why << "accel_noise_density: must be non-negative (got " << accel_noise_density << ")";
   } else if (!std::isfinite(time_offset_s) || std::abs(time_offset_s) > 1.0) {
@@ -69,6 +71,7 @@ std::vector<ImuMeasurement> sampleImu(const ImuConfig& config, const CameraMotio
   std::mt19937 bias_rng = streamGenerator(seed, 1);
   std::mt19937 accel_rng = streamGenerator(seed, 2);
   Eigen::Vector3d bias = config.gyro_initial_bias_rad_s * gaussian3(bias_rng);
+  if (config.gyro_initial_bias_vector_rad_s) bias = *config.gyro_initial_bias_vector_rad_s;
 
   const Eigen::Matrix3d R_imu_cam = config.imu_to_camera_rotation.transpose();
   const Eigen::Vector3d gravity_world(0.0, 0.0, -kGravityM_s2);

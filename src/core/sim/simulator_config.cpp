@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -63,6 +64,17 @@ class SectionReader {
     read(key, values);
     if (has(key)) {
       if (values.size() != 3) fail(key, "must hold 3 numbers");
+      value = Eigen::Vector3d(values[0], values[1], values[2]);
+    }
+    return *this;
+  }
+
+  // An empty list (or an absent key) leaves `value` unset.
+  SectionReader& readOptionalVector3(const std::string& key, std::optional<Eigen::Vector3d>& value) {
+    std::vector<double> values;
+    read(key, values);
+    if (has(key) && !values.empty()) {
+      if (values.size() != 3) fail(key, "must hold 3 numbers or none");
       value = Eigen::Vector3d(values[0], values[1], values[2]);
     }
     return *this;
@@ -178,6 +190,7 @@ SimulatorConfig loadSimulatorConfig(const std::string& path) {
         .read("gyro_noise_density", i.gyro_noise_density)
         .read("gyro_bias_random_walk", i.gyro_bias_random_walk)
         .read("gyro_initial_bias_rad_s", i.gyro_initial_bias_rad_s)
+        .readOptionalVector3("gyro_initial_bias_vector_rad_s", i.gyro_initial_bias_vector_rad_s)
         .read("accel_noise_density", i.accel_noise_density)
         .read("time_offset_s", i.time_offset_s)
         .finish();

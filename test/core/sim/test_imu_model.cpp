@@ -167,6 +167,25 @@ TEST(ImuModel, InitialBiasSpread) {
   for (int axis = 0; axis < 3; ++axis) EXPECT_NEAR(0.002, spread[axis], 0.0003);
 }
 
+// A known initial bias (for calibration benchmarks) replaces the random draw and leaves every
+// other random stream as it was.
+TEST(ImuModel, FixedInitialBiasVector) {
+  const CameraMotion motion(CameraMotionConfig(), 1, 0.0, 0.5);
+  ImuConfig config;
+  const auto random = sampleImu(config, motion, 5, 0.0, 0.5);
+  config.gyro_initial_bias_vector_rad_s = Eigen::Vector3d(0.004, -0.006, 0.001);
+  const auto fixed = sampleImu(config, motion, 5, 0.0, 0.5);
+  ASSERT_EQ(random.size(), fixed.size());
+  EXPECT_EQ(fixed.front().true_bias_rad_s, *config.gyro_initial_bias_vector_rad_s);
+  for (std::size_t i = 0; i < fixed.size(); ++i) {
+    // Same noise and the same random walk, only the starting bias differs.
+    const Eigen::Vector3d shift = *config.gyro_initial_bias_vector_rad_s - random.front().true_bias_rad_s;
+    EXPECT_MATRIX_NEAR(random[i].angular_velocity_rad_s + shift, fixed[i].angular_velocity_rad_s, 1e-12);
+  }
+  config.gyro_initial_bias_vector_rad_s = Eigen::Vector3d(0.0, std::nan(""), 0.0);
+  EXPECT_NE(config.validate().find("gyro_initial_bias_vector_rad_s"), std::string::npos);
+}
+
 TEST(ImuModel, DeterministicPerSeed) {
   const CameraMotion motion(CameraMotionConfig(), 1, 0.0, 1.0);
   const ImuConfig config;

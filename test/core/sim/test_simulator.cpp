@@ -57,6 +57,15 @@ TEST(SimulatorConfig, ShippedFilesLoadWithTheirCategory) {
   return ::testing::AssertionFailure() << "error '" << error << "' does not contain '" << expected << "'";
 }
 
+TEST(SimulatorConfig, OptionalInitialBiasVector) {
+  EXPECT_FALSE(loadSimulatorConfig(configPath("RE")).imu.gyro_initial_bias_vector_rad_s.has_value());
+  const std::string path = ::testing::TempDir() + "/deep_ois_bias_config.yaml";
+  std::ofstream(path) << "imu:\n  gyro_initial_bias_vector_rad_s: [0.001, -0.002, 0.003]\n";
+  const SimulatorConfig config = loadSimulatorConfig(path);
+  ASSERT_TRUE(config.imu.gyro_initial_bias_vector_rad_s.has_value());
+  EXPECT_EQ(*config.imu.gyro_initial_bias_vector_rad_s, Eigen::Vector3d(0.001, -0.002, 0.003));
+}
+
 TEST(SimulatorConfig, ErrorsNameTheField) {
   EXPECT_TRUE(failsWith("sensor:\n  widht_px: 360\n", "sensor.widht_px: unknown key"));
   EXPECT_TRUE(failsWith("sensor:\n  width_px: wide\n", "sensor.width_px: has the wrong type"));
@@ -64,6 +73,8 @@ TEST(SimulatorConfig, ErrorsNameTheField) {
   EXPECT_TRUE(failsWith("category: XX\n", "category: 'XX' is not one of"));
   EXPECT_TRUE(failsWith("imu:\n  imu_to_camera_rotation: [1, 0, 0]\n", "imu.imu_to_camera_rotation: must hold 9"));
   EXPECT_TRUE(failsWith("bogus: 1\n", "bogus: unknown section"));
+  EXPECT_TRUE(failsWith("imu:\n  gyro_initial_bias_vector_rad_s: [0.1, 0.2]\n",
+                        "imu.gyro_initial_bias_vector_rad_s: must hold 3 numbers or none"));
   EXPECT_TRUE(failsWith("ground_truth:\n  min_correspondences: 9\n", "ground_truth.min_correspondences"));
 }
 

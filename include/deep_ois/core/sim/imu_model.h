@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,9 @@ struct ImuConfig {
   // Gyro bias random walk, rad/s^2/sqrt(Hz); the bias starts at a random value of this spread.
   double gyro_bias_random_walk = 2.0e-5;
   double gyro_initial_bias_rad_s = 0.002;
+  // When set, the bias at the first sample instead of the random draw (IMU frame, rad/s): a known
+  // bias for calibration tests. The random draw is still made, so the other streams are unchanged.
+  std::optional<Eigen::Vector3d> gyro_initial_bias_vector_rad_s;
   double accel_noise_density = 2.0e-3;  // m/s^2/sqrt(Hz)
   // IMU clock = camera clock + time_offset_s (the simulated clock offset).
   double time_offset_s = 0.0;

@@ -1,0 +1,205 @@
+// Calibrates a camera-IMU pair from a recording: time offset, rolling-shutter readout time, gyro
+// bias and IMU-to-camera rotation, from the KLT tracks and the gyro of any hand-held sequence (no
+// target). Writes the gyro flow nodelet's parameters and prints the equivalent static transform.
+//
+//   calibrate --bag in.bag --out config/camera_imu.yaml [--ois on|off] [--readout SECONDS]
+//             [--time-offset SECONDS] [--rotation tf|r00,r01,...,r22] [--no-bias]
+//             [--max-offset SECONDS] [--image-topic T] [--camera-info-topic T] [--imu-topic T]
+//             [--quiet]
+//
+// --readout / --time-offset / --rotation hold that quantity at the given value instead of
+// estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. --ois on removes a
+// per-frame lens shift (for cameras with an optical image stabilizer).
+// Exit status: 0 written, 1 refused (motion too weak; nothing written) or failed, 2 usage.
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/progress_bar.h"
+#include "deep_ois/core/rotation_alignment.h"
+#include "deep_ois/ros/calibration_bag_reader.h"
+#include "deep_ois/ros/calibration_yaml.h"
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+int usage(const std::string& problem) {
+  std::fprintf(stderr,
+               "calibrate: %s\n"
+               "usage: calibrate --bag IN.bag --out CAMERA_IMU.yaml [--ois on|off] [--readout S]\n"
+               "                 [--time-offset S] [--rotation tf|r00,r01,...,r22] [--no-bias]\n"
+               "                 [--max-offset S] [--image-topic T] [--camera-info-topic T]\n"
+               "                 [--imu-topic T] [--quiet]\n",
+               problem.c_str());
+  return 2;
+}
+
+double parseSeconds(const std::string& flag, const std::string& text) {
+  std::size_t used = 0;
+  const double value = std::stod(text, &used);
+  if (used != text.size() || !std::isfinite(value)) throw std::invalid_argument(flag + " needs a number, got '" + text + "'");
+  return value;
+}
+
+bool parseMatrix(const std::string& text, Eigen::Matrix3d* R) {
+  std::stringstream in(text);
+  std::string item;
+  std::vector<double> values;
+  while (std::getline(in, item, ',')) {
+    try {
+      std::size_t used = 0;
+      values.push_back(std::stod(item, &used));
+      if (used != item.size()) return false;
+    } catch (const std::logic_error&) {
+      return false;
+    }
+  }
+  if (values.size() != 9) return false;
+  for (int i = 0; i < 9; ++i) (*R)(i / 3, i % 3) = values[i];
+  return true;
+}
+
+void printMatrix(const Eigen::Matrix3d& R) {
+  for (int r = 0; r < 3; ++r) {
+    std::printf("      [%9.6f %9.6f %9.6f]\n", R(r, 0), R(r, 1), R(r, 2));
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string bag_path, out_path, rotation_text;
+  bool quiet = false;
+  deep_ois::CalibrationBagOptions bag_options;
+  deep_ois::CalibrationOptions options;
+  try {
+    for (int i = 1; i < argc; ++i) {
+      const std::string flag = argv[i];
+      if (flag == "--quiet") {
+        quiet = true;
+        continue;
+      }
+      if (flag == "--no-bias") {
+        options.estimate_gyro_bias = false;
+        continue;
+      }
+      if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
+      const std::string value = argv[++i];
+      if (flag == "--bag") {
+        bag_path = value;
+      } else if (flag == "--out") {
+        out_path = value;
+      } else if (flag == "--ois") {
+        if (value != "on" && value != "off") return usage("--ois must be 'on' or 'off', got '" + value + "'");
+        options.lens_shift = value == "on" ? deep_ois::LensShiftHandling::kPerFrameShift
+                                           : deep_ois::LensShiftHandling::kNone;
+      } else if (flag == "--readout") {
+        options.estimate_readout_time = false;
+        options.readout_time_s = parseSeconds(flag, value);
+      } else if (flag == "--time-offset") {
+        options.estimate_time_offset = false;
+        options.time_offset_s = parseSeconds(flag, value);
+      } else if (flag == "--rotation") {
+        options.estimate_rotation = false;
+        rotation_text = value;
+      } else if (flag == "--max-offset") {
+        options.max_abs_time_offset_s = parseSeconds(flag, value);
+      } else if (flag == "--image-topic") {
+        bag_options.topics.image = value;
+      } else if (flag == "--camera-info-topic") {
+        bag_options.topics.camera_info = value;
+      } else if (flag == "--imu-topic") {
+        bag_options.topics.imu = value;
+      } else {
+        return usage("unknown flag " + flag);
+      }
+    }
+  } catch (const std::logic_error& e) {
+    return usage(e.what());
+  }
+  if (bag_path.empty()) return usage("--bag is required");
+  if (out_path.empty()) return usage("--out is required");
+  if (!rotation_text.empty() && rotation_text != "tf" &&
+      !parseMatrix(rotation_text, &options.imu_to_camera_rotation)) {
+    return usage("--rotation must be 'tf' or 9 comma-separated numbers (row-major R_cam_imu), got '" +
+                 rotation_text + "'");
+  }
+  const std::string problem = options.validate();
+  if (!problem.empty()) return usage(problem);
+
+  try {
+    deep_ois::ProgressBar progress(deep_ois::calibrationBagPairCount(bag_path, bag_options.topics.image),
+                                   "pairs tracked");
+    const deep_ois::CalibrationBag bag =
+        deep_ois::readCalibrationBag(bag_path, bag_options, quiet ? nullptr : &progress);
+    if (!quiet) std::fprintf(stderr, "\n");
+    const double reading_s = progress.elapsedSeconds();
+    if (rotation_text == "tf") {
+      if (!bag.tf_imu_to_camera_rotation) {
+        std::fprintf(stderr, "calibrate: --rotation tf, but %s has no IMU -> camera transform in /tf_static\n",
+                     bag_path.c_str());
+        return 1;
+      }
+      options.imu_to_camera_rotation = *bag.tf_imu_to_camera_rotation;
+    }
+    const deep_ois::CalibrationResult result = deep_ois::calibrateCameraImu(bag.data, options);
+    const deep_ois::CameraImuCalibration& c = result.calibration;
+
+    std::printf("calibrate: %s: %zu frames, %d of %zu pairs used, %d tracks; lens shift handling %s\n",
+                bag_path.c_str(), bag.frames, result.pairs_used, bag.data.pairs.size(), result.tracks_used,
+                deep_ois::toString(options.lens_shift));
+    std::printf("  gyro RMS about its principal axes: %.3f %.3f %.3f rad/s\n", result.rate_rms_rad_s(0),
+                result.rate_rms_rad_s(1), result.rate_rms_rad_s(2));
+    std::printf("  coarse stage: time offset %.1f ms, mount %s; median residual %.3f px\n",
+                result.coarse_time_offset_s * 1e3,
+                result.coarse_permutation_index < 0 ? "held" : ("#" + std::to_string(result.coarse_permutation_index)).c_str(),
+                result.initial_median_residual_px);
+    std::printf("  refined in %d iterations: median residual %.3f px, %.1f %% inliers\n", result.iterations,
+                result.median_residual_px, 100.0 * result.inlier_fraction);
+    std::printf("  time offset     %+9.3f ms  +- %.3f ms%s\n", c.time_offset_s * 1e3, c.time_offset_sigma_s * 1e3,
+                options.estimate_time_offset ? "" : " (held)");
+    std::printf("  readout time    %9.3f ms  +- %.3f ms%s\n", c.readout_time_s * 1e3, c.readout_time_sigma_s * 1e3,
+                options.estimate_readout_time ? "" : " (held)");
+    std::printf("  gyro bias       [%+.5f %+.5f %+.5f] rad/s  +- %.5f%s\n", c.gyro_bias_rad_s(0),
+                c.gyro_bias_rad_s(1), c.gyro_bias_rad_s(2), c.gyro_bias_sigma_rad_s.maxCoeff(),
+                options.estimate_gyro_bias ? "" : " (held)");
+    std::printf("  R_cam_imu       +- (%.3f %.3f %.3f) deg about camera x y z%s\n",
+                c.rotation_sigma_rad(0) * kRadToDeg, c.rotation_sigma_rad(1) * kRadToDeg,
+                c.rotation_sigma_rad(2) * kRadToDeg, options.estimate_rotation ? "" : " (held)");
+    printMatrix(c.imu_to_camera_rotation);
+    if (bag.tf_imu_to_camera_rotation) {
+      std::printf("  the bag's /tf_static differs by %.3f deg\n",
+                  deep_ois::rotationAngleBetween(*bag.tf_imu_to_camera_rotation, c.imu_to_camera_rotation) *
+                      kRadToDeg);
+    }
+    std::printf("  time: %.2f s reading and tracking (%.2f s KLT), %.2f s estimating\n", reading_s,
+                bag.tracking_seconds, result.seconds);
+    if (!result.ok()) {
+      std::fprintf(stderr, "calibrate: refused, %s not written:\n", out_path.c_str());
+      for (const std::string& refusal : result.refusals) std::fprintf(stderr, "  - %s\n", refusal.c_str());
+      return 1;
+    }
+    deep_ois::CalibrationProvenance provenance;
+    provenance.source = bag_path;
+    provenance.imu_frame_id = bag.imu_frame_id;
+    provenance.camera_frame_id = bag.camera_frame_id;
+    provenance.lens_shift = options.lens_shift;
+    deep_ois::writeTextFile(out_path, deep_ois::calibrationYaml(result, provenance));
+    std::printf("wrote %s\nequivalent static transform:\n  %s\n", out_path.c_str(),
+                deep_ois::staticTransformCommand(c.imu_to_camera_rotation, bag.imu_frame_id, bag.camera_frame_id)
+                    .c_str());
+    return 0;
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "calibrate: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "calibrate: %s\n", e.what());
+    return 1;
+  }
+}
