@@ -4,12 +4,15 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <string>
 
 #include "deep_ois/core/orientation_integrator.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
+#include "npy_reader.h"
 
 namespace deep_ois {
 namespace test {
@@ -64,6 +67,33 @@ inline IntegrationOptions authorsIntegration() {
   options.interpolation = RateInterpolation::kZeroOrderHold;
   return options;
 }
+
+// The authors' homography of pair n-1 -> n, patch `patch` (gyro_homo_h33_source.npy, 101x10x9).
+inline Eigen::Matrix3d authorsHomography(const NpyArray& reference, int n, int patch) {
+  Eigen::Matrix3d H;
+  for (int e = 0; e < 9; ++e) H(e / 3, e % 3) = reference.at(n - kAuthorsFirstPair, patch, e);
+  return H;
+}
+
+// How far our homographies put the four image corners from where the authors' put them (the
+// difference of the displacements is the difference of the mapped positions), over many patches.
+struct CornerDifference {
+  double sum_px = 0.0;
+  double max_px = 0.0;
+  int count = 0;
+
+  void add(const Eigen::Matrix3d& ours, const Eigen::Matrix3d& theirs) {
+    for (const Eigen::Vector2d& p : {Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(kCc9proWidthPx - 1.0, 0.0),
+                                     Eigen::Vector2d(0.0, kCc9proHeightPx - 1.0),
+                                     Eigen::Vector2d(kCc9proWidthPx - 1.0, kCc9proHeightPx - 1.0)}) {
+      const double d = ((ours * p.homogeneous()).hnormalized() - (theirs * p.homogeneous()).hnormalized()).norm();
+      sum_px += d;
+      max_px = std::max(max_px, d);
+      ++count;
+    }
+  }
+  double meanPx() const { return count > 0 ? sum_px / count : 0.0; }
+};
 
 }  // namespace test
 }  // namespace deep_ois

@@ -75,12 +75,7 @@ TEST(Cc9proReplay, NodeletReproducesAuthorsHomographies) {
   ASSERT_EQ(flows.size(), 51u) << "one GyroFlow per frame pair of the 52 frames";
   const PhoneRecording recording = loadPhoneRecording(dir);
   const test::NpyArray reference = test::readNpyFloat64(dir + "/gyro_homo_h33_source.npy");
-  const std::vector<Eigen::Vector2d> corners = {{0.0, 0.0},
-                                                {test::kCc9proWidthPx - 1.0, 0.0},
-                                                {0.0, test::kCc9proHeightPx - 1.0},
-                                                {test::kCc9proWidthPx - 1.0, test::kCc9proHeightPx - 1.0}};
-  double sum_px = 0.0, max_px = 0.0;
-  int count = 0;
+  test::CornerDifference difference;
   for (int n = test::kAuthorsFirstPair; n <= test::kCc9proLastFrame; ++n) {
     const auto stamp = [&](int frame) {
       const long long us = std::llround(recording.frame_stamps_s.at(frame) * 1e6);
@@ -91,19 +86,11 @@ TEST(Cc9proReplay, NodeletReproducesAuthorsHomographies) {
     EXPECT_EQ(previous_of[stamp(n)], stamp(n - 1)) << "frame " << n;
     ASSERT_EQ(found->second.size(), 10u);
     for (int patch = 0; patch < 10; ++patch) {
-      Eigen::Matrix3d theirs;
-      for (int e = 0; e < 9; ++e) theirs(e / 3, e % 3) = reference.at(n - test::kAuthorsFirstPair, patch, e);
-      for (const Eigen::Vector2d& p : corners) {
-        const double d = ((found->second[patch] * p.homogeneous()).hnormalized() -
-                          (theirs * p.homogeneous()).hnormalized())
-                             .norm();
-        sum_px += d;
-        max_px = std::max(max_px, d);
-        ++count;
-      }
+      difference.add(found->second[patch], test::authorsHomography(reference, n, patch));
     }
   }
-  const double mean_px = sum_px / count;
+  const double mean_px = difference.meanPx(), max_px = difference.max_px;
+  const int count = difference.count;
   std::cout << std::fixed << std::setprecision(6)
             << "[cc9pro replay] nodelet vs authors' homographies: corner difference mean " << mean_px
             << " px, max " << max_px << " px over " << count << " corners (51 pairs x 10 patches x 4)\n";

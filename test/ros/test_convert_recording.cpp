@@ -331,12 +331,7 @@ TEST(ConvertCc9pro, CountsStampsAndAuthorsHomographies) {
   config.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   const ImuSampleBuffer buffer = sequence.imuBuffer();
   const test::NpyArray reference = test::readNpyFloat64(dir + "/gyro_homo_h33_source.npy");
-  const std::vector<Eigen::Vector2d> corners = {{0.0, 0.0},
-                                                {test::kCc9proWidthPx - 1.0, 0.0},
-                                                {0.0, test::kCc9proHeightPx - 1.0},
-                                                {test::kCc9proWidthPx - 1.0, test::kCc9proHeightPx - 1.0}};
-  double sum_px = 0.0, max_px = 0.0;
-  int count = 0;
+  test::CornerDifference difference;
   // Pairs n-1 -> n whose both frames are in the bag: n = 100..150.
   for (int n = test::kAuthorsFirstPair; n <= test::kCc9proLastFrame; ++n) {
     const int k = n - test::kCc9proFirstFrame;  // index of frame n in the bag
@@ -345,23 +340,14 @@ TEST(ConvertCc9pro, CountsStampsAndAuthorsHomographies) {
         sequence.secondsSinceBase(sequence.frame_stamps[k - 1]), sequence.secondsSinceBase(sequence.frame_stamps[k]));
     ASSERT_TRUE(ours.ok()) << "pair " << n - 1 << "->" << n << ": " << ours.reason;
     for (int patch = 0; patch < 10; ++patch) {
-      Eigen::Matrix3d theirs;
-      for (int e = 0; e < 9; ++e) theirs(e / 3, e % 3) = reference.at(n - test::kAuthorsFirstPair, patch, e);
-      for (const Eigen::Vector2d& p : corners) {
-        const Eigen::Vector2d a = (ours.homographies[patch] * p.homogeneous()).hnormalized();
-        const Eigen::Vector2d b = (theirs * p.homogeneous()).hnormalized();
-        sum_px += (a - b).norm();
-        max_px = std::max(max_px, (a - b).norm());
-        ++count;
-      }
+      difference.add(ours.homographies[patch], test::authorsHomography(reference, n, patch));
     }
   }
-  const double mean_px = sum_px / count;
   std::cout << std::fixed << std::setprecision(6) << "[cc9pro bag] authors' homographies from the converted bag: "
-            << "corner difference mean " << mean_px << " px, max " << max_px << " px over " << count
-            << " corners (51 pairs x 10 patches x 4)\n";
-  EXPECT_LT(mean_px, 0.01);  // the tolerances of test_cc9pro
-  EXPECT_LT(max_px, 0.05);
+            << "corner difference mean " << difference.meanPx() << " px, max " << difference.max_px << " px over "
+            << difference.count << " corners (51 pairs x 10 patches x 4)\n";
+  EXPECT_LT(difference.meanPx(), 0.01);  // the tolerances of test_cc9pro
+  EXPECT_LT(difference.max_px, 0.05);
   std::remove(bag_path.c_str());
 }
 
