@@ -55,4 +55,14 @@ bool BagFrameReader::next(BagFrame& frame) {
   return true;
 }
 
+std::size_t indexedFramePairCount(const std::string& path, const std::string& image_topic) {
+  try {
+    rosbag::Bag bag(path, rosbag::bagmode::Read);
+    const std::size_t frames = rosbag::View(bag, rosbag::TopicQuery(image_topic)).size();
+    return frames > 0 ? frames - 1 : 0;
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
+
 }  // namespace deep_ois

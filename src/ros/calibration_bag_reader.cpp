@@ -11,15 +11,6 @@
 
 namespace deep_ois {
 
-std::size_t calibrationBagPairCount(const std::string& path, const std::string& image_topic) {
-  try {
-    rosbag::Bag bag(path, rosbag::bagmode::Read);
-    const std::size_t frames = rosbag::View(bag, rosbag::TopicQuery(image_topic)).size();
-    return frames > 0 ? frames - 1 : 0;
-  } catch (const std::exception&) {
-    return 0;
-  }
-}
 
 CalibrationBag readCalibrationBag(const std::string& path, const CalibrationBagOptions& options,
                                   ProgressBar* progress) {

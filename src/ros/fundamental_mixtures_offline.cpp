@@ -20,17 +20,6 @@
 namespace deep_ois {
 namespace {
 
-// Frame pairs on the image topic from the bag's index only (cheap: no message is read). A bag that
-// cannot be opened counts 0 here; run() reports it when it gets there.
-std::size_t indexedPairCount(const std::string& path, const std::string& image_topic) {
-  try {
-    rosbag::Bag bag(path, rosbag::bagmode::Read);
-    const std::size_t frames = rosbag::View(bag, rosbag::TopicQuery(image_topic)).size();
-    return frames > 0 ? frames - 1 : 0;
-  } catch (const std::exception&) {
-    return 0;
-  }
-}
 
 // Everything one bag needs for its pairs besides the images.
 struct BagContext {
@@ -249,7 +238,7 @@ FundamentalMixturesSummary FundamentalMixturesOffline::run(const std::atomic<boo
   const auto started = std::chrono::steady_clock::now();
   FundamentalMixturesSummary summary;
   for (const std::string& path : options_.bags)
-    summary.pairs_total += indexedPairCount(path, options_.topics.image);
+    summary.pairs_total += indexedFramePairCount(path, options_.topics.image);
   std::unique_ptr<ProgressBar> progress;
   if (options_.show_progress)
     progress = std::make_unique<ProgressBar>(summary.pairs_total, "pairs");

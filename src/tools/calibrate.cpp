@@ -22,6 +22,7 @@
 
 #include "deep_ois/core/progress_bar.h"
 #include "deep_ois/core/rotation_alignment.h"
+#include "deep_ois/ros/bag_frame_reader.h"
 #include "deep_ois/ros/calibration_bag_reader.h"
 #include "deep_ois/ros/calibration_yaml.h"
 
@@ -134,7 +135,7 @@ int main(int argc, char** argv) {
   if (!problem.empty()) return usage(problem);
 
   try {
-    deep_ois::ProgressBar progress(deep_ois::calibrationBagPairCount(bag_path, bag_options.topics.image),
+    deep_ois::ProgressBar progress(deep_ois::indexedFramePairCount(bag_path, bag_options.topics.image),
                                    "pairs tracked");
     const deep_ois::CalibrationBag bag =
         deep_ois::readCalibrationBag(bag_path, bag_options, quiet ? nullptr : &progress);

@@ -48,4 +48,8 @@ class BagFrameReader {
   std::size_t frames_read_ = 0;
 };
 
+// Frame pairs on `image_topic` from the bag's index only (cheap: no message is read), for progress
+// bars. A bag that cannot be opened counts 0; the reader that follows reports it.
+std::size_t indexedFramePairCount(const std::string& path, const std::string& image_topic);
+
 }  // namespace deep_ois

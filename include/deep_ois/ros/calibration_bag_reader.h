@@ -41,7 +41,5 @@ struct CalibrationBag {
 CalibrationBag readCalibrationBag(const std::string& path, const CalibrationBagOptions& options,
                                   ProgressBar* progress = nullptr);
 
-// Frame pairs of a bag (from its index; no message is read); 0 when it cannot be opened.
-std::size_t calibrationBagPairCount(const std::string& path, const std::string& image_topic);
 
 }  // namespace deep_ois
