@@ -22,42 +22,50 @@ PairKey pairKey(const FramePairContext& pair) {
   return {pair.recording_id, pair.stamp_a_ns, pair.stamp_b_ns};
 }
 
+// The result of the current pair, computed once for the rows that share it (pairs come one at a
+// time, in order).
+template <typename Value>
+class CurrentPairResult {
+ public:
+  template <typename Compute>
+  const Value& get(const FramePairContext& pair, Compute compute) {
+    if (!valid_ || key_ != pairKey(pair)) {
+      valid_ = false;  // stays false if compute throws
+      value_ = compute();
+      key_ = pairKey(pair);
+      valid_ = true;
+    }
+    return value_;
+  }
+
+ private:
+  bool valid_ = false;
+  PairKey key_;
+  Value value_;
+};
+
 // One detector's matches of the current pair, shared by its RANSAC and MAGSAC rows.
 struct SharedMatches {
   SharedMatches(FeatureDetector detector, const FeatureHomographyOptions& options)
       : matcher(detector, options) {}
   const PointMatches& of(const FramePairContext& pair) {
-    if (!valid || key != pairKey(pair)) {
-      valid = false;
-      matches = matcher.match({pair.recording_id, pair.stamp_a_ns}, pair.gray_a,
-                              {pair.recording_id, pair.stamp_b_ns}, pair.gray_b);
-      key = pairKey(pair);
-      valid = true;
-    }
-    return matches;
+    return current.get(pair, [&] {
+      return matcher.match({pair.recording_id, pair.stamp_a_ns}, pair.gray_a,
+                           {pair.recording_id, pair.stamp_b_ns}, pair.gray_b);
+    });
   }
   FeatureMatcher matcher;
-  bool valid = false;
-  PairKey key;
-  PointMatches matches;
+  CurrentPairResult<PointMatches> current;
 };
 
 // The KLT tracks of the current pair, shared by the two ground-truth rows.
 struct SharedTracks {
   explicit SharedTracks(const FundamentalMixturesGroundTruth& gt) : ground_truth(gt) {}
   const std::vector<FeatureMatch>& of(const FramePairContext& pair) {
-    if (!valid || key != pairKey(pair)) {
-      valid = false;
-      tracks = ground_truth.track(pair.gray_a, pair.gray_b);
-      key = pairKey(pair);
-      valid = true;
-    }
-    return tracks;
+    return current.get(pair, [&] { return ground_truth.track(pair.gray_a, pair.gray_b); });
   }
   FundamentalMixturesGroundTruth ground_truth;
-  bool valid = false;
-  PairKey key;
-  std::vector<FeatureMatch> tracks;
+  CurrentPairResult<std::vector<FeatureMatch>> current;
 };
 
 AlignmentMethod gyroMethod(const char* name, unsigned scope) {
