@@ -24,13 +24,22 @@ std::string shapeText(const at::IntArrayRef& sizes) {
 
 }  // namespace
 
-torch::Tensor CompensationModel::Impl::normalise(const torch::Tensor& flow_px) const {
+torch::Tensor CompensationModel::Impl::normalise(const torch::Tensor& flow_px, const torch::Tensor& history_px) const {
   const auto options = flow_px.options();
   const torch::Tensor mean =
       torch::tensor({metadata.input_mean_px[0], metadata.input_mean_px[1]}, options).view({1, 2, 1, 1});
   const torch::Tensor std_px =
       torch::tensor({metadata.input_std_px[0], metadata.input_std_px[1]}, options).view({1, 2, 1, 1});
-  return (flow_px - mean) / std_px;
+  const torch::Tensor flow = (flow_px - mean) / std_px;
+  const auto history_channels = static_cast<int64_t>(metadata.history_mean_px.size());
+  if (history_channels == 0) return flow;
+  if (!history_px.defined() || history_px.size(1) != history_channels) {
+    throw std::invalid_argument("compensation model: the motion history needs " + std::to_string(history_channels) +
+                                " channels");
+  }
+  const torch::Tensor history_mean = torch::tensor(metadata.history_mean_px, options).view({1, history_channels, 1, 1});
+  const torch::Tensor history_std = torch::tensor(metadata.history_std_px, options).view({1, history_channels, 1, 1});
+  return torch::cat({flow, (history_px - history_mean) / history_std}, 1);
 }
 
 torch::Tensor CompensationModel::Impl::denormalise(const torch::Tensor& network_output,
@@ -45,8 +54,8 @@ torch::Tensor CompensationModel::Impl::denormalise(const torch::Tensor& network_
   return network_output * std_px + mean;
 }
 
-torch::Tensor CompensationModel::Impl::forward(const torch::Tensor& flow_px) {
-  return denormalise(net->forward(normalise(flow_px)), flow_px);
+torch::Tensor CompensationModel::Impl::forward(const torch::Tensor& flow_px, const torch::Tensor& history_px) {
+  return denormalise(net->forward(normalise(flow_px, history_px)), flow_px);
 }
 
 torch::Tensor flowToTensor(const cv::Mat& flow) {
@@ -56,6 +65,14 @@ torch::Tensor flowToTensor(const cv::Mat& flow) {
   return torch::from_blob(const_cast<float*>(contiguous.ptr<float>()), {1, flow.rows, flow.cols, 2}, torch::kFloat32)
       .permute({0, 3, 1, 2})
       .contiguous();
+}
+
+torch::Tensor historyToTensor(const std::vector<cv::Mat>& sums) {
+  if (sums.empty()) return torch::Tensor();
+  std::vector<torch::Tensor> channels;
+  channels.reserve(sums.size());
+  for (const cv::Mat& sum : sums) channels.push_back(flowToTensor(sum));
+  return torch::cat(channels, 1);
 }
 
 cv::Mat tensorToFlow(const torch::Tensor& tensor) {
@@ -70,7 +87,7 @@ CompensationModel::CompensationModel(const ModelMetadata& metadata, unsigned see
   if (!problem.empty()) throw std::invalid_argument("compensation model: " + problem);
   torch::manual_seed(seed);
   impl_->metadata = metadata;
-  impl_->net = UNet(metadata.architecture);
+  impl_->net = UNet(metadata.architecture, metadata.inputChannels());
   impl_->net->eval();
 }
 
@@ -114,7 +131,7 @@ CompensationModel CompensationModel::load(const std::string& path) {
   } catch (const std::exception& e) {
     throw ModelFileError("model file " + path + ": " + e.what());
   }
-  impl->net = UNet(impl->metadata.architecture);
+  impl->net = UNet(impl->metadata.architecture, impl->metadata.inputChannels());
   // InputArchive replaces tensors without comparing shapes: check them against the architecture
   // the metadata describes, so a mismatch is an error here and not garbage later.
   std::map<std::string, std::vector<int64_t>> expected;
@@ -141,15 +158,25 @@ CompensationModel CompensationModel::load(const std::string& path) {
   return CompensationModel(std::move(impl));
 }
 
-cv::Mat CompensationModel::compensate(const cv::Mat& gyro_flow) const {
+cv::Mat CompensationModel::compensate(const cv::Mat& gyro_flow, const std::vector<cv::Mat>& history) const {
   if (gyro_flow.type() != CV_32FC2 || gyro_flow.empty()) {
     throw std::invalid_argument("compensate: the gyro flow must be a non-empty CV_32FC2 image");
   }
-  const cv::Size working = impl_->metadata.working_grid;
-  const cv::Mat input = resampleFlow(gyro_flow, working);
+  const ModelMetadata& m = impl_->metadata;
+  if (history.size() != m.history_time_constants_s.size()) {
+    throw std::invalid_argument("compensate: the model takes " + std::to_string(m.history_time_constants_s.size()) +
+                                " motion-history sums, got " + std::to_string(history.size()) +
+                                " (use CompensationStream)");
+  }
+  for (const cv::Mat& sum : history) {
+    if (sum.type() != CV_32FC2 || sum.size() != m.working_grid) {
+      throw std::invalid_argument("compensate: motion-history sums must be CV_32FC2 on the working grid");
+    }
+  }
+  const cv::Mat input = resampleFlow(gyro_flow, m.working_grid);
   // Inference mode: no autograd bookkeeping at all (cheaper than NoGradGuard for small tensors).
   c10::InferenceMode inference;
-  const torch::Tensor output = impl_->forward(flowToTensor(input));
+  const torch::Tensor output = impl_->forward(flowToTensor(input), historyToTensor(history));
   return resampleFlow(tensorToFlow(output), gyro_flow.size());
 }
 

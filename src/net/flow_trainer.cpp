@@ -2,6 +2,7 @@
 
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -12,35 +13,89 @@
 
 #include "compensation_model_impl.h"
 #include "deep_ois/core/homography_flow.h"
+#include "deep_ois/core/motion_history.h"
 #include "deep_ois/core/portable_random.h"
 
 namespace deep_ois {
 
 namespace {
 
+std::vector<std::size_t> allIndices(std::size_t n) {
+  std::vector<std::size_t> indices(n);
+  std::iota(indices.begin(), indices.end(), 0);
+  return indices;
+}
+
+// Samples with a target, the ones the loss and the validation are computed on.
+std::vector<std::size_t> indicesWithTarget(const std::vector<TrainingSample>& samples) {
+  std::vector<std::size_t> indices;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (samples[i].hasTarget()) indices.push_back(i);
+  }
+  return indices;
+}
+
 // Renders the flows of samples on the working grid, one renderer per distinct camera (a training
-// set has one or a few cameras).
+// set has one or a few cameras), and holds the motion history of every sample.
 class FlowBatcher {
  public:
-  explicit FlowBatcher(cv::Size grid) : grid_(grid) {}
+  FlowBatcher(const std::vector<TrainingSample>& samples, const ModelMetadata& metadata)
+      : samples_(samples), grid_(metadata.working_grid) {
+    computeHistories(metadata.history_time_constants_s);
+  }
 
-  // [n, 2, H, W] tensors of the gyro and target flows of samples[indices[begin..end)].
-  void batch(const std::vector<TrainingSample>& samples, const std::vector<std::size_t>& indices, std::size_t begin,
-             std::size_t end, torch::Tensor& gyro, torch::Tensor& target) {
+  // [n, 2, H, W] tensors of the gyro and target flows of samples[indices[begin..end)], and their
+  // motion histories [n, 2 * time constants, H, W] (undefined without history).
+  void batch(const std::vector<std::size_t>& indices, std::size_t begin, std::size_t end, torch::Tensor& gyro,
+             torch::Tensor& target, torch::Tensor& history) {
     const auto n = static_cast<int64_t>(end - begin);
     gyro = torch::empty({n, 2, grid_.height, grid_.width}, torch::kFloat32);
     target = torch::empty_like(gyro);
+    std::vector<int64_t> rows;
     for (std::size_t k = begin; k < end; ++k) {
-      const TrainingSample& sample = samples[indices[k]];
+      const TrainingSample& sample = samples_[indices[k]];
       const HomographyFlowRenderer& renderer = rendererFor(sample);
       renderer.render(sample.gyro_homographies, flow_);
       gyro[static_cast<int64_t>(k - begin)] = flowToTensor(flow_)[0];
-      renderer.render(sample.target_homographies, flow_);
-      target[static_cast<int64_t>(k - begin)] = flowToTensor(flow_)[0];
+      if (sample.hasTarget()) {
+        renderer.render(sample.target_homographies, flow_);
+        target[static_cast<int64_t>(k - begin)] = flowToTensor(flow_)[0];
+      } else {
+        target[static_cast<int64_t>(k - begin)].zero_();
+      }
+      rows.push_back(static_cast<int64_t>(indices[k]));
+    }
+    history = histories_.defined() ? histories_.index_select(0, torch::tensor(rows, torch::kInt64)) : torch::Tensor();
+  }
+
+  const torch::Tensor& histories() const { return histories_; }
+
+ private:
+  // The history of each pair is what MotionHistory (as CompensationStream at run time) had summed
+  // over the earlier pairs of its recording when the pair came: pairs in stamp order per recording.
+  void computeHistories(const std::vector<double>& time_constants_s) {
+    if (time_constants_s.empty() || samples_.empty()) return;
+    const auto channels = static_cast<int64_t>(2 * time_constants_s.size());
+    histories_ = torch::empty({static_cast<int64_t>(samples_.size()), channels, grid_.height, grid_.width},
+                              torch::kFloat32);
+    std::vector<std::size_t> order = allIndices(samples_.size());
+    std::stable_sort(order.begin(), order.end(), [this](std::size_t a, std::size_t b) {
+      const TrainingSample& x = samples_[a];
+      const TrainingSample& y = samples_[b];
+      return x.source != y.source ? x.source < y.source : x.stamp_a_ns < y.stamp_a_ns;
+    });
+    MotionHistory history(time_constants_s, grid_);
+    const std::string* source = nullptr;
+    for (std::size_t i : order) {
+      const TrainingSample& sample = samples_[i];
+      if (source == nullptr || *source != sample.source) history.reset();
+      source = &sample.source;
+      histories_[static_cast<int64_t>(i)] = historyToTensor(history.before(sample.stamp_a_ns))[0];
+      rendererFor(sample).render(sample.gyro_homographies, flow_);
+      history.add(sample.stamp_a_ns, sample.stamp_b_ns, flow_);
     }
   }
 
- private:
   const HomographyFlowRenderer& rendererFor(const TrainingSample& sample) {
     const int patches = static_cast<int>(sample.gyro_homographies.size());
     for (const auto& renderer : renderers_) {
@@ -50,9 +105,11 @@ class FlowBatcher {
     return *renderers_.back();
   }
 
+  const std::vector<TrainingSample>& samples_;
   cv::Size grid_;
   cv::Mat flow_;
   std::vector<std::unique_ptr<HomographyFlowRenderer>> renderers_;
+  torch::Tensor histories_;
 };
 
 torch::Tensor lossOf(const torch::Tensor& prediction, const torch::Tensor& target, const std::string& loss) {
@@ -64,38 +121,52 @@ double endPointError(const torch::Tensor& a, const torch::Tensor& b) {
   return (a - b).pow(2).sum(1).sqrt().mean().item<double>();
 }
 
-std::vector<std::size_t> allIndices(std::size_t n) {
-  std::vector<std::size_t> indices(n);
-  std::iota(indices.begin(), indices.end(), 0);
-  return indices;
-}
-
-// Per-channel mean and standard deviation of the training gyro flows (up to 2000 samples spread
-// over the set: enough for two numbers per channel).
-void computeInputStatistics(const std::vector<TrainingSample>& train, ModelMetadata& metadata) {
-  FlowBatcher batcher(metadata.working_grid);
-  const std::size_t stride = std::max<std::size_t>(1, train.size() / 2000);
-  std::vector<std::size_t> chosen;
-  for (std::size_t i = 0; i < train.size(); i += stride) chosen.push_back(i);
-  double sum[2] = {0, 0}, sum_sq[2] = {0, 0};
+// Running per-channel sums of a [n, C, H, W] tensor.
+struct ChannelStatistics {
+  std::vector<double> sum, sum_sq;
   double count = 0;
+
+  void add(const torch::Tensor& x) {
+    const torch::Tensor channels = x.to(torch::kFloat64).transpose(0, 1).reshape({x.size(1), -1});
+    const torch::Tensor s = channels.sum(1), q = channels.pow(2).sum(1);
+    sum.resize(static_cast<std::size_t>(x.size(1)), 0.0);
+    sum_sq.resize(sum.size(), 0.0);
+    for (std::size_t c = 0; c < sum.size(); ++c) {
+      sum[c] += s[static_cast<int64_t>(c)].item<double>();
+      sum_sq[c] += q[static_cast<int64_t>(c)].item<double>();
+    }
+    count += static_cast<double>(channels.size(1));
+  }
+  double mean(std::size_t c) const { return sum[c] / count; }
+  // A degenerate set (no motion) must not divide by zero.
+  double std(std::size_t c) const {
+    return std::max(std::sqrt(std::max(0.0, sum_sq[c] / count - mean(c) * mean(c))), 1e-3);
+  }
+};
+
+// Per-channel mean and standard deviation of the training gyro flows and their motion histories
+// (up to 2000 samples spread over the set: enough for two numbers per channel).
+void computeInputStatistics(FlowBatcher& batcher, const std::vector<std::size_t>& trainable, ModelMetadata& metadata) {
+  const std::size_t stride = std::max<std::size_t>(1, trainable.size() / 2000);
+  std::vector<std::size_t> chosen;
+  for (std::size_t i = 0; i < trainable.size(); i += stride) chosen.push_back(trainable[i]);
+  ChannelStatistics flow_stats, history_stats;
   for (std::size_t begin = 0; begin < chosen.size(); begin += 64) {
     const std::size_t end = std::min(chosen.size(), begin + 64);
-    torch::Tensor gyro, target;
-    batcher.batch(train, chosen, begin, end, gyro, target);
-    for (int c = 0; c < 2; ++c) {
-      const torch::Tensor channel = gyro.select(1, c).to(torch::kFloat64);
-      sum[c] += channel.sum().item<double>();
-      sum_sq[c] += channel.pow(2).sum().item<double>();
-    }
-    count += static_cast<double>(gyro.numel() / 2);
+    torch::Tensor gyro, target, history;
+    batcher.batch(chosen, begin, end, gyro, target, history);
+    flow_stats.add(gyro);
+    if (history.defined()) history_stats.add(history);
   }
-  for (int c = 0; c < 2; ++c) {
-    const double mean = sum[c] / count;
-    const double variance = std::max(0.0, sum_sq[c] / count - mean * mean);
-    metadata.input_mean_px[c] = mean;
-    // A degenerate set (no motion) must not divide by zero.
-    metadata.input_std_px[c] = std::max(std::sqrt(variance), 1e-3);
+  for (std::size_t c = 0; c < 2; ++c) {
+    metadata.input_mean_px[c] = flow_stats.mean(c);
+    metadata.input_std_px[c] = flow_stats.std(c);
+  }
+  metadata.history_mean_px.clear();
+  metadata.history_std_px.clear();
+  for (std::size_t c = 0; c < history_stats.sum.size(); ++c) {
+    metadata.history_mean_px.push_back(history_stats.mean(c));
+    metadata.history_std_px.push_back(history_stats.std(c));
   }
 }
 
@@ -141,7 +212,8 @@ int readCheckpoint(const std::string& path, CompensationModel::Impl& impl, torch
   if (saved.architecture.widths != impl.metadata.architecture.widths ||
       saved.architecture.normalization != impl.metadata.architecture.normalization ||
       saved.architecture.residual != impl.metadata.architecture.residual ||
-      saved.working_grid != impl.metadata.working_grid) {
+      saved.working_grid != impl.metadata.working_grid ||
+      saved.history_time_constants_s != impl.metadata.history_time_constants_s) {
     throw ModelFileError("checkpoint " + path + " is of another architecture or working grid (preset " +
                          saved.preset + "); remove it or train with the same preset");
   }
@@ -165,12 +237,16 @@ TrainingOutcome trainCompensationModel(CompensationModel& model, const std::vect
   }
   for (const auto* set : {&train, &validation}) {
     for (const TrainingSample& sample : *set) {
-      if (sample.gyro_homographies.empty() || sample.gyro_homographies.size() != sample.target_homographies.size()) {
+      if (sample.gyro_homographies.empty() ||
+          (sample.hasTarget() && sample.gyro_homographies.size() != sample.target_homographies.size())) {
         throw std::invalid_argument("train: a sample from " + sample.source +
-                                    " has no homographies or different gyro and target patch counts");
+                                    " has no gyro homographies or different gyro and target patch counts");
       }
     }
   }
+  const std::vector<std::size_t> trainable = indicesWithTarget(train);
+  const std::vector<std::size_t> validation_indices = indicesWithTarget(validation);
+  if (trainable.empty()) throw std::invalid_argument("train: no training pair has a target");
 
   CompensationModel::Impl& impl = model.impl();
   torch::manual_seed(options.seed);
@@ -184,21 +260,22 @@ TrainingOutcome trainCompensationModel(CompensationModel& model, const std::vect
     first_epoch = readCheckpoint(options.checkpoint_path, impl, optimizer);
     outcome.resumed = true;
     outcome.resumed_from_epoch = first_epoch;
-  } else {
-    computeInputStatistics(train, impl.metadata);
+  }
+  // Rendered once: the motion history of every pair (a few hundred MB for the 9,000 pairs).
+  FlowBatcher train_batcher(train, impl.metadata), validation_batcher(validation, impl.metadata);
+  if (!outcome.resumed) {
+    computeInputStatistics(train_batcher, trainable, impl.metadata);
     impl.metadata.training = TrainingRecord();
   }
   TrainingRecord& record = impl.metadata.training;
-  record.train_pairs = train.size();
-  record.validation_pairs = validation.size();
+  record.train_pairs = trainable.size();
+  record.validation_pairs = validation_indices.size();
   record.batch_size = options.batch_size;
   record.learning_rate = options.learning_rate;
   record.loss = options.loss;
   record.seed = options.seed;
 
-  FlowBatcher batcher(impl.metadata.working_grid);
-  const std::size_t steps = (train.size() + options.batch_size - 1) / options.batch_size;
-  const std::vector<std::size_t> validation_indices = allIndices(validation.size());
+  const std::size_t steps = (trainable.size() + options.batch_size - 1) / options.batch_size;
   const auto started = std::chrono::steady_clock::now();
   const double time_before = record.training_time_s;
 
@@ -206,7 +283,7 @@ TrainingOutcome trainCompensationModel(CompensationModel& model, const std::vect
     setLearningRate(optimizer, options.learning_rate *
                                    std::pow(options.lr_decay_factor, epoch / options.lr_decay_every_epochs));
     // A fresh, reproducible order per epoch (portable Fisher-Yates on the project's generator).
-    std::vector<std::size_t> order = allIndices(train.size());
+    std::vector<std::size_t> order = trainable;
     std::mt19937 rng = streamGenerator(options.seed, static_cast<std::uint32_t>(epoch));
     for (std::size_t i = order.size(); i > 1; --i) {
       const auto j = static_cast<std::size_t>(uniform01(rng) * static_cast<double>(i));
@@ -224,10 +301,10 @@ TrainingOutcome trainCompensationModel(CompensationModel& model, const std::vect
         return outcome;
       }
       const std::size_t end = std::min(order.size(), begin + options.batch_size);
-      torch::Tensor gyro, target;
-      batcher.batch(train, order, begin, end, gyro, target);
+      torch::Tensor gyro, target, history;
+      train_batcher.batch(order, begin, end, gyro, target, history);
       optimizer.zero_grad();
-      const torch::Tensor loss = lossOf(impl.forward(gyro), target, options.loss);
+      const torch::Tensor loss = lossOf(impl.forward(gyro, history), target, options.loss);
       loss.backward();
       optimizer.step();
       loss_sum += loss.item<double>();
@@ -243,21 +320,22 @@ TrainingOutcome trainCompensationModel(CompensationModel& model, const std::vect
       torch::NoGradGuard no_grad;
       double loss_total = 0.0, epe_total = 0.0, gyro_epe_total = 0.0;
       std::size_t batches = 0;
-      for (std::size_t begin = 0; begin < validation.size(); begin += 32, ++batches) {
-        const std::size_t end = std::min(validation.size(), begin + 32);
-        torch::Tensor gyro, target;
-        batcher.batch(validation, validation_indices, begin, end, gyro, target);
-        const torch::Tensor prediction = impl.forward(gyro);
+      for (std::size_t begin = 0; begin < validation_indices.size(); begin += 32, ++batches) {
+        const std::size_t end = std::min(validation_indices.size(), begin + 32);
+        torch::Tensor gyro, target, history;
+        validation_batcher.batch(validation_indices, begin, end, gyro, target, history);
+        const torch::Tensor prediction = impl.forward(gyro, history);
         const double weight = static_cast<double>(end - begin);
         loss_total += lossOf(prediction, target, options.loss).item<double>() * weight;
         epe_total += endPointError(prediction, target) * weight;
         gyro_epe_total += endPointError(gyro, target) * weight;
       }
-      const double n = static_cast<double>(std::max<std::size_t>(validation.size(), 1));
+      const bool none = validation_indices.empty();
+      const double n = static_cast<double>(std::max<std::size_t>(validation_indices.size(), 1));
       const double nan = std::nan("");
-      record.validation_loss.push_back(validation.empty() ? nan : loss_total / n);
-      record.validation_epe_px.push_back(validation.empty() ? nan : epe_total / n);
-      record.validation_gyro_epe_px.push_back(validation.empty() ? nan : gyro_epe_total / n);
+      record.validation_loss.push_back(none ? nan : loss_total / n);
+      record.validation_epe_px.push_back(none ? nan : epe_total / n);
+      record.validation_gyro_epe_px.push_back(none ? nan : gyro_epe_total / n);
     }
     record.epochs = epoch + 1;
     record.training_time_s =

@@ -22,13 +22,13 @@ T required(const YAML::Node& node, const std::string& key, const std::string& pa
 }
 
 template <typename T>
-T optional(const YAML::Node& node, const std::string& key, const T& fallback) {
+T optional(const YAML::Node& node, const std::string& key, const std::string& path, const T& fallback) {
   const YAML::Node value = node[key];
   if (!value) return fallback;
   try {
     return value.as<T>();
   } catch (const YAML::Exception&) {
-    throw std::runtime_error("model metadata: field 'training." + key + "' has the wrong type");
+    throw std::runtime_error("model metadata: field '" + path + key + "' has the wrong type");
   }
 }
 
@@ -60,6 +60,18 @@ std::string ModelMetadata::validate() const {
     if (!std::isfinite(input_mean_px[c])) return "input_mean_px is not finite";
     if (!(input_std_px[c] > 0.0) || !std::isfinite(input_std_px[c])) return "input_std_px must be positive";
   }
+  for (double tau : history_time_constants_s) {
+    if (!(tau > 0.0) || !std::isfinite(tau)) return "history_time_constants_s must be positive seconds";
+  }
+  const std::size_t history_channels = 2 * history_time_constants_s.size();
+  if (history_mean_px.size() != history_channels || history_std_px.size() != history_channels) {
+    return "history_mean_px and history_std_px need 2 values per history time constant (" +
+           std::to_string(history_channels) + ")";
+  }
+  for (std::size_t c = 0; c < history_channels; ++c) {
+    if (!std::isfinite(history_mean_px[c])) return "history_mean_px is not finite";
+    if (!(history_std_px[c] > 0.0) || !std::isfinite(history_std_px[c])) return "history_std_px must be positive";
+  }
   return "";
 }
 
@@ -79,6 +91,9 @@ std::string ModelMetadata::toYaml() const {
       << std::vector<double>{input_mean_px[0], input_mean_px[1]};
   out << YAML::Key << "input_std_px" << YAML::Value << YAML::Flow
       << std::vector<double>{input_std_px[0], input_std_px[1]};
+  emitSequence(out, "history_time_constants_s", history_time_constants_s);
+  emitSequence(out, "history_mean_px", history_mean_px);
+  emitSequence(out, "history_std_px", history_std_px);
   out << YAML::Key << "training" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "data_files" << YAML::Value << training.data_files;
   out << YAML::Key << "data_hash" << YAML::Value << training.data_hash;
@@ -129,23 +144,27 @@ ModelMetadata ModelMetadata::fromYaml(const std::string& yaml_text) {
   }
   m.input_mean_px = {mean[0], mean[1]};
   m.input_std_px = {std_px[0], std_px[1]};
+  // Absent in models from before the motion history: the gyro flow alone.
+  m.history_time_constants_s = optional<std::vector<double>>(root, "history_time_constants_s", "", {});
+  m.history_mean_px = optional<std::vector<double>>(root, "history_mean_px", "", {});
+  m.history_std_px = optional<std::vector<double>>(root, "history_std_px", "", {});
   const YAML::Node training = root["training"];
   if (training && training.IsMap()) {
     TrainingRecord& t = m.training;
-    t.data_files = optional<std::vector<std::string>>(training, "data_files", {});
-    t.data_hash = optional<std::string>(training, "data_hash", "");
-    t.train_pairs = optional<std::size_t>(training, "train_pairs", 0);
-    t.validation_pairs = optional<std::size_t>(training, "validation_pairs", 0);
-    t.epochs = optional<int>(training, "epochs", 0);
-    t.batch_size = optional<int>(training, "batch_size", 0);
-    t.learning_rate = optional<double>(training, "learning_rate", 0.0);
-    t.loss = optional<std::string>(training, "loss", "");
-    t.seed = optional<unsigned>(training, "seed", 0);
-    t.train_loss = optional<std::vector<double>>(training, "train_loss", {});
-    t.validation_loss = optional<std::vector<double>>(training, "validation_loss", {});
-    t.validation_epe_px = optional<std::vector<double>>(training, "validation_epe_px", {});
-    t.validation_gyro_epe_px = optional<std::vector<double>>(training, "validation_gyro_epe_px", {});
-    t.training_time_s = optional<double>(training, "training_time_s", 0.0);
+    t.data_files = optional<std::vector<std::string>>(training, "data_files", "training.", {});
+    t.data_hash = optional<std::string>(training, "data_hash", "training.", "");
+    t.train_pairs = optional<std::size_t>(training, "train_pairs", "training.", 0);
+    t.validation_pairs = optional<std::size_t>(training, "validation_pairs", "training.", 0);
+    t.epochs = optional<int>(training, "epochs", "training.", 0);
+    t.batch_size = optional<int>(training, "batch_size", "training.", 0);
+    t.learning_rate = optional<double>(training, "learning_rate", "training.", 0.0);
+    t.loss = optional<std::string>(training, "loss", "training.", "");
+    t.seed = optional<unsigned>(training, "seed", "training.", 0);
+    t.train_loss = optional<std::vector<double>>(training, "train_loss", "training.", {});
+    t.validation_loss = optional<std::vector<double>>(training, "validation_loss", "training.", {});
+    t.validation_epe_px = optional<std::vector<double>>(training, "validation_epe_px", "training.", {});
+    t.validation_gyro_epe_px = optional<std::vector<double>>(training, "validation_gyro_epe_px", "training.", {});
+    t.training_time_s = optional<double>(training, "training_time_s", "training.", 0.0);
   }
   const std::string problem = m.validate();
   if (!problem.empty()) throw std::runtime_error("model metadata: " + problem);
@@ -170,6 +189,9 @@ ModelMetadata presetMetadata(const std::string& preset) {
     m.architecture.normalization = "none";
     m.architecture.residual = true;
     m.working_grid = cv::Size(60, 45);
+    m.history_time_constants_s = kDefaultHistoryTimeConstantsS;
+    m.history_mean_px.assign(2 * m.history_time_constants_s.size(), 0.0);
+    m.history_std_px.assign(2 * m.history_time_constants_s.size(), 1.0);
   } else {
     throw std::runtime_error("unknown model preset '" + preset + "' (expected fast or paper)");
   }

@@ -27,11 +27,11 @@ torch::Tensor ConvBlockImpl::forward(torch::Tensor x) { return layers_->forward(
 // features concatenated with encoder k's and gives w_(k-1) channels (w_0 at the top), the
 // bilinear-upsampling UNet layout the authors use (their 32-64-128-256-256 decodes 512->128,
 // 256->64, 128->32, 64->32).
-UNetImpl::UNetImpl(const UNetArchitecture& architecture) {
+UNetImpl::UNetImpl(const UNetArchitecture& architecture, int input_channels) {
   const std::vector<int>& w = architecture.widths;
   const bool instance_norm = architecture.normalization == "instance";
   const int levels = static_cast<int>(w.size());
-  int in_channels = 2;
+  int in_channels = input_channels;
   for (int k = 0; k < levels; ++k) {
     encoders_.push_back(register_module("encoder" + std::to_string(k), ConvBlock(in_channels, w[k], instance_norm)));
     in_channels = w[k];

@@ -23,8 +23,9 @@ TORCH_MODULE(ConvBlock);
 
 class UNetImpl : public torch::nn::Module {
  public:
-  explicit UNetImpl(const UNetArchitecture& architecture);
-  // x: [batch, 2, H, W] normalised gyro flow -> [batch, 2, H, W].
+  // input_channels: 2 (the gyro flow) + 2 per motion-history sum (ModelMetadata::inputChannels).
+  UNetImpl(const UNetArchitecture& architecture, int input_channels);
+  // x: [batch, input_channels, H, W] normalised gyro flow and history -> [batch, 2, H, W].
   torch::Tensor forward(torch::Tensor x);
 
  private:

@@ -53,6 +53,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       private_nh_(private_nh),
       params_(loadCompensationParameters(private_nh)),
       model_(CompensationModel::load(params_.model_path)),
+      stream_(model_),
       it_(nh) {
   setTorchThreads(params_.torch_threads);
   std::lock_guard<std::mutex> lock(mutex_);
@@ -135,6 +136,13 @@ void CompensationRos::processPending() {
                               front.flow->header.stamp.toSec(), image_a ? "b" : "a",
                               (image_a ? front.flow->header.stamp : front.flow->previous_stamp).toSec(),
                               image_sub_.getTopic().c_str());
+      // No output without its frames, but its motion is known: keep the history unbroken.
+      std::vector<Eigen::Matrix3d> homographies;
+      cv::Mat gyro_flow;
+      if (readGyroFlowMsg(*front.flow, homographies, gyro_flow).empty()) {
+        stream_.observe(gyro_flow, static_cast<std::int64_t>(front.flow->previous_stamp.toNSec()),
+                        static_cast<std::int64_t>(front.flow->header.stamp.toNSec()));
+      }
     }
     pending_.pop_front();
   }
@@ -158,7 +166,8 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
                             image_sub_.getTopic().c_str(), image_b->width, image_b->height);
     return;
   }
-  const cv::Mat compensated = model_.compensate(gyro_flow);
+  const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+                                                 static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
 
   if (compensated_pub_.getNumSubscribers() > 0) {
     auto msg = boost::make_shared<GyroFlow>(gyro);

@@ -143,6 +143,10 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
         << msg.patch_count << " (expected 9 per patch)";
     return why.str();
   }
+  if (!(msg.previous_stamp < msg.header.stamp)) {
+    why << "GyroFlow previous_stamp " << msg.previous_stamp << " is not before its stamp " << msg.header.stamp;
+    return why.str();
+  }
   if (msg.flow.encoding != sensor_msgs::image_encodings::TYPE_32FC2) {
     why << "GyroFlow flow encoding is '" << msg.flow.encoding << "', expected 32FC2";
     return why.str();

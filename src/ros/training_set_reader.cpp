@@ -22,16 +22,14 @@ TrainingSet readTrainingSet(const std::vector<std::string>& bags, const std::str
         if (!record) throw std::runtime_error("a message on " + topic + " is not a deep_ois/TrainingPair");
         ++records_in_bag;
         ++set.records;
-        if (!record->accepted) {
-          ++set.skipped_by_reason["rejected by the job: " + record->rejection_reason];
-          continue;
-        }
+        if (!record->accepted) ++set.skipped_by_reason["rejected by the job: " + record->rejection_reason];
+        if (record->gyro_homographies.empty()) continue;  // no gyro input: the history restarts after it
         TrainingSample sample;
         sample.gyro_homographies = unflattenMatrices(record->gyro_homographies);
-        sample.target_homographies = unflattenMatrices(record->target_homographies);
+        if (record->accepted) sample.target_homographies = unflattenMatrices(record->target_homographies);
         const std::size_t patches = record->patch_count;
         if (patches == 0 || sample.gyro_homographies.size() != patches ||
-            sample.target_homographies.size() != patches) {
+            (record->accepted && sample.target_homographies.size() != patches)) {
           ++set.skipped_by_reason["malformed: homography counts differ from patch_count"];
           continue;
         }
@@ -44,6 +42,9 @@ TrainingSet readTrainingSet(const std::vector<std::string>& bags, const std::str
           continue;
         }
         sample.source = record->source_bag;
+        sample.stamp_a_ns = static_cast<std::int64_t>(record->previous_stamp.toNSec());
+        sample.stamp_b_ns = static_cast<std::int64_t>(record->header.stamp.toNSec());
+        if (sample.hasTarget()) ++set.with_target;
         set.samples.push_back(std::move(sample));
       }
     } catch (const rosbag::BagException& e) {

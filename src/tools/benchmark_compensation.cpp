@@ -26,6 +26,7 @@
 #include "deep_ois/core/homography_flow.h"
 #include "deep_ois/core/rolling_shutter_homographies.h"
 #include "deep_ois/net/compensation_model.h"
+#include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/ros/bag_frame_reader.h"
 #include "deep_ois/ros/bag_sequence.h"
 #include "deep_ois/ros/gyro_flow_parameters.h"
@@ -103,12 +104,16 @@ int main(int argc, char** argv) {
 
     for (const std::string preset : {"fast", "paper"}) {
       const deep_ois::CompensationModel model(deep_ois::presetMetadata(preset));
+      // The nodelet's path: the model over consecutive pairs, with its motion history (30 fps).
+      deep_ois::CompensationStream stream(model);
+      constexpr std::int64_t kFrameNs = 33333333;
+      std::int64_t stamp_ns = 0;
       const int runs = preset == "paper" ? std::max(5, frames / 20) : frames;
-      for (int i = 0; i < 3; ++i) model.compensate(flow);  // warm-up (allocations)
+      for (int i = 0; i < 3; ++i, stamp_ns += kFrameNs) stream.compensate(flow, stamp_ns, stamp_ns + kFrameNs);  // warm-up
       std::vector<double> inference_ms, warp_ms;
-      for (int i = 0; i < runs; ++i) {
+      for (int i = 0; i < runs; ++i, stamp_ns += kFrameNs) {
         auto start = Clock::now();
-        const cv::Mat compensated = model.compensate(flow);
+        const cv::Mat compensated = stream.compensate(flow, stamp_ns, stamp_ns + kFrameNs);
         inference_ms.push_back(msSince(start));
         start = Clock::now();
         const cv::Mat aligned = deep_ois::warpOntoLaterFrame(frame, compensated);
@@ -124,6 +129,7 @@ int main(int argc, char** argv) {
 
     // The chain over a real bag with the shipped model and the nodelets' parameters.
     const deep_ois::CompensationModel model = deep_ois::CompensationModel::load(model_path);
+    deep_ois::CompensationStream stream(model);
     const deep_ois::GyroFlowParameters params =
         deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(package + "/config/gyro_flow.yaml"));
     const deep_ois::BagSequence sequence = deep_ois::readBagSequence(bag_path);
@@ -154,7 +160,8 @@ int main(int argc, char** argv) {
       const cv::Mat gyro_color = deep_ois::colorizeFlow(gyro_flow, params.color_max_flow_px);
       cv::Mat magnitude;
       cv::absdiff(gyro_flow, cv::Scalar::all(0), magnitude);
-      const cv::Mat compensated = model.compensate(gyro_flow);
+      const cv::Mat compensated = stream.compensate(gyro_flow, static_cast<std::int64_t>(images[k - 1].stamp.toNSec()),
+                                                    static_cast<std::int64_t>(images[k].stamp.toNSec()));
       const cv::Mat map = deep_ois::inverseFlowMap(compensated, images[k].rgb.size());
       const cv::Mat aligned = deep_ois::warpWithInverseMap(images[k - 1].rgb, map);
       const cv::Mat ghost = deep_ois::ghostOverlay(aligned, images[k].rgb);

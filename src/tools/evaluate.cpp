@@ -29,6 +29,7 @@
 
 #include "deep_ois/core/standard_alignment_methods.h"
 #include "deep_ois/net/compensation_model.h"
+#include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/ros/evaluation_runner.h"
 #include "deep_ois/ros/recorded_flows.h"
 
@@ -130,13 +131,19 @@ int main(int argc, char** argv) {
     standard.solver.patch_count = options.gyro.rolling_shutter.patch_count;
     deep_ois::EvaluationRunner runner(options);
     runner.addMethods(deep_ois::standardAlignmentMethods(standard));
-    // The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow.
+    // The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow, over
+    // each recording's pairs in order with the motion history, as the nodelet runs it.
     if (!model_path.empty()) {
       deep_ois::setTorchThreads(torch_threads);
       model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(model_path));
+      auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
+      auto recording = std::make_shared<std::uint64_t>(0);
       runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")", deep_ois::kOisCameraPairs,
-                        [&model](const deep_ois::FramePairContext& pair) {
-                          return deep_ois::AlignmentEstimate::gridFlow(model->compensate(pair.gyro_flow_grid));
+                        [stream, recording](const deep_ois::FramePairContext& pair) {
+                          if (pair.recording_id != *recording) stream->reset();
+                          *recording = pair.recording_id;
+                          return deep_ois::AlignmentEstimate::gridFlow(
+                              stream->compensate(pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
                         }});
     }
     // Replay parity: what the live nodelets published, looked up by the pair's two stamps.

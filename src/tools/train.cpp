@@ -3,7 +3,7 @@
 //   train --data gt.bag [more.bag ...] --out models/NAME.pt [--preset fast|paper] [--epochs 40]
 //         [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50]
 //         [--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1]
-//         [--threads 2] [--resume] [--max-pairs N]
+//         [--threads 2] [--resume] [--max-pairs N] [--history none|S,S,...]
 //
 // Writes NAME.pt (weights + metadata), NAME.yaml (the metadata, for people), NAME_loss.png and,
 // during training, NAME.checkpoint.pt (after every epoch; Ctrl-C writes it too; --resume goes on
@@ -41,7 +41,7 @@ int usage(const std::string& problem) {
                "train: %s\nusage: train --data GT.bag [GT.bag ...] --out models/NAME.pt [--preset fast|paper] "
                "[--epochs N] [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50] "
                "[--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1] [--threads 2] "
-               "[--resume] [--max-pairs N]\n",
+               "[--resume] [--max-pairs N] [--history none|S,S,...]\n",
                problem.c_str());
   return 2;
 }
@@ -91,6 +91,8 @@ int main(int argc, char** argv) {
   double validation_fraction = 0.1;
   int threads = 2;
   std::size_t max_pairs = 0;
+  bool history_given = false;
+  std::vector<double> history_time_constants_s;
   try {
     for (int i = 1; i < argc; ++i) {
       const std::string flag = argv[i];
@@ -129,6 +131,18 @@ int main(int argc, char** argv) {
         threads = std::stoi(argv[++i]);
       } else if (flag == "--max-pairs") {
         max_pairs = static_cast<std::size_t>(std::stoul(argv[++i]));
+      } else if (flag == "--history") {
+        // The motion history's time constants in seconds, or none (the gyro flow alone).
+        history_given = true;
+        const std::string list = argv[++i];
+        if (list != "none") {
+          std::size_t start = 0;
+          while (start <= list.size()) {
+            const std::size_t comma = std::min(list.find(',', start), list.size());
+            history_time_constants_s.push_back(std::stod(list.substr(start, comma - start)));
+            start = comma + 1;
+          }
+        }
       } else {
         return usage("unknown flag: " + flag);
       }
@@ -144,23 +158,34 @@ int main(int argc, char** argv) {
   options.checkpoint_path = stem + ".checkpoint.pt";
   try {
     deep_ois::setTorchThreads(threads);
-    deep_ois::CompensationModel model(deep_ois::presetMetadata(preset), options.seed);
+    deep_ois::ModelMetadata metadata = deep_ois::presetMetadata(preset);
+    if (history_given) {
+      metadata.history_time_constants_s = history_time_constants_s;
+      metadata.history_mean_px.assign(2 * history_time_constants_s.size(), 0.0);
+      metadata.history_std_px.assign(2 * history_time_constants_s.size(), 1.0);
+    }
+    deep_ois::CompensationModel model(metadata, options.seed);
 
     const deep_ois::TrainingSet set = deep_ois::readTrainingSet(data);
-    std::fprintf(stderr, "train: %zu records in %zu bag(s), %zu usable\n", set.records, data.size(), set.samples.size());
+    std::fprintf(stderr, "train: %zu records in %zu bag(s), %zu with a target, %zu more for the motion history only\n",
+                 set.records, data.size(), set.with_target, set.samples.size() - set.with_target);
     for (const auto& [reason, count] : set.skipped_by_reason) std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
     std::vector<deep_ois::TrainingSample> samples = set.samples;
     if (max_pairs > 0 && samples.size() > max_pairs) samples.resize(max_pairs);
     std::vector<deep_ois::TrainingSample> train, validation;
     splitByRecording(samples, validation_fraction, options.seed, train, validation);
-    std::fprintf(stderr, "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d), %d threads\n",
+    std::fprintf(stderr,
+                 "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d, %zu motion-history "
+                 "sums), %d threads\n",
                  train.size(), validation.size(), preset.c_str(), model.metadata().working_grid.width,
-                 model.metadata().working_grid.height, threads);
+                 model.metadata().working_grid.height, model.metadata().history_time_constants_s.size(), threads);
 
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
     options.stop_requested = &g_stop_requested;
-    const std::size_t steps_per_epoch = (train.size() + options.batch_size - 1) / options.batch_size;
+    const std::size_t trainable = static_cast<std::size_t>(
+        std::count_if(train.begin(), train.end(), [](const deep_ois::TrainingSample& s) { return s.hasTarget(); }));
+    const std::size_t steps_per_epoch = (trainable + options.batch_size - 1) / options.batch_size;
     std::unique_ptr<deep_ois::ProgressBar> bar;
     int bar_first_epoch = -1;
     auto on_step = [&](const deep_ois::TrainingProgress& p) {

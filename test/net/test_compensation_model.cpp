@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <algorithm>
 #include <random>
 #include <string>
 
@@ -14,7 +15,9 @@
 
 #include "deep_ois/core/homography_flow.h"
 #include "deep_ois/core/portable_random.h"
+#include "deep_ois/core/motion_history.h"
 #include "deep_ois/net/compensation_model.h"
+#include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/net/flow_trainer.h"
 
 namespace deep_ois {
@@ -32,14 +35,29 @@ std::string tempPath(const std::string& name) {
   return "/tmp/deep_ois_test_net_" + std::to_string(::getpid()) + "_" + name;
 }
 
-// A small network so that the tests run in seconds: 3 levels, odd working grid.
+// A small network so that the tests run in seconds: 3 levels, odd working grid, the gyro flow
+// alone as input.
 ModelMetadata tinyMetadata() {
   ModelMetadata m = presetMetadata("fast");
   m.preset = "custom";
   m.architecture.widths = {8, 16, 16};
   m.working_grid = cv::Size(45, 33);
+  m.history_time_constants_s.clear();
+  m.history_mean_px.clear();
+  m.history_std_px.clear();
   return m;
 }
+
+// The same with a motion history of two leaky sums.
+ModelMetadata tinyHistoryMetadata() {
+  ModelMetadata m = tinyMetadata();
+  m.history_time_constants_s = {0.05, 0.2};
+  m.history_mean_px = {0.0, 0.0, 0.0, 0.0};
+  m.history_std_px = {1.0, 1.0, 1.0, 1.0};
+  return m;
+}
+
+constexpr std::int64_t kFrameNs = 33333333;  // 30 fps
 
 cv::Mat randomFlow(cv::Size size, unsigned seed) {
   cv::Mat flow(size, CV_32FC2);
@@ -152,6 +170,35 @@ TEST(CompensationModel, LoadNamesTheFileAndTheProblem) {
   std::remove(mismatched.c_str());
 }
 
+TEST(CompensationStream, FeedsTheModelTheMotionHistoryOfTheEarlierPairs) {
+  ModelMetadata m = tinyHistoryMetadata();
+  m.architecture.residual = false;  // an untrained residual model would ignore its history
+  const CompensationModel model(m, 21);
+  // Without the history it needs, the model refuses rather than guess.
+  EXPECT_THROW(model.compensate(randomFlow(m.working_grid, 1)), std::invalid_argument);
+
+  CompensationStream stream(model);
+  MotionHistory reference(m.history_time_constants_s, m.working_grid);
+  cv::Mat first_output;
+  for (int n = 0; n < 4; ++n) {
+    const cv::Mat flow = randomFlow(m.working_grid, 30 + n);
+    const std::int64_t a = n * kFrameNs, b = a + kFrameNs;
+    const cv::Mat expected = model.compensate(flow, reference.before(a));
+    reference.add(a, b, flow);
+    const cv::Mat out = stream.compensate(flow, a, b);
+    EXPECT_TRUE(identical(out, expected)) << "pair " << n;
+    if (n == 0) first_output = out;
+  }
+  EXPECT_EQ(stream.history().pairsSinceReset(), 4u);
+  // The same flow after motion gives another answer than at the start: the history matters.
+  const cv::Mat again = stream.compensate(randomFlow(m.working_grid, 30), 4 * kFrameNs, 5 * kFrameNs);
+  EXPECT_GT(cv::norm(again, first_output, cv::NORM_INF), 1e-4);
+  // A dropped frame restarts the history: the pair is treated as the first of a stream.
+  const cv::Mat after_gap = stream.compensate(randomFlow(m.working_grid, 30), 9 * kFrameNs, 10 * kFrameNs);
+  EXPECT_TRUE(identical(after_gap, first_output));
+  EXPECT_THROW(stream.compensate(randomFlow(m.working_grid, 1), kFrameNs, kFrameNs), std::invalid_argument);
+}
+
 TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
   ModelMetadata m = tinyMetadata();
   m.training.validation_epe_px = {0.5, 0.25};
@@ -173,6 +220,26 @@ TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
   bad = m;
   bad.format_version = 99;
   EXPECT_THROW(ModelMetadata::fromYaml(bad.toYaml()), std::runtime_error);
+
+  // The motion history: kept through YAML, its statistics must match its time constants, and a
+  // model file from before it (no history fields) reads as a gyro-flow-only model.
+  const ModelMetadata with_history = tinyHistoryMetadata();
+  EXPECT_EQ(ModelMetadata::fromYaml(with_history.toYaml()).history_time_constants_s,
+            with_history.history_time_constants_s);
+  EXPECT_EQ(with_history.inputChannels(), 6);
+  bad = with_history;
+  bad.history_std_px.pop_back();
+  EXPECT_NE(bad.validate().find("history_std_px"), std::string::npos);
+  bad = with_history;
+  bad.history_time_constants_s[0] = -1.0;
+  EXPECT_NE(bad.validate().find("history_time_constants_s"), std::string::npos);
+  std::string old_yaml = m.toYaml();
+  for (const std::string key : {"history_time_constants_s", "history_mean_px", "history_std_px"}) {
+    const std::size_t at = old_yaml.find(key);
+    ASSERT_NE(at, std::string::npos) << key;
+    old_yaml.erase(at, old_yaml.find('\n', at) + 1 - at);
+  }
+  EXPECT_EQ(ModelMetadata::fromYaml(old_yaml).inputChannels(), 2);
 }
 
 // Synthetic OIS: the target is the gyro homography followed by an image shift that depends on
@@ -235,6 +302,60 @@ TEST(FlowTrainer, AShortRunLowersTheLossAndResumesFromItsCheckpoint) {
   for (int e = 0; e < 6; ++e) EXPECT_EQ(continued.train_loss[e], record.train_loss[e]);
   EXPECT_EQ(resumed.metadata().input_mean_px, model.metadata().input_mean_px);
   std::remove(options.checkpoint_path.c_str());
+}
+
+// Synthetic OIS with memory: recordings of consecutive pairs whose image shift depends on the
+// motion *before* the pair (a lens centred by a high-pass: its position is a leaky sum of the
+// earlier rotations), independent of the pair's own rotation. Only a model with the motion
+// history can learn it.
+std::vector<TrainingSample> syntheticSequences(int recordings, int pairs_per_recording, unsigned seed) {
+  Eigen::Matrix3d K;
+  K << 250, 0, 179.5, 0, 250, 134.5, 0, 0, 1;
+  const CameraModel camera(360, 270, K);
+  std::mt19937 rng = streamGenerator(seed, 2);
+  std::vector<TrainingSample> set;
+  for (int r = 0; r < recordings; ++r) {
+    Eigen::Vector2d lens_px = Eigen::Vector2d::Zero();  // leaky sum of the earlier rotations, pixels
+    for (int n = 0; n < pairs_per_recording; ++n) {
+      const Eigen::Vector3d angle(0.01 * gaussian(rng), 0.01 * gaussian(rng), 0.0);
+      const Eigen::Matrix3d H = K * Eigen::AngleAxisd(angle.norm(), angle.normalized()).toRotationMatrix() * K.inverse();
+      Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
+      shift(0, 2) = lens_px.x();
+      shift(1, 2) = lens_px.y();
+      TrainingSample sample;
+      sample.camera = camera;
+      sample.source = "sequence_" + std::to_string(seed) + "_" + std::to_string(r);
+      sample.stamp_a_ns = n * kFrameNs;
+      sample.stamp_b_ns = (n + 1) * kFrameNs;
+      const Eigen::Matrix3d target = shift * H;
+      sample.gyro_homographies.assign(6, H / H(2, 2));
+      sample.target_homographies.assign(6, target / target(2, 2));
+      set.push_back(sample);
+      lens_px = std::exp(-1.0 / 6.0) * lens_px - 0.5 * 250.0 * Eigen::Vector2d(-angle.y(), angle.x());
+    }
+  }
+  // Shuffled and one pair without a target: the trainer must order by recording and stamp and
+  // carry the history across the pair the job rejected.
+  std::shuffle(set.begin(), set.end(), rng);
+  set[3].target_homographies.clear();
+  return set;
+}
+
+TEST(FlowTrainer, LearnsAnOisThatDependsOnTheMotionHistory) {
+  const std::vector<TrainingSample> train = syntheticSequences(8, 16, 1), validation = syntheticSequences(3, 16, 2);
+  TrainerOptions options;
+  options.epochs = 8;
+  options.learning_rate = 3e-3;
+  double epe[2], gyro_epe = 0.0;
+  for (int with_history = 0; with_history < 2; ++with_history) {
+    CompensationModel model(with_history ? tinyHistoryMetadata() : tinyMetadata(), 3);
+    trainCompensationModel(model, train, validation, options, {}, {});
+    epe[with_history] = model.metadata().training.validation_epe_px.back();
+    gyro_epe = model.metadata().training.validation_gyro_epe_px.back();
+    EXPECT_EQ(model.metadata().training.train_pairs, train.size() - 1) << "the pair without a target is not trained on";
+  }
+  EXPECT_LT(epe[1], 0.6 * epe[0]) << "with history " << epe[1] << " px, without " << epe[0] << " px, gyro " << gyro_epe;
+  EXPECT_LT(epe[1], 0.6 * gyro_epe);
 }
 
 TEST(FlowTrainer, RejectsEmptyOrInconsistentData) {

@@ -5,6 +5,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -37,8 +38,11 @@ class CompensationModel {
   ModelMetadata& metadata();
 
   // The compensated flow for a gyro flow: CV_32FC2 on any grid, in that grid's pixels; the result
-  // has the same size and unit. Internally resampled to the working grid and back.
-  cv::Mat compensate(const cv::Mat& gyro_flow) const;
+  // has the same size and unit. Internally resampled to the working grid and back. `history`: the
+  // motion-history sums before the pair (MotionHistory::before on the working grid), exactly as
+  // many as metadata().history_time_constants_s; a stream of pairs goes through CompensationStream,
+  // which keeps them. Throws std::invalid_argument for a malformed flow or history.
+  cv::Mat compensate(const cv::Mat& gyro_flow, const std::vector<cv::Mat>& history = {}) const;
 
   // Opaque access for the trainer (src/net only).
   struct Impl;

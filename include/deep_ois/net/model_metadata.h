@@ -54,7 +54,17 @@ struct ModelMetadata {
   // sees (flow - mean) / std.
   std::array<double, 2> input_mean_px{{0.0, 0.0}};
   std::array<double, 2> input_std_px{{1.0, 1.0}};
+  // Motion history (core/motion_history.h): time constants of the leaky sums of the earlier gyro
+  // flows the network sees beside the pair's own (seconds; empty = the gyro flow alone, the
+  // authors' input). Two more input channels per time constant, normalised by the per-channel
+  // statistics of the training set (u then v per time constant, working-grid pixels).
+  std::vector<double> history_time_constants_s;
+  std::vector<double> history_mean_px;
+  std::vector<double> history_std_px;
   TrainingRecord training;
+
+  // 2 (the gyro flow) + 2 per history time constant.
+  int inputChannels() const { return 2 + 2 * static_cast<int>(history_time_constants_s.size()); }
 
   // Empty when usable; otherwise a sentence naming the field that is wrong.
   std::string validate() const;
@@ -64,7 +74,12 @@ struct ModelMetadata {
 };
 
 // The two presets of the README: "paper" (the authors' widths 32-64-128-256-256 with instance
-// normalisation at 360x270) and "fast" (real time on a 2-core CPU). Throws on an unknown name.
+// normalisation at 360x270, gyro flow input only) and "fast" (real time on a 2-core CPU, with the
+// motion history of kDefaultHistoryTimeConstantsS). Throws on an unknown name.
 ModelMetadata presetMetadata(const std::string& preset);
+
+// Octave-spaced from 2 to 24 frames at 30 fps: a basis for the memories of real stabilisers'
+// centring filters (corners of a few tenths of a hertz to a few hertz).
+inline const std::vector<double> kDefaultHistoryTimeConstantsS = {0.05, 0.1, 0.2, 0.4, 0.8};
 
 }  // namespace deep_ois

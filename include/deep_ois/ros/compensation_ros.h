@@ -13,6 +13,7 @@
 #include <string>
 
 #include "deep_ois/net/compensation_model.h"
+#include "deep_ois/net/compensation_stream.h"
 
 namespace deep_ois {
 
@@ -38,6 +39,10 @@ CompensationParameters loadCompensationParameters(const ros::NodeHandle& private
 // frame a). Inputs are subscribed only while an output has a subscriber; each output is computed
 // only while it has one.
 //
+// The gyro flows are one camera's consecutive pairs: the model sees each with the motion history
+// of the earlier ones (CompensationStream); a gap (a pair never received, a bag that loops)
+// restarts the history, as at start-up.
+//
 // Threading: callbacks run on the node handle's queue; one mutex guards the state. The network
 // runs inside the callback (a few ms with the fast preset).
 class CompensationRos {
@@ -59,7 +64,8 @@ class CompensationRos {
   void connectCallback();
   void gyroFlowCallback(const GyroFlowConstPtr& msg);
   void imageCallback(const sensor_msgs::ImageConstPtr& msg);
-  // Processes every pending gyro flow whose two frames are cached; drops those that waited too long.
+  // Processes every pending gyro flow whose two frames are cached; drops those that waited too long
+  // (their motion still enters the history of the next pairs).
   void processPending();
   sensor_msgs::ImageConstPtr cachedImage(const ros::Time& stamp) const;
   void process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
@@ -70,6 +76,7 @@ class CompensationRos {
   ros::NodeHandle private_nh_;
   const CompensationParameters params_;
   CompensationModel model_;
+  CompensationStream stream_;  // the model over the camera's pairs, with their motion history
 
   std::mutex mutex_;
   image_transport::ImageTransport it_;

@@ -11,9 +11,13 @@
 namespace deep_ois {
 
 struct TrainingSet {
-  std::vector<TrainingSample> samples;  // accepted records, in file order
-  std::size_t records = 0;              // every record read
-  // Records not usable as samples, by reason (the job's rejection reason, or what is malformed).
+  // Records with a gyro input, in file order: the accepted ones with their target, the rejected
+  // ones without (they only carry the motion history on to the next pair).
+  std::vector<TrainingSample> samples;
+  std::size_t records = 0;       // every record read
+  std::size_t with_target = 0;   // samples with a target
+  // Records without a target, by reason (the job's rejection reason, or what is malformed); the
+  // rejected ones with a gyro input are still in `samples`.
   std::map<std::string, std::size_t> skipped_by_reason;
 };
 
