@@ -3,7 +3,7 @@
 //   train --data gt.bag [more.bag ...] --out models/NAME.pt [--preset fast|paper] [--epochs 40]
 //         [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50]
 //         [--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1]
-//         [--threads 2] [--resume] [--max-pairs N] [--history none|S,S,...]
+//         [--threads 2] [--resume] [--max-pairs N] [--history none|S,S,...] [--widths W,W,...]
 //
 // Writes NAME.pt (weights + metadata), NAME.yaml (the metadata, for people), NAME_loss.png and,
 // during training, NAME.checkpoint.pt (after every epoch; Ctrl-C writes it too; --resume goes on
@@ -41,7 +41,7 @@ int usage(const std::string& problem) {
                "train: %s\nusage: train --data GT.bag [GT.bag ...] --out models/NAME.pt [--preset fast|paper] "
                "[--epochs N] [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50] "
                "[--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1] [--threads 2] "
-               "[--resume] [--max-pairs N] [--history none|S,S,...]\n",
+               "[--resume] [--max-pairs N] [--history none|S,S,...] [--widths W,W,...]\n",
                problem.c_str());
   return 2;
 }
@@ -75,6 +75,18 @@ void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double f
   for (const auto& sample : all) (validation_sources.count(sample.source) ? validation : train).push_back(sample);
 }
 
+// "a,b,c" -> {"a", "b", "c"}.
+std::vector<std::string> splitList(const std::string& list) {
+  std::vector<std::string> items;
+  std::size_t start = 0;
+  while (start <= list.size()) {
+    const std::size_t comma = std::min(list.find(',', start), list.size());
+    items.push_back(list.substr(start, comma - start));
+    start = comma + 1;
+  }
+  return items;
+}
+
 std::string stripSuffix(const std::string& path, const std::string& suffix) {
   if (path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
     return path.substr(0, path.size() - suffix.size());
@@ -93,6 +105,7 @@ int main(int argc, char** argv) {
   std::size_t max_pairs = 0;
   bool history_given = false;
   std::vector<double> history_time_constants_s;
+  std::vector<int> widths;
   try {
     for (int i = 1; i < argc; ++i) {
       const std::string flag = argv[i];
@@ -136,13 +149,11 @@ int main(int argc, char** argv) {
         history_given = true;
         const std::string list = argv[++i];
         if (list != "none") {
-          std::size_t start = 0;
-          while (start <= list.size()) {
-            const std::size_t comma = std::min(list.find(',', start), list.size());
-            history_time_constants_s.push_back(std::stod(list.substr(start, comma - start)));
-            start = comma + 1;
-          }
+          for (const std::string& item : splitList(list)) history_time_constants_s.push_back(std::stod(item));
         }
+      } else if (flag == "--widths") {
+        // The UNet's level widths instead of the preset's (the preset becomes "custom").
+        for (const std::string& item : splitList(argv[++i])) widths.push_back(std::stoi(item));
       } else {
         return usage("unknown flag: " + flag);
       }
@@ -159,6 +170,10 @@ int main(int argc, char** argv) {
   try {
     deep_ois::setTorchThreads(threads);
     deep_ois::ModelMetadata metadata = deep_ois::presetMetadata(preset);
+    if (!widths.empty()) {
+      metadata.architecture.widths = widths;
+      metadata.preset = "custom";
+    }
     if (history_given) {
       metadata.history_time_constants_s = history_time_constants_s;
       metadata.history_mean_px.assign(2 * history_time_constants_s.size(), 0.0);
@@ -177,7 +192,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d, %zu motion-history "
                  "sums), %d threads\n",
-                 train.size(), validation.size(), preset.c_str(), model.metadata().working_grid.width,
+                 train.size(), validation.size(), model.metadata().preset.c_str(), model.metadata().working_grid.width,
                  model.metadata().working_grid.height, model.metadata().history_time_constants_s.size(), threads);
 
     std::signal(SIGINT, onSignal);
@@ -224,7 +239,7 @@ int main(int argc, char** argv) {
     const cv::Mat plot = deep_ois::drawLinePlot(
         {{"training loss", record.train_loss, cv::Scalar(200, 80, 0)},
          {"validation loss", record.validation_loss, cv::Scalar(0, 120, 230)}},
-        "deep_ois " + preset + ": " + options.loss + " loss per epoch", "epoch", "loss (px)", true);
+        "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch", "epoch", "loss (px)", true);
     if (!cv::imwrite(stem + "_loss.png", plot)) throw std::runtime_error("cannot write " + stem + "_loss.png");
     std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n", out.c_str(),
                 stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);

@@ -3,11 +3,13 @@
 // motion it returns with the one geometry distance (geometry_distance.h), capped at identity.
 //
 // Adding a method is a name, the pairs it applies to and a function; e.g. a network that maps the
-// gyro flow grid to a compensated flow grid:
+// gyro flow grid to a compensated flow grid (pairs come in recording order, so a method may keep
+// state across them, as the network's motion history does):
 //
 //   runner.addMethod({"DeepOIS (shipped model)", kOisCameraPairs,
-//                     [&net](const FramePairContext& pair) {
-//                       return AlignmentEstimate::gridFlow(net.compensate(pair.gyro_flow_grid));
+//                     [&stream](const FramePairContext& pair) {
+//                       return AlignmentEstimate::gridFlow(
+//                           stream.compensate(pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
 //                     }});
 #pragma once
 
