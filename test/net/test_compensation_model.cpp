@@ -242,12 +242,18 @@ TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
   EXPECT_EQ(ModelMetadata::fromYaml(old_yaml).inputChannels(), 2);
 }
 
+// The synthetic sets' camera: 360x270, focal length 250 px.
+CameraModel syntheticCamera() {
+  Eigen::Matrix3d K;
+  K << 250, 0, 179.5, 0, 250, 134.5, 0, 0, 1;
+  return CameraModel(360, 270, K);
+}
+
 // Synthetic OIS: the target is the gyro homography followed by an image shift that depends on
 // the rotation (a lens that moves against the shake), which the network has to learn.
 std::vector<TrainingSample> syntheticSet(int count, unsigned seed) {
-  Eigen::Matrix3d K;
-  K << 250, 0, 179.5, 0, 250, 134.5, 0, 0, 1;
-  const CameraModel camera(360, 270, K);
+  const CameraModel camera = syntheticCamera();
+  const Eigen::Matrix3d K = camera.K();
   std::mt19937 rng = streamGenerator(seed, 1);
   std::vector<TrainingSample> set;
   for (int n = 0; n < count; ++n) {
@@ -309,9 +315,8 @@ TEST(FlowTrainer, AShortRunLowersTheLossAndResumesFromItsCheckpoint) {
 // earlier rotations), independent of the pair's own rotation. Only a model with the motion
 // history can learn it.
 std::vector<TrainingSample> syntheticSequences(int recordings, int pairs_per_recording, unsigned seed) {
-  Eigen::Matrix3d K;
-  K << 250, 0, 179.5, 0, 250, 134.5, 0, 0, 1;
-  const CameraModel camera(360, 270, K);
+  const CameraModel camera = syntheticCamera();
+  const Eigen::Matrix3d K = camera.K();
   std::mt19937 rng = streamGenerator(seed, 2);
   std::vector<TrainingSample> set;
   for (int r = 0; r < recordings; ++r) {
