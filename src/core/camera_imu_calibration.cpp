@@ -17,7 +17,6 @@
 
 #include "deep_ois/core/camera_imu_coarse_alignment.h"
 #include "deep_ois/core/gyro_orientation_table.h"
-#include "deep_ois/core/ois_lens_model.h"
 #include "deep_ois/core/rotation_alignment.h"
 
 namespace deep_ois {
@@ -114,12 +113,6 @@ using ShiftVector = Eigen::Matrix<double, kShiftCount, 1>;
 // drifts steadily is, to first order, a gyro bias about the pan/tilt axes, and a lens decentred
 // on average is a tilt of the mount; the stroke limit is what tells them apart.
 constexpr double kShiftPriorWeight = 1e-3;
-// The OIS lens prior (OisLensModel): its rate grid step, the refinements with it, and the
-// smallest model misfit it trusts (px, per axis): a model that fits the free shifts better than
-// this still only pulls with this weight (the free shifts themselves are that noisy).
-constexpr double kLensStepS = 0.001;
-constexpr int kLensPriorRounds = 2;
-constexpr double kMinLensModelSigmaPx = 0.05;
 
 ShiftBasis shiftBasis(double row_fraction, int order) {
   ShiftBasis A = ShiftBasis::Zero();
@@ -314,86 +307,16 @@ class ReprojectionProblem {
     for (const PreparedPair& pair : pairs_) {
       track_count_ += pair.points.size();
       if (!model_shift_) continue;
-      for (const auto& [frame, stamp_s] : {std::make_pair(pair.frame_a, pair.stamp_a_s),
-                                           std::make_pair(pair.frame_b, pair.stamp_b_s)}) {
+      for (int frame : {pair.frame_a, pair.frame_b}) {
         if (!shift_block_.count(frame)) {
           const int block = static_cast<int>(shift_block_.size());
           shift_block_[frame] = block;
-          block_stamp_s_.push_back(stamp_s);
         }
       }
-    }
-    if (model_shift_) {
-      IntegrationOptions raw = integration_;
-      raw.gyro_bias_rad_s.setZero();
-      raw_table_ = std::make_unique<GyroOrientationTable>(gyro_, raw);
     }
   }
 
   std::size_t trackCount() const { return track_count_; }
-  double lensGridStart() const { return lens_grid_start_s_; }
-
-  // ---- The OIS lens prior (see OisLensModel): each frame's shift, at a few rows, is pulled
-  // towards what a stabiliser driven by the camera's own pan/tilt rate would do. The rates
-  // depend on the calibration (offset, bias, mount), so the prior does too, and it stops the
-  // free shifts from absorbing a mis-timed or mis-mounted gyro.
-
-  // The camera-frame rates on the lens grid (camera clock, kLensStepS apart from
-  // lensGridStart()) under a calibration, and the current shifts sampled at the prior's rows as
-  // fractional indices into that grid: what fitOisLensModel() needs.
-  std::vector<Eigen::Vector3d> cameraRates(double offset_s, const Eigen::Vector3d& bias,
-                                           const Eigen::Matrix3d& R_cam_imu) {
-    if (!lens_grid_ready_) {
-      double first = block_stamp_s_.front(), last = block_stamp_s_.front();
-      for (double stamp : block_stamp_s_) {
-        first = std::min(first, stamp);
-        last = std::max(last, stamp);
-      }
-      // As much history as the gyro has (up to a second) for the integrator to settle.
-      lens_grid_start_s_ = std::max(first - 1.0, raw_table_->beginTime() - offset_s + kLensStepS);
-      lens_grid_count_ = static_cast<int>(std::ceil((last + kLensGridTailS - lens_grid_start_s_) / kLensStepS)) + 1;
-      lens_grid_ready_ = true;
-    }
-    std::vector<Eigen::Vector3d> rates(lens_grid_count_);
-    for (int i = 0; i < lens_grid_count_; ++i) {
-      rates[i] = R_cam_imu * (raw_table_->rate(lens_grid_start_s_ + i * kLensStepS + offset_s) - bias);
-    }
-    return rates;
-  }
-  std::vector<OisLensSample> lensSamples(const State& state) const {
-    std::vector<OisLensSample> samples;
-    for (const LensPriorPoint& point : lensPriorPoints(state)) {
-      OisLensSample sample;
-      sample.index = point.index;
-      sample.shift_px = shiftBasis(point.row_fraction, shift_order_) * state.shifts[point.block];
-      samples.push_back(sample);
-    }
-    return samples;
-  }
-  // Turns the prior on with a fitted model: weight (against unit track weights) and the Cauchy
-  // scale of its residuals (px).
-  void setLensPrior(const OisLensModel& model, double weight, double scale_px) {
-    lens_prior_ = true;
-    lens_model_ = model;
-    lens_prior_weight_ = weight;
-    lens_prior_scale_px_ = scale_px;
-  }
-  // Cauchy weights of the prior's residuals at a state (frames where the lens does what the
-  // model cannot, e.g. a controller mode it does not know, fall back to the free shift).
-  void updateLensPriorWeights(const State& state) {
-    if (!lens_prior_) return;
-    const std::vector<LensPriorPoint> points = lensPriorPoints(state);
-    const std::vector<Eigen::Vector2d> predicted =
-        predictOisLensShift(lens_model_, cameraRates(state.time_offset_s, state.bias, state.R_cam_imu), kLensStepS);
-    lens_point_weights_.resize(points.size());
-    for (std::size_t j = 0; j < points.size(); ++j) {
-      const Eigen::Vector2d r = shiftBasis(points[j].row_fraction, shift_order_) * state.shifts[points[j].block] -
-                                interpolateLensShift(predicted, points[j].index - lens_model_.delay_s / kLensStepS);
-      const double u = r.norm() / lens_prior_scale_px_;
-      lens_point_weights_[j] = 1.0 / (1.0 + u * u);
-    }
-  }
-
   int shiftBlockCount() const { return static_cast<int>(shift_block_.size()); }
   // Shift coefficients that are estimated (the prior alone holds the others).
   int shiftUnknownCount() const { return shiftBlockCount() * 2 * (shift_order_ + 1); }
@@ -519,88 +442,11 @@ class ReprojectionProblem {
       }
     }
     for (int b = 0; b < blocks; ++b) out.cost += kShiftPriorWeight * state.shifts[b].squaredNorm();
-    if (lens_prior_ && blocks > 0) addLensPrior(state, jacobian, diagonal, coupling, gradient, out);
     if (jacobian && blocks > 0) eliminateShifts(state, diagonal, off_diagonal, coupling, gradient, out);
     return out;
   }
 
  private:
-  // Lens grid: 1 ms steps, ending this long after the last frame's stamp (past its readout).
-  static constexpr double kLensGridTailS = 0.1;
-  // Rows of each frame at which the prior compares the shift with the model.
-  static constexpr double kLensPriorRows[] = {0.5};
-
-  struct LensPriorPoint {
-    int block = 0;
-    double row_fraction = 0.0;
-    double index = 0.0;  // fractional index of its capture time into the lens grid
-  };
-  // Every frame's prior rows with their capture times (camera clock: the stabiliser's gyro is
-  // the camera's). Frames in the first three time constants of the centring integrator are left
-  // out: the integrator starts at rest, the real lens did not.
-  std::vector<LensPriorPoint> lensPriorPoints(const State& state) const {
-    std::vector<LensPriorPoint> points;
-    const double settle_s =
-        std::min(1.0, 3.0 / (2.0 * kPi * std::max(lens_model_.centring_corner_hz, 1e-3)));
-    for (int b = 0; b < static_cast<int>(block_stamp_s_.size()); ++b) {
-      for (double row : kLensPriorRows) {
-        const double t = block_stamp_s_[b] + state.readout_time_s * row - lens_grid_start_s_;
-        if (t < settle_s) continue;
-        points.push_back({b, row, t / kLensStepS});
-      }
-    }
-    return points;
-  }
-
-  // The prior's residuals r = A(row) s_frame - model(t) and, with `jacobian`, their parameter
-  // derivatives (forward differences: each calibration parameter changes the camera rates that
-  // drive the model; the readout moves the capture times).
-  void addLensPrior(const State& state, bool jacobian, std::vector<ShiftBlock>& diagonal,
-                    std::vector<ShiftByParameter>& coupling, std::vector<ShiftVector>& gradient,
-                    Evaluation& out) {
-    const std::vector<LensPriorPoint> points = lensPriorPoints(state);
-    if (lens_point_weights_.size() != points.size()) lens_point_weights_.assign(points.size(), 1.0);
-    auto predictAt = [&](double offset_s, const Eigen::Vector3d& bias, const Eigen::Matrix3d& R) {
-      return predictOisLensShift(lens_model_, cameraRates(offset_s, bias, R), kLensStepS);
-    };
-    const double delay_index = lens_model_.delay_s / kLensStepS;
-    const std::vector<Eigen::Vector2d> base = predictAt(state.time_offset_s, state.bias, state.R_cam_imu);
-    std::vector<std::vector<Eigen::Vector2d>> perturbed(kParameterCount);
-    const double h_time = 1e-4, h_bias = 1e-4, h_rotation = 1e-4;
-    if (jacobian) {
-      perturbed[kOffset] = predictAt(state.time_offset_s + h_time, state.bias, state.R_cam_imu);
-      for (int k = 0; k < 3; ++k) {
-        perturbed[kBias + k] =
-            predictAt(state.time_offset_s, state.bias + h_bias * Eigen::Vector3d::Unit(k), state.R_cam_imu);
-        perturbed[kRotation + k] = predictAt(state.time_offset_s, state.bias,
-                                             expSO3(h_rotation * Eigen::Vector3d::Unit(k)) * state.R_cam_imu);
-      }
-    }
-    for (std::size_t j = 0; j < points.size(); ++j) {
-      const LensPriorPoint& point = points[j];
-      const double w = lens_prior_weight_ * lens_point_weights_[j];
-      const ShiftBasis A = shiftBasis(point.row_fraction, shift_order_);
-      const double index = point.index - delay_index;
-      const Eigen::Vector2d model = interpolateLensShift(base, index);
-      const Eigen::Vector2d r = A * state.shifts[point.block] - model;
-      out.cost += w * r.squaredNorm();
-      if (!jacobian) continue;
-      Eigen::Matrix<double, 2, kParameterCount> J = Eigen::Matrix<double, 2, kParameterCount>::Zero();
-      J.col(kOffset) = -(interpolateLensShift(perturbed[kOffset], index) - model) / h_time;
-      J.col(kReadout) =
-          -(interpolateLensShift(base, index + point.row_fraction * h_time / kLensStepS) - model) / h_time;
-      for (int k = 0; k < 3; ++k) {
-        J.col(kBias + k) = -(interpolateLensShift(perturbed[kBias + k], index) - model) / h_bias;
-        J.col(kRotation + k) = -(interpolateLensShift(perturbed[kRotation + k], index) - model) / h_rotation;
-      }
-      out.H.noalias() += w * J.transpose() * J;
-      out.g.noalias() += w * J.transpose() * r;
-      diagonal[point.block].noalias() += w * A.transpose() * A;
-      coupling[point.block].noalias() += w * A.transpose() * J;
-      gradient[point.block].noalias() += w * A.transpose() * r;
-    }
-  }
-
   // Schur complement of the (block-banded, sparse) shift unknowns.
   void eliminateShifts(const State& state, const std::vector<ShiftBlock>& diagonal,
                        const std::map<std::pair<int, int>, ShiftBlock>& off_diagonal,
@@ -656,16 +502,6 @@ class ReprojectionProblem {
   bool model_shift_;
   bool eliminate_parallax_;
   std::map<int, int> shift_block_;  // frame index -> shift block
-  std::vector<double> block_stamp_s_;  // camera stamp of each shift block's frame
-  std::unique_ptr<GyroOrientationTable> raw_table_;  // bias-free rates for the lens prior
-  bool lens_grid_ready_ = false;
-  double lens_grid_start_s_ = 0.0;  // camera clock
-  int lens_grid_count_ = 0;
-  bool lens_prior_ = false;
-  OisLensModel lens_model_;
-  double lens_prior_weight_ = 0.0;
-  double lens_prior_scale_px_ = 1.0;
-  std::vector<double> lens_point_weights_;
   IntegrationOptions integration_;
   std::size_t track_count_ = 0;
   std::unique_ptr<GyroOrientationTable> table_;
@@ -909,69 +745,39 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
   }
   result.initial_median_residual_px = median(current.residual_norms_px);
   std::vector<double> weights = cauchyWeights(current.residual_norms_px, options, nullptr);
-  // Levenberg-Marquardt with Cauchy reweighting, from `state`.
-  auto refine = [&]() {
-    double lambda = 1e-3;
-    int quiet_iterations = 0;
-    for (int iteration = 0; iteration < options.max_iterations && n > 0; ++iteration) {
-      ++result.iterations;
-      current = problem.evaluate(state, weights, true);
-      ParameterMatrix H;
-      ParameterVector g;
-      restrictToActive(current, H, g);
-      bool accepted = false;
-      ParameterVector step = ParameterVector::Zero();
-      Evaluation trial;
-      for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
-        ParameterMatrix damped = H;
-        for (int i = 0; i < kParameterCount; ++i) damped(i, i) += lambda * std::max(H(i, i), 1e-12);
-        step = damped.ldlt().solve(-g);
-        State candidate = applyStep(state, step, max_readout_s);
-        applyShiftStep(candidate, current, step);
-        trial = problem.evaluate(candidate, weights, false);
-        if (trial.cost < current.cost) {
-          state = candidate;
-          accepted = true;
-          lambda = std::max(lambda * 0.2, 1e-9);
-        } else {
-          lambda *= 10.0;
-        }
+  double lambda = 1e-3;
+  int quiet_iterations = 0;
+  for (int iteration = 0; iteration < options.max_iterations && n > 0; ++iteration) {
+    result.iterations = iteration + 1;
+    current = problem.evaluate(state, weights, true);
+    ParameterMatrix H;
+    ParameterVector g;
+    restrictToActive(current, H, g);
+    bool accepted = false;
+    ParameterVector step = ParameterVector::Zero();
+    Evaluation trial;
+    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+      ParameterMatrix damped = H;
+      for (int i = 0; i < kParameterCount; ++i) damped(i, i) += lambda * std::max(H(i, i), 1e-12);
+      step = damped.ldlt().solve(-g);
+      State candidate = applyStep(state, step, max_readout_s);
+      applyShiftStep(candidate, current, step);
+      trial = problem.evaluate(candidate, weights, false);
+      if (trial.cost < current.cost) {
+        state = candidate;
+        accepted = true;
+        lambda = std::max(lambda * 0.2, 1e-9);
+      } else {
+        lambda *= 10.0;
       }
-      if (!accepted) break;
-      weights = cauchyWeights(trial.residual_norms_px, options, nullptr);
-      problem.updateLensPriorWeights(state);
-      // Converged when the step no longer matters: 1 us, 1e-5 rad/s, 1e-6 rad.
-      const bool small = std::abs(step(kOffset)) < 1e-6 && std::abs(step(kReadout)) < 1e-6 &&
-                         step.segment<3>(kBias).norm() < 1e-5 && step.segment<3>(kRotation).norm() < 1e-6;
-      quiet_iterations = small ? quiet_iterations + 1 : 0;
-      if (quiet_iterations >= 2) break;
     }
-  };
-  refine();
-
-  // OIS: fit the stabiliser model to the freely estimated lens shifts, then refine again with the
-  // shifts pulled towards it (twice: the model's fit improves with the calibration).
-  if (problem.shiftBlockCount() > 0 && options.ois_lens_prior) {
-    for (int round = 0; round < kLensPriorRounds; ++round) {
-      const std::vector<Eigen::Vector3d> rates = problem.cameraRates(state.time_offset_s, state.bias, state.R_cam_imu);
-      const std::vector<OisLensSample> samples = problem.lensSamples(state);
-      if (samples.size() < 10) break;
-      const OisLensFit fit = fitOisLensModel(rates, kLensStepS, samples);
-      const Evaluation at_state = problem.evaluate(state, weights, false);
-      const double track_sigma_px = median(at_state.residual_norms_px) / 1.1774;
-      const double model_sigma_px = std::max(fit.rms_residual_px / std::sqrt(2.0), kMinLensModelSigmaPx);
-      problem.setLensPrior(fit.model, std::pow(track_sigma_px / model_sigma_px, 2), 2.5 * model_sigma_px);
-      problem.updateLensPriorWeights(state);
-      if (getenv("EXP_DUMP")) { FILE* f = fopen(getenv("EXP_DUMP"), round == 0 ? "w" : "a");
-        const auto pred = predictOisLensShift(fit.model, rates, kLensStepS);
-        for (const auto& smp : samples) { const auto m = interpolateLensShift(pred, smp.index - fit.model.delay_s / kLensStepS);
-          fprintf(f, "%d %.6f %.4f %.4f %.4f %.4f\n", round, problem.lensGridStart() + smp.index * kLensStepS, smp.shift_px.x(), smp.shift_px.y(), m.x(), m.y()); }
-        fprintf(stderr, "fit gain %g %g centre %g %g corner %g delay %g stroke %g\n", fit.model.gain_px_per_rad.x(), fit.model.gain_px_per_rad.y(), fit.model.centre_px.x(), fit.model.centre_px.y(), fit.model.centring_corner_hz, fit.model.delay_s, fit.model.stroke_px);
-        fclose(f); }
-      result.lens_model_rms_residual_px = fit.rms_residual_px;
-      result.lens_shift_rms_px = fit.rms_shift_px;
-      refine();
-    }
+    if (!accepted) break;
+    weights = cauchyWeights(trial.residual_norms_px, options, nullptr);
+    // Converged when the step no longer matters: 1 us, 1e-5 rad/s, 1e-6 rad.
+    const bool small = std::abs(step(kOffset)) < 1e-6 && std::abs(step(kReadout)) < 1e-6 &&
+                       step.segment<3>(kBias).norm() < 1e-5 && step.segment<3>(kRotation).norm() < 1e-6;
+    quiet_iterations = small ? quiet_iterations + 1 : 0;
+    if (quiet_iterations >= 2) break;
   }
 
   // ---- Uncertainty and observability. ------------------------------------------------------

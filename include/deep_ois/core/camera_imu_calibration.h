@@ -104,10 +104,6 @@ struct CalibrationOptions {
   // lens through a long readout (33 ms: readout error -1.25 ms with the quadratic, -0.24 ms with
   // the cubic on a simulator bag).
   int lens_shift_row_order = 3;
-  // With kPerFrameShift: after a first refinement with free shifts, fit a generic stabiliser
-  // model (ois_lens_model.h) to them and refine again with every frame's shift pulled towards the
-  // model driven by the calibrated gyro (see the top of this file).
-  bool ois_lens_prior = true;
   RateInterpolation interpolation = RateInterpolation::kLinear;
   double max_imu_gap_s = 0.05;  // a pair whose interval crosses a longer gap is not used
 
@@ -176,10 +172,6 @@ struct CalibrationResult {
   double median_residual_px = 0.0;          // after refinement (with the lens shift removed for OIS)
   double inlier_fraction = 0.0;             // tracks with a Cauchy weight above 0.5
   Eigen::Vector3d rate_rms_rad_s = Eigen::Vector3d::Zero();  // gyro RMS about its principal axes, descending
-  // With the OIS lens prior: RMS of the freely estimated shifts and of their misfit to the
-  // stabiliser model (px, 2-D; 0 without it).
-  double lens_shift_rms_px = 0.0;
-  double lens_model_rms_residual_px = 0.0;
   double seconds = 0.0;  // wall time of calibrateCameraImu()
 
   bool ok() const { return status == CalibrationStatus::kOk; }
