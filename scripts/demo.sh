@@ -21,7 +21,8 @@ bag="$repo/bags/sample.bag"
 export ROS_MASTER_URI=http://localhost:11351
 recording="$out/live_flows.bag"
 rm -f "$recording"
-roslaunch -p 11351 deep_ois demo.launch bag:="$bag" summary:=false record:="$recording" >"$out/roslaunch.log" 2>&1 &
+roslaunch -p 11351 deep_ois demo.launch bag:="$bag" summary:=false play:=false record:="$recording" \
+  >"$out/roslaunch.log" 2>&1 &
 launch_pid=$!
 trap 'kill -INT "$launch_pid" 2>/dev/null || true; wait "$launch_pid" 2>/dev/null || true' EXIT
 
@@ -35,7 +36,19 @@ for _ in $(seq 1 100); do
 done
 
 status=0
-rosrun deep_ois gyro_flow_summary --bag "$bag" gyro_flow:=/deep_ois/gyro_flow || status=$?
+rosrun deep_ois gyro_flow_summary --bag "$bag" gyro_flow:=/deep_ois/gyro_flow __name:=gyro_flow_summary &
+summary_pid=$!
+# The bag plays only once the summary listens: on a busy machine starting it can take longer than
+# any fixed delay, and a flow published before it subscribed would be missing from the summary.
+for _ in $(seq 1 300); do
+  rostopic info /deep_ois/gyro_flow 2>/dev/null | grep -q "/gyro_flow_summary" && break
+  kill -0 "$summary_pid" 2>/dev/null || break  # it failed: its exit status says why
+  sleep 0.2
+done
+# The launch's player, run here (same flags as launch/demo.launch).
+rosbag play --clock --quiet --wait-for-subscribers --delay 2 --queue 2000 "$bag" \
+  --topics /imu/data /camera/image_raw /camera/camera_info /tf_static >>"$out/roslaunch.log" 2>&1 || status=$?
+wait "$summary_pid" || status=$?
 # The compensated flow of the last pair follows its gyro flow by a few ms; then stop the launch,
 # which closes the recording.
 sleep 2
