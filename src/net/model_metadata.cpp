@@ -75,6 +75,12 @@ std::string ModelMetadata::validate() const {
   return "";
 }
 
+void ModelMetadata::setHistoryTimeConstants(const std::vector<double>& time_constants_s) {
+  history_time_constants_s = time_constants_s;
+  history_mean_px.assign(2 * time_constants_s.size(), 0.0);
+  history_std_px.assign(2 * time_constants_s.size(), 1.0);
+}
+
 std::string ModelMetadata::toYaml() const {
   YAML::Emitter out;
   out << YAML::BeginMap;
@@ -189,9 +195,7 @@ ModelMetadata presetMetadata(const std::string& preset) {
     m.architecture.normalization = "none";
     m.architecture.residual = true;
     m.working_grid = cv::Size(60, 45);
-    m.history_time_constants_s = kDefaultHistoryTimeConstantsS;
-    m.history_mean_px.assign(2 * m.history_time_constants_s.size(), 0.0);
-    m.history_std_px.assign(2 * m.history_time_constants_s.size(), 1.0);
+    m.setHistoryTimeConstants(kDefaultHistoryTimeConstantsS);
   } else {
     throw std::runtime_error("unknown model preset '" + preset + "' (expected fast or paper)");
   }

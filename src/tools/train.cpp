@@ -175,9 +175,7 @@ int main(int argc, char** argv) {
       metadata.preset = "custom";
     }
     if (history_given) {
-      metadata.history_time_constants_s = history_time_constants_s;
-      metadata.history_mean_px.assign(2 * history_time_constants_s.size(), 0.0);
-      metadata.history_std_px.assign(2 * history_time_constants_s.size(), 1.0);
+      metadata.setHistoryTimeConstants(history_time_constants_s);
     }
     deep_ois::CompensationModel model(metadata, options.seed);
 
@@ -198,20 +196,17 @@ int main(int argc, char** argv) {
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
     options.stop_requested = &g_stop_requested;
-    const std::size_t trainable = static_cast<std::size_t>(
-        std::count_if(train.begin(), train.end(), [](const deep_ois::TrainingSample& s) { return s.hasTarget(); }));
-    const std::size_t steps_per_epoch = (trainable + options.batch_size - 1) / options.batch_size;
     std::unique_ptr<deep_ois::ProgressBar> bar;
     int bar_first_epoch = -1;
     auto on_step = [&](const deep_ois::TrainingProgress& p) {
       if (!bar) {  // created at the first step, so a resumed run counts only what is left
         bar_first_epoch = p.epoch;
         bar = std::make_unique<deep_ois::ProgressBar>(
-            static_cast<std::size_t>(p.epochs - p.epoch + 1) * steps_per_epoch, "steps");
+            static_cast<std::size_t>(p.epochs - p.epoch + 1) * p.steps_per_epoch, "steps");
       }
       char note[96];
       std::snprintf(note, sizeof(note), "epoch %d/%d, loss %.4f", p.epoch, p.epochs, p.running_loss);
-      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * steps_per_epoch + p.step, note);
+      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * p.steps_per_epoch + p.step, note);
     };
     auto on_epoch = [&](int epoch, const deep_ois::TrainingRecord& record) {
       std::fprintf(stderr,

@@ -42,18 +42,14 @@ ModelMetadata tinyMetadata() {
   m.preset = "custom";
   m.architecture.widths = {8, 16, 16};
   m.working_grid = cv::Size(45, 33);
-  m.history_time_constants_s.clear();
-  m.history_mean_px.clear();
-  m.history_std_px.clear();
+  m.setHistoryTimeConstants({});
   return m;
 }
 
 // The same with a motion history of two leaky sums.
 ModelMetadata tinyHistoryMetadata() {
   ModelMetadata m = tinyMetadata();
-  m.history_time_constants_s = {0.05, 0.2};
-  m.history_mean_px = {0.0, 0.0, 0.0, 0.0};
-  m.history_std_px = {1.0, 1.0, 1.0, 1.0};
+  m.setHistoryTimeConstants({0.05, 0.2});
   return m;
 }
 

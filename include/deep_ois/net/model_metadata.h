@@ -63,6 +63,9 @@ struct ModelMetadata {
   std::vector<double> history_std_px;
   TrainingRecord training;
 
+  // Sets the history time constants with neutral statistics (mean 0, std 1 per channel) until
+  // the trainer computes them; empty = the gyro flow alone.
+  void setHistoryTimeConstants(const std::vector<double>& time_constants_s);
   // 2 (the gyro flow) + 2 per history time constant.
   int inputChannels() const { return 2 + 2 * static_cast<int>(history_time_constants_s.size()); }
 
