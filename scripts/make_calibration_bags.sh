@@ -5,11 +5,15 @@
 # 0..33 ms, all 24 signed axis permutations turned by 1-5 degrees, gyro biases up to 0.01 rad/s),
 # each simulated twice, with OIS (cal_<i>_ois.bag) and without (cal_<i>_nonois.bag, the twin), plus
 # manifest.txt for calibration_benchmark. Base config config/simulator/sample.yaml (RE at 256x192,
-# to keep rendering cheap), DURATION seconds per bag, lz4 compression. Also runtime/: one 10 s
-# pair at the standard 360x270 (config/simulator/RE.yaml with a known calibration), for timing
-# calibrate (runtime/manifest.txt).
+# to keep rendering cheap: a hand-held shot, not a calibration recording), DURATION seconds per
+# bag, lz4 compression. Also protocol/: the same COUNT calibrations recorded the way README
+# "Calibration" asks for (config/simulator/calibration.yaml: 360x270, 10 s of deliberate turns
+# about all three axes facing a scene 4 m away or more), OIS and twin (protocol/manifest.txt);
+# and runtime/: one 10 s pair at the standard 360x270 (config/simulator/RE.yaml with a known
+# calibration), for timing calibrate (runtime/manifest.txt).
 #   bash scripts/make_calibration_bags.sh [DIR] [COUNT=24] [DURATION=5]
 #   rosrun deep_ois calibration_benchmark --manifest DIR/manifest.txt
+#   rosrun deep_ois calibration_benchmark --manifest DIR/protocol/manifest.txt
 # Re-running skips bags that already exist (delete them to regenerate).
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -36,6 +40,21 @@ for ((i = 0; i < count; ++i)); do
   done
 done
 
+# The calibration-protocol set: same seeds, so the same calibrations as the hand-held set.
+protocol_duration=10
+mkdir -p "$out/protocol"
+rosrun deep_ois make_calibration_configs --base "$repo/config/simulator/calibration.yaml" --count "$count" \
+  --seed 7 --out "$out/protocol" >"$out/protocol/truth.txt"
+: >"$out/protocol/manifest.txt"
+for ((i = 0; i < count; ++i)); do
+  name="$(printf 'cal_%02d' "$i")"
+  for ois in off on; do
+    bag="${name}_$([ "$ois" = on ] && echo ois || echo nonois).bag"
+    echo "$out/protocol/$name.yaml $((500 + i)) $protocol_duration $ois $out/protocol/$bag" >>"$jobs_file"
+    echo "$bag $name.yaml" >>"$out/protocol/manifest.txt"
+  done
+done
+
 # The 10 s runtime pair at 360x270.
 mkdir -p "$out/runtime"
 rosrun deep_ois make_calibration_configs --base "$repo/config/simulator/RE.yaml" --count 1 --seed 11 \
@@ -48,7 +67,7 @@ for ois in off on; do
 done
 
 started=$(date +%s)
-echo "make_calibration_bags: $((2 * count + 2)) bags into $out with $(nproc) parallel simulators"
+echo "make_calibration_bags: $((4 * count + 2)) bags into $out with $(nproc) parallel simulators"
 # shellcheck disable=SC2016
 xargs -P "$(nproc)" -L 1 bash -c '
   [ -s "$4" ] && { echo "exists: $4"; exit 0; }

@@ -1,12 +1,15 @@
 // The calibration's ROS side: the YAML it writes is what the gyro flow nodelet's parameter loader
 // reads; its static transform is the one the simulator writes to /tf_static; and the whole path
-// (bag -> tracks -> estimate) on the committed sample bag. No roscore needed.
+// (bag -> tracks -> estimate) on the committed sample bag and on an OIS recording made to the
+// calibration protocol (rendered here by the simulator). No roscore needed.
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -17,6 +20,7 @@
 #include "deep_ois/ros/calibration_yaml.h"
 #include "deep_ois/ros/gyro_flow_parameters.h"
 #include "deep_ois/ros/parameter_source.h"
+#include "deep_ois/ros/simulation_bag_writer.h"
 
 namespace deep_ois {
 namespace {
@@ -127,6 +131,66 @@ TEST(CalibrateBag, SampleBagGivesTheSimulatedTimingAndMount) {
             << " s estimation" << (result.ok() ? "" : "; refused: " + result.reason()) << "\n";
   EXPECT_NEAR(c.time_offset_s, 0.0, 0.001);
   EXPECT_NEAR(c.readout_time_s, 0.022, 0.0015);
+}
+
+// An OIS camera recorded the way README "Calibration" asks (config/simulator/calibration.yaml: 10 s
+// of deliberate turns about all three axes, the scene 4 m away or more), rendered, tracked and
+// calibrated with every quantity free: the target of 0.5 ms / 0.5 ms / 0.5 degree holds through the
+// lens, and the estimate is accepted. The same tracks with the lens ignored miss the target, so the
+// lens model is what this measures. The truth is one the benchmark could have drawn.
+TEST(CalibrateBag, OisCameraRecordedToTheProtocolIsWithinTarget) {
+  sim::SimulatorConfig config =
+      sim::loadSimulatorConfig(std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator/calibration.yaml");
+  ASSERT_TRUE(config.ois.enabled);
+  config.imu.time_offset_s = 0.0312;
+  config.sensor.readout_time_s = 0.0147;
+  config.imu.imu_to_camera_rotation =
+      expSO3(Eigen::Vector3d(1.0, -2.0, 1.5).normalized() * 3.0 * kDeg) * signedAxisPermutations()[17];
+  config.imu.gyro_initial_bias_vector_rad_s = Eigen::Vector3d(0.006, -0.004, 0.008);
+  const std::string path = ::testing::TempDir() + "/deep_ois_calibration_protocol_ois.bag";
+  {
+    const sim::Simulator simulator(config, 505, 10.0);
+    writeSimulationBag(simulator, path, rosbag::compression::LZ4, SimulationBagTopics{}, nullptr);
+  }
+  const CalibrationBag bag = readCalibrationBag(path, CalibrationBagOptions());
+  std::remove(path.c_str());
+  ASSERT_TRUE(bag.simulated_ois_enabled.value_or(false));
+
+  CalibrationOptions options;
+  options.lens_shift = LensShiftHandling::kPerFrameShift;
+  const CalibrationResult result = calibrateCameraImu(bag.data, options);
+  const CameraImuCalibration& c = result.calibration;
+  const double offset_error_ms = (c.time_offset_s - config.imu.time_offset_s) * 1e3;
+  const double readout_error_ms = (c.readout_time_s - config.sensor.readout_time_s) * 1e3;
+  const double rotation_error_deg =
+      rotationAngleBetween(c.imu_to_camera_rotation, config.imu.imu_to_camera_rotation) / kDeg;
+  std::cout << "[ measured ] OIS, calibration protocol (10 s, 360x270): offset error " << offset_error_ms
+            << " ms (+- " << c.time_offset_sigma_s * 1e3 << "), readout error " << readout_error_ms << " ms (+- "
+            << c.readout_time_sigma_s * 1e3 << "), rotation error " << rotation_error_deg << " deg (+- "
+            << c.rotation_sigma_rad.maxCoeff() / kDeg << " max axis), " << result.pairs_used << " pairs, "
+            << result.tracks_used << " tracks, " << bag.tracking_seconds << " s KLT, " << result.seconds
+            << " s estimation" << (result.ok() ? "" : "; refused: " + result.reason()) << "\n";
+  EXPECT_TRUE(result.ok()) << result.reason();
+  EXPECT_EQ(result.coarse_permutation_index, 17);
+  EXPECT_LT(std::abs(offset_error_ms), 0.5);
+  EXPECT_LT(std::abs(readout_error_ms), 0.5);
+  EXPECT_LT(rotation_error_deg, 0.5);
+
+  CalibrationOptions fixed_lens;
+  fixed_lens.max_iterations = 15;  // it only has to show how far off it is
+  const CalibrationResult ignored = calibrateCameraImu(bag.data, fixed_lens);
+  const double ignored_offset_error_ms = (ignored.calibration.time_offset_s - config.imu.time_offset_s) * 1e3;
+  const double ignored_readout_error_ms =
+      (ignored.calibration.readout_time_s - config.sensor.readout_time_s) * 1e3;
+  const double ignored_rotation_error_deg =
+      rotationAngleBetween(ignored.calibration.imu_to_camera_rotation, config.imu.imu_to_camera_rotation) / kDeg;
+  std::cout << "[ measured ] same tracks, lens ignored: offset error " << ignored_offset_error_ms
+            << " ms, readout error " << ignored_readout_error_ms << " ms, rotation error "
+            << ignored_rotation_error_deg << " deg\n";
+  // Outside the target (here the readout, by 0.83 ms; over the benchmark's 24 protocol OIS bags the
+  // fixed-lens estimate misses it on 20, with readout errors up to 2.9 ms).
+  EXPECT_GT(std::max({std::abs(ignored_offset_error_ms), std::abs(ignored_readout_error_ms), ignored_rotation_error_deg}),
+            0.5);
 }
 
 }  // namespace
