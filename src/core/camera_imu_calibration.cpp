@@ -853,8 +853,10 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
   // Under OIS the usual motion advice is not enough: the lens absorbs most pan and tilt.
   const std::string ois_advice =
       options.lens_shift == LensShiftHandling::kPerFrameShift
-          ? " (with OIS the lens absorbs most of the pan and tilt: hold the mount with its known value, "
-            "e.g. calibrated with OIS off, and record longer)"
+          ? " (with OIS the lens absorbs most of the pan and tilt: record the calibration protocol, 10 s "
+            "or more turning the camera briskly about all three axes, roll about the lens included, "
+            "facing a scene 4 m away or more; or hold the mount at a known value, e.g. calibrated with "
+            "OIS off)"
           : "";
   if (options.estimate_time_offset && calibration.time_offset_sigma_s > options.max_time_offset_sigma_s) {
     result.refusals.push_back(
