@@ -24,36 +24,28 @@ count="${2:-24}"
 duration="${3:-5}"
 mkdir -p "$out"
 
-rosrun deep_ois make_calibration_configs --base "$repo/config/simulator/sample.yaml" --count "$count" \
-  --seed 7 --out "$out" | tee "$out/truth.txt"
-
 jobs_file="$(mktemp)"
 trap 'rm -f "$jobs_file"' EXIT
-: >"$out/manifest.txt"
-for ((i = 0; i < count; ++i)); do
-  name="$(printf 'cal_%02d' "$i")"
-  seed=$((500 + i))
-  for ois in off on; do
-    bag="${name}_$([ "$ois" = on ] && echo ois || echo nonois).bag"
-    echo "$out/$name.yaml $seed $duration $ois $out/$bag" >>"$jobs_file"
-    echo "$bag $name.yaml" >>"$out/manifest.txt"
-  done
-done
 
-# The calibration-protocol set: same seeds, so the same calibrations as the hand-held set.
-protocol_duration=10
-mkdir -p "$out/protocol"
-rosrun deep_ois make_calibration_configs --base "$repo/config/simulator/calibration.yaml" --count "$count" \
-  --seed 7 --out "$out/protocol" >"$out/protocol/truth.txt"
-: >"$out/protocol/manifest.txt"
-for ((i = 0; i < count; ++i)); do
-  name="$(printf 'cal_%02d' "$i")"
-  for ois in off on; do
-    bag="${name}_$([ "$ois" = on ] && echo ois || echo nonois).bag"
-    echo "$out/protocol/$name.yaml $((500 + i)) $protocol_duration $ois $out/protocol/$bag" >>"$jobs_file"
-    echo "$bag $name.yaml" >>"$out/protocol/manifest.txt"
+# One set: COUNT configs from BASE (seed 7, so every set has the same calibrations), each simulated
+# with OIS and as its twin for SECONDS, queued in $jobs_file and listed in DIR/manifest.txt.
+add_set() {
+  local base="$1" dir="$2" seconds="$3" i ois name bag
+  mkdir -p "$dir"
+  rosrun deep_ois make_calibration_configs --base "$base" --count "$count" --seed 7 --out "$dir" |
+    tee "$dir/truth.txt"
+  : >"$dir/manifest.txt"
+  for ((i = 0; i < count; ++i)); do
+    name="$(printf 'cal_%02d' "$i")"
+    for ois in off on; do
+      bag="${name}_$([ "$ois" = on ] && echo ois || echo nonois).bag"
+      echo "$dir/$name.yaml $((500 + i)) $seconds $ois $dir/$bag" >>"$jobs_file"
+      echo "$bag $name.yaml" >>"$dir/manifest.txt"
+    done
   done
-done
+}
+add_set "$repo/config/simulator/sample.yaml" "$out" "$duration"               # hand-held shots
+add_set "$repo/config/simulator/calibration.yaml" "$out/protocol" 10          # the protocol
 
 # The 10 s runtime pair at 360x270.
 mkdir -p "$out/runtime"

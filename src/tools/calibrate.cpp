@@ -9,7 +9,9 @@
 //
 // --readout / --time-offset / --rotation hold that quantity at the given value instead of
 // estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. --ois on removes a
-// per-frame lens shift (for cameras with an optical image stabilizer).
+// per-frame lens shift (for cameras with an optical image stabilizer); such a camera needs the
+// calibration protocol recording (README "Calibration": 10 s or more of brisk turns about all three
+// axes, roll included, facing a scene 4 m away or more).
 // Exit status: 0 written, 1 refused (motion too weak; nothing written) or failed, 2 usage.
 #include <Eigen/Geometry>
 #include <cmath>
