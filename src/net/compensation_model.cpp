@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "compensation_model_impl.h"
-#include "deep_ois/core/flow_resample.h"
+#include "deep_ois/core/flow/flow_resample.h"
 
 namespace deep_ois {
 

@@ -2,7 +2,7 @@
 
 #include <stdexcept>
 
-#include "deep_ois/core/flow_resample.h"
+#include "deep_ois/core/flow/flow_resample.h"
 
 namespace deep_ois {
 

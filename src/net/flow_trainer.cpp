@@ -12,9 +12,9 @@
 #include <stdexcept>
 
 #include "compensation_model_impl.h"
-#include "deep_ois/core/homography_flow.h"
-#include "deep_ois/core/motion_history.h"
-#include "deep_ois/core/portable_random.h"
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/flow/motion_history.h"
+#include "deep_ois/core/common/portable_random.h"
 
 namespace deep_ois {
 

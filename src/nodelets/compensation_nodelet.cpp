@@ -4,7 +4,7 @@
 
 #include <memory>
 
-#include "deep_ois/ros/compensation_ros.h"
+#include "deep_ois/ros/live/compensation_ros.h"
 
 namespace deep_ois {
 

@@ -13,7 +13,7 @@
 #include <string>
 #include <thread>
 
-#include "deep_ois/ros/fundamental_mixtures_offline.h"
+#include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
 
 namespace deep_ois {
 

@@ -4,7 +4,7 @@
 
 #include <memory>
 
-#include "deep_ois/ros/gyro_flow_ros.h"
+#include "deep_ois/ros/live/gyro_flow_ros.h"
 
 namespace deep_ois {
 

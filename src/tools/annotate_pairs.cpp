@@ -27,8 +27,8 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/correspondence_proposer.h"
-#include "deep_ois/ros/bag_frame_reader.h"
+#include "deep_ois/tools/support/correspondence_proposer.h"
+#include "deep_ois/ros/bag/bag_frame_reader.h"
 
 namespace {
 

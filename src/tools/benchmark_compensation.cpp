@@ -19,17 +19,17 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/flow_color.h"
-#include "deep_ois/core/flow_resample.h"
-#include "deep_ois/core/flow_warp.h"
-#include "deep_ois/core/ghost_overlay.h"
-#include "deep_ois/core/homography_flow.h"
-#include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/core/flow/flow_color.h"
+#include "deep_ois/core/flow/flow_resample.h"
+#include "deep_ois/core/flow/flow_warp.h"
+#include "deep_ois/core/flow/ghost_overlay.h"
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
-#include "deep_ois/ros/bag_frame_reader.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/gyro_flow_parameters.h"
+#include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
 
 namespace {
 

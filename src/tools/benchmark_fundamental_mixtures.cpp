@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/feature_tracker.h"
-#include "deep_ois/core/fundamental_mixtures.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/ground_truth/fundamental_mixtures.h"
 #include "deep_ois/core/sim/simulator.h"
 
 namespace deep_ois {

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/homography_flow.h"
-#include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/imu_model.h"
 

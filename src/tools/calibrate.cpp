@@ -15,18 +15,20 @@
 // Exit status: 0 written, 1 refused (motion too weak; nothing written) or failed, 2 usage.
 #include <Eigen/Geometry>
 #include <cmath>
+#include <chrono>
 #include <cstdio>
+#include <memory>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/progress_bar.h"
-#include "deep_ois/core/rotation_alignment.h"
-#include "deep_ois/ros/bag_frame_reader.h"
-#include "deep_ois/ros/calibration_bag_reader.h"
-#include "deep_ois/ros/calibration_yaml.h"
+#include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/core/calibration/rotation_alignment.h"
+#include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/calibration_bag_reader.h"
+#include "deep_ois/core/calibration/calibration_yaml.h"
 
 namespace {
 
@@ -137,12 +139,19 @@ int main(int argc, char** argv) {
   if (!problem.empty()) return usage(problem);
 
   try {
-    deep_ois::ProgressBar progress(deep_ois::indexedFramePairCount(bag_path, bag_options.topics.image),
-                                   "pairs tracked");
-    const deep_ois::CalibrationBag bag =
-        deep_ois::readCalibrationBag(bag_path, bag_options, quiet ? nullptr : &progress);
+    const auto reading_started = std::chrono::steady_clock::now();
+    std::unique_ptr<deep_ois::ProgressBar> bar;
+    deep_ois::ProgressCallback on_progress;
+    if (!quiet) {
+      on_progress = [&bar](std::size_t done, std::size_t total) {
+        if (!bar) bar = std::make_unique<deep_ois::ProgressBar>(total, "pairs tracked");
+        bar->update(done);
+      };
+    }
+    const deep_ois::CalibrationBag bag = deep_ois::readCalibrationBag(bag_path, bag_options, on_progress);
     if (!quiet) std::fprintf(stderr, "\n");
-    const double reading_s = progress.elapsedSeconds();
+    const double reading_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - reading_started).count();
     if (rotation_text == "tf") {
       if (!bag.tf_imu_to_camera_rotation) {
         std::fprintf(stderr, "calibrate: --rotation tf, but %s has no IMU -> camera transform in /tf_static\n",

@@ -19,9 +19,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/rotation_alignment.h"
+#include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/core/sim/simulator_config.h"
-#include "deep_ois/ros/calibration_bag_reader.h"
+#include "deep_ois/ros/bag/calibration_bag_reader.h"
 
 namespace {
 

@@ -5,7 +5,7 @@
 //   convert_recording --recording DIR --camera-info FILE.yaml --out FILE.bag [options]
 //
 // Run without arguments for the options. The work is done by writePhoneRecordingBag
-// (deep_ois/ros/phone_recording_bag.h), which documents what the bag holds.
+// (deep_ois/ros/bag/phone_recording_bag.h), which documents what the bag holds.
 #include <rosbag/bag.h>
 
 #include <cstdio>
@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/progress_bar.h"
-#include "deep_ois/ros/phone_recording_bag.h"
+#include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/ros/bag/phone_recording_bag.h"
 
 namespace {
 

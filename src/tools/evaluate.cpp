@@ -16,22 +16,25 @@
 // on the gyro flow nodelet's flow). With --recorded, the gyro_flow and compensated_flow messages
 // the live nodelets published during a replay of the same bags (rosbag record) are scored too, as
 // rows of their own: they must equal the offline rows. The work is EvaluationRunner's
-// (ros/evaluation_runner.h); this file parses flags and writes the outputs.
+// (tools/support/evaluation_runner.h); this file parses flags and writes the outputs.
 #include <ros/package.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <algorithm>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/standard_alignment_methods.h"
+#include "deep_ois/core/evaluation/standard_table_rows.h"
+#ifdef DEEP_OIS_WITH_TORCH
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
-#include "deep_ois/ros/evaluation_runner.h"
-#include "deep_ois/ros/recorded_flows.h"
+#endif
+#include "deep_ois/tools/support/evaluation_runner.h"
+#include "deep_ois/tools/support/recorded_flows.h"
 
 namespace {
 
@@ -123,7 +126,15 @@ int main(int argc, char** argv) {
 
   deep_ois::EvaluationReport report;
   bool parity_failed = false;
+#ifdef DEEP_OIS_WITH_TORCH
   std::unique_ptr<deep_ois::CompensationModel> model;
+#else
+  // Built without libtorch: only an explicit --model is an error, the default row is left out.
+  const bool model_requested = std::find(argv + 1, argv + argc, std::string("--model")) != argv + argc;
+  if (model_requested) return usage("--model: this build has no compensation network (built without libtorch)");
+  model_path.clear();
+  const std::unique_ptr<int> model;  // no model row
+#endif
   try {
     options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
     if (!annotations.empty()) options.annotations = deep_ois::readAnnotationFile(annotations);
@@ -133,6 +144,7 @@ int main(int argc, char** argv) {
     runner.addMethods(deep_ois::standardAlignmentMethods(standard));
     // The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow, over
     // each recording's pairs in order with the motion history, as the nodelet runs it.
+#ifdef DEEP_OIS_WITH_TORCH
     if (!model_path.empty()) {
       deep_ois::setTorchThreads(torch_threads);
       model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(model_path));
@@ -146,6 +158,9 @@ int main(int argc, char** argv) {
                               stream->compensate(pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
                         }});
     }
+#else
+    (void)torch_threads;
+#endif
     // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
     std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
     if (!recorded.empty()) {
@@ -203,7 +218,11 @@ int main(int argc, char** argv) {
   if (!recorded.empty()) {
     // Replay parity: the live nodelets' flows against the same computation offline, pair by pair.
     constexpr double kParityTolerancePx = 1e-3;
+#ifdef DEEP_OIS_WITH_TORCH
     const std::string model_row = model ? "DeepOIS, shipped model (" + model->metadata().preset + ")" : "";
+#else
+    const std::string model_row;
+#endif
     std::vector<std::pair<std::string, std::string>> comparisons = {
         {"gyro, OIS camera (uncompensated)", "gyro, OIS camera (live nodelet, recorded)"}};
     if (model) comparisons.push_back({model_row, "DeepOIS (live nodelets, recorded)"});

@@ -32,14 +32,14 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/evaluation_table.h"
-#include "deep_ois/core/feature_tracker.h"
-#include "deep_ois/core/fundamental_mixtures.h"
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/core/orientation_integrator.h"
-#include "deep_ois/ros/bag_frame_reader.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/conversions.h"
+#include "deep_ois/core/evaluation/results_table.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/ground_truth/fundamental_mixtures.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
+#include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/messages/conversions.h"
 
 namespace {
 
@@ -67,14 +67,6 @@ double meanPatchRotationErrorDeg(const std::vector<Eigen::Matrix3d>& estimated,
   return sum / static_cast<double>(truth.size());
 }
 
-double median(std::vector<double> values) {
-  if (values.empty()) return std::nan("");
-  const std::size_t mid = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + mid, values.end());
-  if (values.size() % 2 == 1) return values[mid];
-  return 0.5 * (values[mid] + *std::max_element(values.begin(), values.begin() + mid));
-}
-
 // Per method and category, the values of every pair; printed as medians (EvaluationTable holds
 // only sums, for its means).
 class MedianTable {
@@ -98,7 +90,7 @@ class MedianTable {
         if (it == values_.end()) {
           out << " - |";
         } else {
-          out << " " << median(it->second) << " |";
+          out << " " << (it->second.empty() ? std::nan("") : deep_ois::median(it->second)) << " |";
         }
       }
       out << "\n";

@@ -13,11 +13,13 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
-#include "deep_ois/ros/fundamental_mixtures_offline.h"
-#include "deep_ois/ros/parameter_source.h"
+#include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
+#include "deep_ois/ros/live/parameter_source.h"
+#include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
 
@@ -75,6 +77,11 @@ int main(int argc, char** argv) {
 
   try {
     options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
+    std::unique_ptr<deep_ois::ProgressBar> bar;
+    options.on_progress = [&bar](std::size_t done, std::size_t total) {
+      if (!bar) bar = std::make_unique<deep_ois::ProgressBar>(total, "pairs");
+      bar->update(done);
+    };
     const deep_ois::FundamentalMixturesOffline job(options);
     std::signal(SIGINT, onStopSignal);
     std::signal(SIGTERM, onStopSignal);

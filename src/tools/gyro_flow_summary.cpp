@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/ros/conversions.h"
+#include "deep_ois/ros/messages/conversions.h"
 
 namespace {
 

@@ -19,9 +19,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/orientation_integrator.h"
-#include "deep_ois/core/portable_random.h"
-#include "deep_ois/core/rotation_alignment.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
+#include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/core/sim/simulator_config.h"
 
 namespace {

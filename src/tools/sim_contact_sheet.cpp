@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/ghost_overlay.h"
+#include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/core/sim/simulator.h"
 
 namespace {

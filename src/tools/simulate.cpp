@@ -13,9 +13,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "deep_ois/core/progress_bar.h"
+#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/core/sim/simulator.h"
-#include "deep_ois/ros/simulation_bag_writer.h"
+#include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace {
 

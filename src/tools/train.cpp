@@ -23,13 +23,13 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/content_hash.h"
-#include "deep_ois/core/line_plot.h"
-#include "deep_ois/core/portable_random.h"
-#include "deep_ois/core/progress_bar.h"
+#include "deep_ois/tools/support/dataset_hash.h"
+#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/flow_trainer.h"
-#include "deep_ois/ros/training_set_reader.h"
+#include "deep_ois/ros/bag/training_set_reader.h"
 
 namespace {
 

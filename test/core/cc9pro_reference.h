@@ -10,8 +10,8 @@
 #include <fstream>
 #include <string>
 
-#include "deep_ois/core/orientation_integrator.h"
-#include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "npy_reader.h"
 
 namespace deep_ois {

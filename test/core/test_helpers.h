@@ -8,7 +8,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "deep_ois/core/imu_sample_buffer.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
 
 namespace deep_ois {
 namespace test {

@@ -13,9 +13,9 @@
 
 #include <Eigen/Geometry>
 
-#include "deep_ois/core/homography_flow.h"
-#include "deep_ois/core/portable_random.h"
-#include "deep_ois/core/motion_history.h"
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/flow/motion_history.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/net/flow_trainer.h"

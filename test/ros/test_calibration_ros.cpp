@@ -14,12 +14,12 @@
 #include <iostream>
 #include <sstream>
 
-#include "deep_ois/core/rotation_alignment.h"
-#include "deep_ois/ros/calibration_bag_reader.h"
-#include "deep_ois/ros/calibration_yaml.h"
-#include "deep_ois/ros/gyro_flow_parameters.h"
-#include "deep_ois/ros/parameter_source.h"
-#include "deep_ois/ros/simulation_bag_writer.h"
+#include "deep_ois/core/calibration/rotation_alignment.h"
+#include "deep_ois/ros/bag/calibration_bag_reader.h"
+#include "deep_ois/core/calibration/calibration_yaml.h"
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/ros/live/parameter_source.h"
+#include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace deep_ois {
 namespace {

@@ -17,9 +17,9 @@
 #include <string>
 
 #include "cc9pro_reference.h"
-#include "deep_ois/core/phone_recording.h"
-#include "deep_ois/ros/conversions.h"
-#include "deep_ois/ros/phone_recording_bag.h"
+#include "deep_ois/core/recording/phone_recording.h"
+#include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "npy_reader.h"
 
 namespace deep_ois {

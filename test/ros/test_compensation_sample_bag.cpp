@@ -14,8 +14,8 @@
 
 
 #include "deep_ois/FramePairTruth.h"
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/ros/conversions.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/ros/messages/conversions.h"
 
 #include <map>
 #include <mutex>

@@ -19,9 +19,9 @@
 #include <vector>
 
 #include "cc9pro_reference.h"
-#include "deep_ois/core/phone_recording.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/phone_recording_bag.h"
+#include "deep_ois/core/recording/phone_recording.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "npy_reader.h"
 
 namespace deep_ois {

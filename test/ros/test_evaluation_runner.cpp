@@ -8,12 +8,12 @@
 #include <filesystem>
 #include <fstream>
 
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/core/standard_alignment_methods.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/conversions.h"
-#include "deep_ois/ros/evaluation_runner.h"
-#include "deep_ois/ros/simulation_bag_writer.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/evaluation/standard_table_rows.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/tools/support/evaluation_runner.h"
+#include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace deep_ois {
 namespace {

@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/ros/conversions.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
 namespace {

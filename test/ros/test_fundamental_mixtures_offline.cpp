@@ -18,12 +18,12 @@
 #include <map>
 
 #include "deep_ois/TrainingPair.h"
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/ros/bag_frame_reader.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/conversions.h"
-#include "deep_ois/ros/fundamental_mixtures_offline.h"
-#include "deep_ois/ros/simulation_bag_writer.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
+#include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace deep_ois {
 namespace {
@@ -97,7 +97,6 @@ FundamentalMixturesOfflineOptions optionsFor(const std::vector<std::string>& bag
   options.bags = bags;
   options.output_path = ::testing::TempDir() + "/" + out + ".bag";
   options.gyro = loadGyroFlowParameters(YamlParameters(sourcePath("config/gyro_flow.yaml")));
-  options.show_progress = false;
   return options;
 }
 

@@ -9,12 +9,12 @@
 #include <iterator>
 #include <sstream>
 
-#include "deep_ois/core/geometry_distance.h"
-#include "deep_ois/core/rolling_shutter_homographies.h"
-#include "deep_ois/ros/bag_frame_reader.h"
-#include "deep_ois/ros/bag_sequence.h"
-#include "deep_ois/ros/conversions.h"
-#include "deep_ois/ros/simulation_bag_writer.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace deep_ois {
 namespace {

@@ -1,5 +1,5 @@
 // A compensation model run over the consecutive frame pairs of one camera: it keeps the motion
-// history the model takes beside each pair's gyro flow (core/motion_history.h). The compensation
+// history the model takes beside each pair's gyro flow (core/flow/motion_history.h). The compensation
 // nodelet, the evaluator (one per recording) and the benchmark all go through it, so live and
 // offline results are the same computation.
 #pragma once
@@ -8,7 +8,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "deep_ois/core/motion_history.h"
+#include "deep_ois/core/flow/motion_history.h"
 #include "deep_ois/net/compensation_model.h"
 
 namespace deep_ois {

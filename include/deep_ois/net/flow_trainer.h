@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/training_sample.h"
+#include "deep_ois/core/ground_truth/training_sample.h"
 #include "deep_ois/net/compensation_model.h"
 
 namespace deep_ois {

@@ -54,7 +54,7 @@ struct ModelMetadata {
   // sees (flow - mean) / std.
   std::array<double, 2> input_mean_px{{0.0, 0.0}};
   std::array<double, 2> input_std_px{{1.0, 1.0}};
-  // Motion history (core/motion_history.h): time constants of the leaky sums of the earlier gyro
+  // Motion history (core/flow/motion_history.h): time constants of the leaky sums of the earlier gyro
   // flows the network sees beside the pair's own (seconds; empty = the gyro flow alone, the
   // authors' input). Two more input channels per time constant, normalised by the per-channel
   // statistics of the training set (u then v per time constant, working-grid pixels).

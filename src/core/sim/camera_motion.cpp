@@ -7,8 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "deep_ois/core/orientation_integrator.h"
-#include "deep_ois/core/portable_random.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
+#include "deep_ois/core/common/portable_random.h"
 
 namespace deep_ois {
 namespace sim {

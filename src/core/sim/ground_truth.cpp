@@ -5,8 +5,8 @@
 #include <cmath>
 #include <random>
 
-#include "deep_ois/core/portable_random.h"
-#include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 
 namespace deep_ois {
 namespace sim {

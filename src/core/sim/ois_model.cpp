@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "deep_ois/core/portable_random.h"
+#include "deep_ois/core/common/portable_random.h"
 
 namespace deep_ois {
 namespace sim {

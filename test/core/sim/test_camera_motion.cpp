@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "deep_ois/core/orientation_integrator.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
 #include "test_helpers.h"

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "deep_ois/core/rolling_shutter_homographies.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
 #include "test_helpers.h"

@@ -8,8 +8,8 @@
 #include <iostream>
 #include <opencv2/imgproc.hpp>
 
-#include "deep_ois/core/feature_tracker.h"
-#include "deep_ois/core/geometry_distance.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/core/sim/simulator.h"
 #include "test_helpers.h"
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/imu_sample_buffer.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/sim/camera_motion.h"
 
 namespace deep_ois {

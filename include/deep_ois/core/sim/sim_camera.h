@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/camera_model.h"
+#include "deep_ois/core/camera/camera_model.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
 

@@ -1,0 +1,203 @@
+// Camera-IMU calibration from point tracks and the gyro stream: the camera-IMU time offset, the
+// rolling-shutter readout time, a constant gyro bias and the IMU-to-camera rotation, jointly, with
+// no calibration target. Pure Eigen + OpenCV: no ROS. Plain data in, so a rosbag, a phone
+// recording or synthetic tracks all go through the same estimator.
+//
+// Model (the gyro flow's, conventions in the README): a point tracked from row v_a of frame a to
+// row v_b of frame b is captured at IMU times
+//     t_a = stamp_a + time_offset + readout_time * v_a / height,   t_b likewise,
+// and the gyro rotation between them, R_b_a = R_cam_imu (R_imu(t_a)^T R_imu(t_b))^T R_cam_imu^T
+// with the bias subtracted from every sample, predicts x_b = K R_b_a K^-1 x_a (undistorted pixels).
+// Every point has its own capture times, so the residual is exact for any rolling shutter, not a
+// per-patch approximation.
+//
+// Stages:
+//  1. Coarse, global (camera_imu_coarse_alignment.h): a rotation fitted to each pair's tracks is
+//     compared with the gyro rotation over a grid of time offsets and all 24 signed axis
+//     permutations; the best cell, refined by Procrustes, starts stage 2. No initial guess needed.
+//  2. Continuous refinement: Levenberg-Marquardt on the reprojection residuals of all tracks over
+//     (time offset, readout, bias, rotation), analytic Jacobians, Cauchy loss by iteratively
+//     reweighted least squares (moving objects and bad tracks get down-weighted). The parallax
+//     of camera translation is removed per track (see eliminate_parallax).
+//  3. Uncertainty: the larger of sigma^2 (J^T W J)^-1 (sigma^2 the weighted residual variance)
+//     and the cluster-robust covariance over stretches of consecutive pairs, which counts what
+//     the tracks of one moment share (parallax, a lens-shift misfit) once. A quantity whose
+//     uncertainty exceeds its limit, or whose motion prerequisite is missing, is refused with the
+//     reason and the remedy.
+//
+// OIS cameras (LensShiftHandling::kPerFrameShift): the stabilizer shifts the lens against pan and
+// tilt (never roll about the optical axis), so the images move less than the gyro says and a fit
+// that ignores it is off by milliseconds and tens of degrees. The lens shift acts as a
+// principal-point shift, so the model becomes x_b = pi(K R_b_a K^-1 (x_a - s_a(row))) + s_b(row'),
+// with s_k the shift of frame k as a polynomial of the row (the lens moves during the readout).
+// Every frame's shift is shared by the two pairs it belongs to and is estimated jointly with the
+// calibration, eliminated by a sparse Schur complement at each iteration (as landmarks in bundle
+// adjustment), under a prior that keeps the lens within a few pixels of its centre (its stroke).
+// Subtracting the shift before the rotation matters: a translation added after it would miss the
+// perspective of a pan about a shifted principal point, which biases the mount by about
+// shift / focal (a degree for 4 px at 230 px). What the shifts cannot absorb pins the
+// calibration: roll about the optical axis, the perspective (keystone) part of pan and tilt, and
+// pans too slow or too large for the lens. That is far less signal than a fixed lens gives, and
+// the recording has to supply it (the calibration protocol, README "Calibration"): brisk turns
+// about all three axes, because roll is the one rotation the lens never cancels and so carries the
+// timing and the tilt of the mount, and a scene 4 m away or more, because what the shifts leave is
+// the perspective of pan and tilt, which the parallax of near objects mimics. Recorded so (10 s),
+// 24 of 24 simulator OIS bags are within 0.5 ms / 0.5 ms / 0.5 degree; a hand-held shot (weak roll,
+// near objects, 5 s) gives 3 of 24, and the estimator refuses most of those. Otherwise hold the
+// rotation (calibrate --rotation) from a recording with OIS off or from CAD.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
+
+namespace deep_ois {
+
+// Tracks between two frames of the recording (usually consecutive ones).
+struct CalibrationPair {
+  int frame_a = 0;  // index into CalibrationData::frame_stamps_s (the earlier frame)
+  int frame_b = 1;
+  std::vector<FeatureMatch> matches;  // raw (distorted) pixels, a -> b
+};
+
+struct CalibrationData {
+  std::vector<ImuSample> gyro;         // IMU frame, IMU clock, strictly increasing stamps
+  std::vector<double> frame_stamps_s;  // camera clock: capture of each frame's first row
+  CameraModel camera;                  // image size, K, distortion
+  std::vector<CalibrationPair> pairs;
+};
+
+enum class LensShiftHandling {
+  kNone,          // a fixed lens (no OIS, or OIS off)
+  kPerFrameShift,  // OIS: a lens shift per frame (polynomial of the row) estimated alongside
+};
+
+const char* toString(LensShiftHandling handling);
+
+struct CalibrationOptions {
+  // Quantities to estimate; the others are held at the values below.
+  bool estimate_time_offset = true;
+  bool estimate_readout_time = true;
+  bool estimate_gyro_bias = true;
+  bool estimate_rotation = true;
+  // Held values, or starting points: the time offset and rotation start from the coarse stage
+  // when estimated; the readout starts here (negative = half the median frame interval); the
+  // bias starts from the coarse stage's estimate when estimated.
+  double time_offset_s = 0.0;  // IMU time = camera stamp + time_offset_s
+  double readout_time_s = -1.0;
+  Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();  // IMU frame
+  Eigen::Matrix3d imu_to_camera_rotation = Eigen::Matrix3d::Identity();  // R_cam_imu
+
+  LensShiftHandling lens_shift = LensShiftHandling::kNone;
+  // Remove the parallax of camera translation (fixed lens only): per pair a translation direction
+  // is fitted and every track keeps only its residual across its own parallax direction (depth no
+  // longer matters). Hand-held recordings translate by millimetres per frame, which near objects
+  // turn into tenths of a pixel: enough to bias the rotation by most of a degree. Costs half the
+  // residual components; turn it off only for a camera that truly only rotates. Not used with
+  // kPerFrameShift: the lens shifts already absorb the common part of the parallax, and what is
+  // left to fit under OIS is too weak to give up a component of every track (measured worse).
+  bool eliminate_parallax = true;
+  // With kPerFrameShift: each frame's shift is a polynomial of the row of this order (0 = a
+  // translation, 1 = + a translation growing with the row, ...; at most 3). The cubic follows the
+  // lens through a long readout (33 ms: readout error -1.25 ms with the quadratic, -0.24 ms with
+  // the cubic on a simulator bag).
+  int lens_shift_row_order = 3;
+  RateInterpolation interpolation = RateInterpolation::kLinear;
+  double max_imu_gap_s = 0.05;  // a pair whose interval crosses a longer gap is not used
+
+  // Coarse stage: the offset grid spans [-max_abs_time_offset_s, +max_abs_time_offset_s].
+  double max_abs_time_offset_s = 0.2;
+  double coarse_time_step_s = 0.001;
+  // Readout is kept in [0, max_readout_time_s]; negative = the median frame interval.
+  double max_readout_time_s = -1.0;
+
+  // Refinement.
+  int max_iterations = 60;
+  // Cauchy loss scale = robust_scale_factor x the robust (MAD) residual sigma, at least
+  // min_robust_scale_px (pixels).
+  double robust_scale_factor = 2.5;
+  double min_robust_scale_px = 0.15;
+
+  // Input requirements.
+  int min_pairs = 20;            // usable pairs needed
+  int min_tracks_per_pair = 12;  // a pair with fewer tracks is not used
+
+  // Observability. A rotation-rate axis counts as excited when the gyro's RMS rate about it is at
+  // least min_excitation_rate_rad_s; the rotation needs two excited axes, everything needs one.
+  double min_excitation_rate_rad_s = 0.02;
+  // Largest 1-sigma uncertainty accepted for each estimated quantity.
+  double max_time_offset_sigma_s = 0.00025;
+  double max_readout_time_sigma_s = 0.00025;
+  double max_rotation_sigma_rad = 0.25 * 3.14159265358979323846 / 180.0;  // per camera axis
+  double max_gyro_bias_sigma_rad_s = 0.002;                                // per IMU axis
+
+  // Empty when usable; otherwise a sentence naming the bad field.
+  std::string validate() const;
+};
+
+struct CameraImuCalibration {
+  double time_offset_s = 0.0;
+  double readout_time_s = 0.0;
+  Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();               // IMU frame
+  Eigen::Matrix3d imu_to_camera_rotation = Eigen::Matrix3d::Identity();  // R_cam_imu
+  // 1-sigma uncertainties (0 for a held quantity). The rotation's is about the camera's x, y, z
+  // axes (a small rotation exp(e) R_cam_imu with e in the camera frame).
+  double time_offset_sigma_s = 0.0;
+  double readout_time_sigma_s = 0.0;
+  Eigen::Vector3d gyro_bias_sigma_rad_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rotation_sigma_rad = Eigen::Vector3d::Zero();
+};
+
+enum class CalibrationStatus {
+  kOk,
+  kRefused,  // at least one estimated quantity is not observable from this recording
+};
+
+struct CalibrationResult {
+  CalibrationStatus status = CalibrationStatus::kOk;
+  // One sentence per refused quantity: what is missing and what to do about it.
+  std::vector<std::string> refusals;
+  // The estimate (filled even when refused, for diagnosis; do not use a refused quantity).
+  CameraImuCalibration calibration;
+
+  // Diagnostics.
+  int pairs_used = 0;
+  int tracks_used = 0;
+  double coarse_time_offset_s = 0.0;   // best cell of the coarse grid (with the initial readout)
+  int coarse_permutation_index = -1;   // into signedAxisPermutations(); -1 when the rotation was held
+  int iterations = 0;
+  double initial_median_residual_px = 0.0;  // after the coarse stage
+  double median_residual_px = 0.0;          // after refinement (with the lens shift removed for OIS)
+  double inlier_fraction = 0.0;             // tracks with a Cauchy weight above 0.5
+  Eigen::Vector3d rate_rms_rad_s = Eigen::Vector3d::Zero();  // gyro RMS about its principal axes, descending
+  double seconds = 0.0;  // wall time of calibrateCameraImu()
+
+  bool ok() const { return status == CalibrationStatus::kOk; }
+  // The refusals joined with "; " (empty when ok).
+  std::string reason() const;
+};
+
+// KLT settings for calibration tracks: the tracker's defaults with an 11 px window instead of
+// 21. A window spans rows read out at different times that moved differently, and a wide one
+// shifts each track's effective capture time. Measured on a 5 s simulator bag: time offset /
+// readout errors +0.17 / -0.27 ms with 21 px, +0.05 / -0.07 ms with 11 px (31 px: +0.32 /
+// -0.55 ms), the number of tracks unchanged.
+KltOptions calibrationKltOptions();
+
+// Runs the coarse stage, the refinement and the observability checks. Throws
+// std::invalid_argument naming the problem for malformed input (bad options, no camera, stamps
+// not increasing, a pair naming a frame that does not exist, too few usable pairs).
+CalibrationResult calibrateCameraImu(const CalibrationData& data, const CalibrationOptions& options);
+
+// Per-track reprojection errors |x_b - predicted x_b| (pixels, undistorted) of `data` under a
+// calibration, no lens-shift elimination; a pair the gyro does not cover gets no entries. For
+// reporting how well a calibration aligns the tracks.
+std::vector<double> trackResidualsPx(const CalibrationData& data, const CameraImuCalibration& calibration,
+                                     RateInterpolation interpolation = RateInterpolation::kLinear);
+
+}  // namespace deep_ois

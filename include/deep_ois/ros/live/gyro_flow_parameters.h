@@ -1,0 +1,42 @@
+// Every parameter of the gyro flow wrapper, read and validated in one place.
+#pragma once
+
+#include <ros/node_handle.h>
+
+#include "deep_ois/ros/live/parameter_source.h"
+
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "deep_ois/core/gyro/orientation_integrator.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+
+namespace deep_ois {
+
+struct GyroFlowParameters {
+  // Rolling-shutter model. rolling_shutter.imu_to_camera_rotation is only used when
+  // rotation_from_tf is false (the ~imu_to_camera_rotation parameter was given).
+  RollingShutterConfig rolling_shutter;
+  bool rotation_from_tf = true;
+  IntegrationOptions integration;
+
+  std::string camera_frame_id;  // overrides the image's frame_id when not empty
+  std::string imu_frame_id;     // overrides the Imu message's frame_id when not empty
+
+  cv::Size grid_size{360, 270};        // working grid of the published flow, pixels
+  double color_max_flow_px = 0.0;      // flow magnitude shown at full brightness; 0 = per frame max
+  double imu_buffer_duration_s = 5.0;  // how much IMU history is kept
+  double imu_wait_timeout_s = 0.5;     // how long a frame may wait for IMU samples covering it
+  double max_frame_interval_s = 0.25;  // frames further apart are not paired (dropped frames)
+  double time_jump_reset_s = 1.0;      // a stamp this much older than the newest one resets state
+  int image_queue_size = 5;
+  int imu_queue_size = 2000;
+};
+
+// Reads every parameter with its default. Throws std::invalid_argument with a message naming the
+// parameter, its value and what is expected when one is invalid. The nodelet reads its private
+// namespace; offline tools read config/gyro_flow.yaml through a YamlParameters source.
+GyroFlowParameters loadGyroFlowParameters(const ParameterSource& source);
+GyroFlowParameters loadGyroFlowParameters(const ros::NodeHandle& private_nh);
+
+}  // namespace deep_ois

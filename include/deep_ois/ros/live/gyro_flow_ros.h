@@ -1,0 +1,107 @@
+// ROS wrapper of the gyro flow: buffers sensor_msgs/Imu and, for every camera frame, publishes the
+// rolling-shutter homographies and dense flow between the previous frame and this one.
+#pragma once
+
+#include <deep_ois/GyroFlow.h>
+#include <image_transport/image_transport.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
+
+namespace deep_ois {
+
+// Topics (relative to the node handle): subscribes `imu`, `image_raw` + `camera_info`
+// (image_transport, transport chosen by ~image_transport); publishes `gyro_flow`
+// (deep_ois/GyroFlow) and `gyro_flow/color` (rgb8). Inputs are subscribed only while an output
+// has a subscriber.
+//
+// Threading: every subscription callback and the timer run on the node handle's callback queue;
+// subscriber-status callbacks come from publisher threads. One mutex guards all state, so the
+// class is safe with single- or multi-threaded handles. Processing a frame takes about a
+// millisecond, so holding the mutex through it costs nothing.
+class GyroFlowRos {
+ public:
+  // Reads the parameters from `private_nh`; throws std::invalid_argument naming a bad parameter.
+  GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh);
+  ~GyroFlowRos();
+
+  GyroFlowRos(const GyroFlowRos&) = delete;
+  GyroFlowRos& operator=(const GyroFlowRos&) = delete;
+
+ private:
+  // A frame waiting for the IMU samples that cover it.
+  struct Frame {
+    ros::Time stamp;
+    std::string frame_id;
+    CameraModel camera;
+    std::string distortion_model;
+    std::vector<double> distortion;  // CameraInfo D as received
+    ros::Time received;  // ROS time of arrival, to bound the wait for IMU data
+  };
+
+  void connectCallback();
+  void imuCallback(const sensor_msgs::ImuConstPtr& imu);
+  void cameraCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
+  void waitingTimerCallback(const ros::WallTimerEvent&);
+
+  // Pairs pending frames with the previous frame as far as the IMU data allows.
+  void processPendingFrames();
+  // Publishes the gyro flow from previous_ to `frame`; false when IMU data is not there yet.
+  enum class Outcome { kPublished, kWaitForImu, kDropped };
+  Outcome processFrame(const Frame& frame);
+  // R_cam_imu from the parameter or tf; empty (and a throttled warning) when unavailable.
+  std::optional<Eigen::Matrix3d> imuToCameraRotation(const std::string& camera_frame);
+  // Forgets IMU samples and frames, e.g. when time jumps backwards because a bag loops.
+  void resetState(const std::string& why);
+  // Resets when ROS time went backwards since the last callback.
+  void checkRosTimeJump();
+
+  ros::NodeHandle nh_;
+  ros::NodeHandle private_nh_;
+  const GyroFlowParameters params_;
+
+  std::mutex mutex_;
+  image_transport::ImageTransport it_;
+  ros::Subscriber imu_sub_;
+  image_transport::CameraSubscriber camera_sub_;
+  ros::Publisher flow_pub_;
+  image_transport::Publisher color_pub_;
+  tf2_ros::Buffer tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  ros::WallTimer waiting_timer_;
+
+  ImuSampleBuffer imu_buffer_;
+  std::string imu_frame_id_;  // frame of every sample in imu_buffer_
+  std::deque<Frame> pending_frames_;
+  std::optional<Frame> previous_;
+  std::unique_ptr<HomographyFlowRenderer> renderer_;  // rebuilt when camera or grid changes
+  std::optional<Eigen::Matrix3d> cached_rotation_;     // tf rotation for cached_rotation_frames_
+  std::string cached_rotation_frames_;
+  ros::Time last_ros_time_;
+  // Origin of the seconds handed to the core (whole second of the first stamp since a reset).
+  std::optional<ros::Time> time_base_;
+  double secondsSinceBase(const ros::Time& stamp);
+
+  // Counters for the "still waiting" diagnostics.
+  std::size_t imu_received_ = 0;
+  ros::Time last_imu_arrival_;  // ROS time the latest IMU message was handled
+  std::size_t frames_received_ = 0;
+  std::size_t flows_published_ = 0;
+  std::size_t flows_published_at_last_check_ = 0;
+};
+
+}  // namespace deep_ois

@@ -1,0 +1,64 @@
+// Conversions between ROS messages and the plain types of the core library.
+#pragma once
+
+#include <deep_ois/GyroFlow.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+
+namespace deep_ois {
+
+// Gyro reading of an Imu message: stamp in seconds since `time_base`, rate in rad/s in the
+// message's frame. A recent time base keeps the stamps' doubles at nanosecond resolution (epoch
+// seconds would leave only ~0.2 us).
+ImuSample toImuSample(const sensor_msgs::Imu& imu, const ros::Time& time_base);
+
+// Empty when the image header describes a usable image (known encoding, positive size, a step
+// and data size that hold width x height pixels); otherwise a sentence naming the problem.
+std::string validateImage(const sensor_msgs::Image& image);
+
+// Builds the camera model of a CameraInfo. Returns an empty string on success, or a sentence
+// naming the problem (unsupported distortion model, non-finite or degenerate K, zero size).
+std::string toCameraModel(const sensor_msgs::CameraInfo& info, CameraModel& camera);
+
+// Everything a GyroFlow message states besides its flow and homographies.
+struct GyroFlowMetadata {
+  std_msgs::Header header;  // stamp of frame b, camera optical frame id
+  ros::Time previous_stamp;
+  CameraModel camera;
+  std::string distortion_model;
+  std::vector<double> distortion;  // CameraInfo D as received
+  RollingShutterConfig rolling_shutter;
+};
+
+// Fills a GyroFlow message; `flow` is CV_32FC2 on the working grid (copied into the message).
+void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::Matrix3d>& homographies,
+                     const cv::Mat& flow, GyroFlow& msg);
+
+// The inverse of fillGyroFlowMsg for the parts consumers need: homographies (in camera pixels) and
+// a CV_32FC2 view sharing the message's flow data. Returns an empty string on success, or a
+// sentence naming what is inconsistent in the message.
+std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& homographies,
+                            cv::Mat& flow_view);
+
+// Messages carry matrices and points as flat float64[] arrays: consecutive row-major 3x3 blocks,
+// and (x, y) pairs. The unflatten functions ignore a trailing incomplete block.
+std::vector<double> flattenMatrices(const std::vector<Eigen::Matrix3d>& matrices);
+std::vector<Eigen::Matrix3d> unflattenMatrices(const std::vector<double>& values);
+std::vector<double> flattenPoints(const std::vector<Eigen::Vector2d>& points);
+std::vector<Eigen::Vector2d> unflattenPoints(const std::vector<double>& values);
+
+// Row-major 9 values <-> 3x3.
+Eigen::Matrix3d rowMajorToMatrix(const double* values);
+void matrixToRowMajor(const Eigen::Matrix3d& matrix, double* values);
+
+}  // namespace deep_ois

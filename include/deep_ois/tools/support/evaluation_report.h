@@ -1,0 +1,78 @@
+// What one evaluation run produced, and how it is written: the paper's markdown table (stdout),
+// evaluation.csv, evaluation.json, evaluation_pairs.csv, a bar chart per category and ghost-image
+// grids (PNG).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "deep_ois/tools/support/evaluation_plots.h"
+#include "deep_ois/core/evaluation/results_table.h"
+
+namespace deep_ois {
+
+// One method's result on one frame pair.
+struct PairScore {
+  std::size_t recording = 0;  // index into EvaluationReport::recordings
+  std::int64_t stamp_a_ns = 0;
+  std::int64_t stamp_b_ns = 0;
+  std::string category;
+  std::string method;
+  double distance_px = 0.0;  // the method's own distance; NaN when it gave no estimate
+  double identity_px = 0.0;  // the pair's identity distance (the cap)
+  double scored_px = 0.0;    // what the table counts: capped, identity for a failure
+  std::string failure;       // why there is no estimate; empty otherwise
+};
+
+// One input recording.
+struct RecordingOutcome {
+  std::string path;
+  std::size_t pairs_scored = 0;
+  std::size_t pairs_skipped = 0;                    // pairs no method could be scored on
+  std::map<std::string, std::size_t> skip_reasons;  // reason -> pairs
+  std::string error;  // why the recording failed; empty when it did not
+};
+
+struct EvaluationReport {
+  EvaluationTable table;  // capped means per method and category (failures scored as identity)
+  std::vector<RecordingOutcome> recordings;
+  std::vector<std::string>
+      errors;  // problems outside a single recording, e.g. unmatched annotations
+  std::vector<PairScore> pairs;
+  // Failures per method by reason, e.g. "SIFT + RANSAC" -> {"too few matches (< 8)": 12}.
+  std::map<std::string, std::map<std::string, std::size_t>> failure_reasons;
+  std::vector<GhostSample> ghosts;
+  double elapsed_s = 0.0;  // the whole run
+  double reading_s = 0.0;  // reading and decoding the recordings (ahead, overlapping the rest)
+  std::map<std::string, double> method_s;  // of which each method's estimates (scoring excluded)
+
+  // True when every recording was read and every annotated pair found.
+  bool complete() const;
+  std::size_t failedRecordings() const;
+
+  // The table, then a note per method that had failures or capped pairs, and the problems.
+  std::string markdown() const;
+  std::string json() const;
+  // One line per pair and method: recording,stamp_a,stamp_b,category,method,distance_px,
+  // identity_px,scored_px,failure.
+  std::string pairsCsv() const;
+};
+
+// Agreement of two rows pair by pair (replay parity: a row of flows the live nodelets published
+// against the same computation offline). Compared are the pairs where both gave an estimate.
+struct MethodAgreement {
+  std::size_t pairs_compared = 0;
+  std::size_t missing_in_second = 0;  // pairs the first row scored but the second has no estimate for
+  double max_abs_difference_px = 0.0; // of the uncapped distances
+};
+MethodAgreement compareMethods(const EvaluationReport& report, const std::string& first, const std::string& second);
+
+// Writes evaluation.csv, evaluation.json, evaluation_pairs.csv, bars_<category>.png per category
+// plus bars_Avg.png, and ghosts_<category>.png into `directory` (created when missing). Returns the
+// paths written. Throws std::runtime_error naming the file that cannot be written.
+std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
+                                               const std::string& directory);
+
+}  // namespace deep_ois

@@ -1,0 +1,34 @@
+#include "deep_ois/core/flow/flow_color.h"
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+namespace deep_ois {
+
+cv::Mat colorizeFlow(const cv::Mat& flow, double max_magnitude_px) {
+  if (flow.type() != CV_32FC2) throw std::invalid_argument("colorizeFlow: flow must be CV_32FC2");
+  cv::Mat channels[2];
+  cv::split(flow, channels);
+  cv::Mat magnitude, angle_deg;
+  // Image y points down: negate v so that "up" on screen is +90 degrees.
+  cv::cartToPolar(channels[0], -channels[1], magnitude, angle_deg, /*angleInDegrees=*/true);
+  double scale = max_magnitude_px;
+  if (!(scale > 0.0)) cv::minMaxLoc(magnitude, nullptr, &scale);
+  cv::Mat hsv(flow.size(), CV_8UC3);
+  for (int y = 0; y < flow.rows; ++y) {
+    const float* mag = magnitude.ptr<float>(y);
+    const float* ang = angle_deg.ptr<float>(y);
+    cv::Vec3b* out = hsv.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < flow.cols; ++x) {
+      const double value = scale > 0.0 ? std::min(1.0, mag[x] / scale) : 0.0;
+      out[x] = cv::Vec3b(static_cast<uchar>(std::lround(ang[x] / 2.0) % 180), 255,
+                         static_cast<uchar>(std::lround(255.0 * value)));
+    }
+  }
+  cv::Mat rgb;
+  cv::cvtColor(hsv, rgb, cv::COLOR_HSV2RGB);
+  return rgb;
+}
+
+}  // namespace deep_ois

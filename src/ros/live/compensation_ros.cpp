@@ -1,0 +1,211 @@
+#include "deep_ois/ros/live/compensation_ros.h"
+
+#include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/image_encodings.h>
+
+
+#include <boost/make_shared.hpp>
+#include <cmath>
+#include <stdexcept>
+
+#include "deep_ois/core/flow/flow_color.h"
+#include "deep_ois/core/flow/flow_warp.h"
+#include "deep_ois/core/flow/ghost_overlay.h"
+#include "deep_ois/ros/messages/conversions.h"
+
+namespace deep_ois {
+
+namespace {
+constexpr double kWarnPeriodS = 2.0;
+
+void reject(const ros::NodeHandle& nh, const std::string& name, const std::string& why) {
+  throw std::invalid_argument("compensation: parameter " + nh.resolveName(name) + " " + why);
+}
+}  // namespace
+
+CompensationParameters loadCompensationParameters(const ros::NodeHandle& nh) {
+  CompensationParameters p;
+  if (!nh.getParam("model", p.model_path) || p.model_path.empty()) {
+    reject(nh, "model", "is not set: give the model file (e.g. $(find deep_ois)/models/fast.pt)");
+  }
+  p.torch_threads = nh.param("torch_threads", p.torch_threads);
+  if (p.torch_threads < 1) reject(nh, "torch_threads", "must be at least 1");
+  p.image_queue_size = nh.param("image_queue_size", p.image_queue_size);
+  p.gyro_flow_queue_size = nh.param("gyro_flow_queue_size", p.gyro_flow_queue_size);
+  if (p.image_queue_size < 1 || p.gyro_flow_queue_size < 1) {
+    reject(nh, "image_queue_size/gyro_flow_queue_size", "must be at least 1");
+  }
+  p.image_cache_size = nh.param("image_cache_size", p.image_cache_size);
+  if (p.image_cache_size < 2) reject(nh, "image_cache_size", "must be at least 2 (both frames of a pair)");
+  p.max_wait_s = nh.param("max_wait", p.max_wait_s);
+  if (!std::isfinite(p.max_wait_s) || p.max_wait_s < 0.0) reject(nh, "max_wait", "must be >= 0 seconds");
+  p.warp_iterations = nh.param("warp_iterations", p.warp_iterations);
+  if (p.warp_iterations < 0 || p.warp_iterations > 20) reject(nh, "warp_iterations", "must be in [0, 20]");
+  p.color_max_flow_px = nh.param("color_max_flow", p.color_max_flow_px);
+  if (!std::isfinite(p.color_max_flow_px) || p.color_max_flow_px < 0.0) {
+    reject(nh, "color_max_flow", "must be >= 0 pixels (0 = scale each frame by its largest flow)");
+  }
+  return p;
+}
+
+CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
+    : nh_(nh),
+      private_nh_(private_nh),
+      params_(loadCompensationParameters(private_nh)),
+      model_(CompensationModel::load(params_.model_path)),
+      stream_(model_),
+      it_(nh) {
+  setTorchThreads(params_.torch_threads);
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
+  auto on_image_subscribers = [this](const image_transport::SingleSubscriberPublisher&) { connectCallback(); };
+  compensated_pub_ = nh_.advertise<GyroFlow>("compensated_flow", 5, on_subscribers, on_subscribers);
+  color_pub_ = it_.advertise("compensated_flow/color", 5, on_image_subscribers, on_image_subscribers);
+  aligned_pub_ = it_.advertise("aligned/image_raw", 5, on_image_subscribers, on_image_subscribers);
+  ghost_pub_ = it_.advertise("aligned/ghost", 5, on_image_subscribers, on_image_subscribers);
+  const ModelMetadata& m = model_.metadata();
+  ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s)",
+                 params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
+                 m.training.epochs, params_.torch_threads);
+}
+
+CompensationRos::~CompensationRos() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  gyro_flow_sub_.shutdown();
+  image_sub_.shutdown();
+}
+
+bool CompensationRos::anyOutputWanted() const {
+  return compensated_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0 ||
+         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0;
+}
+
+void CompensationRos::connectCallback() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const bool wanted = anyOutputWanted();
+  const bool subscribed = static_cast<bool>(gyro_flow_sub_);
+  if (!wanted && subscribed) {
+    gyro_flow_sub_.shutdown();
+    image_sub_.shutdown();
+    images_.clear();
+    pending_.clear();
+  } else if (wanted && !subscribed) {
+    const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh_);
+    image_sub_ = it_.subscribe("image_raw", params_.image_queue_size, &CompensationRos::imageCallback, this, hints);
+    gyro_flow_sub_ = nh_.subscribe("gyro_flow", params_.gyro_flow_queue_size, &CompensationRos::gyroFlowCallback, this);
+  }
+}
+
+void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!images_.empty() && msg->header.stamp < images_.back()->header.stamp) {
+    // Time went backwards (a bag loops): frames of the old run can never pair with new flows.
+    images_.clear();
+  }
+  images_.push_back(msg);
+  while (images_.size() > static_cast<std::size_t>(params_.image_cache_size)) images_.pop_front();
+  processPending();
+}
+
+void CompensationRos::gyroFlowCallback(const GyroFlowConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  pending_.push_back({msg, ros::WallTime::now()});
+  processPending();
+}
+
+sensor_msgs::ImageConstPtr CompensationRos::cachedImage(const ros::Time& stamp) const {
+  for (auto it = images_.rbegin(); it != images_.rend(); ++it) {
+    if ((*it)->header.stamp == stamp) return *it;
+  }
+  return nullptr;
+}
+
+void CompensationRos::processPending() {
+  const ros::WallTime now = ros::WallTime::now();
+  while (!pending_.empty()) {
+    const PendingFlow& front = pending_.front();
+    const sensor_msgs::ImageConstPtr image_a = cachedImage(front.flow->previous_stamp);
+    const sensor_msgs::ImageConstPtr image_b = cachedImage(front.flow->header.stamp);
+    if (image_a && image_b) {
+      process(*front.flow, image_a, image_b);
+    } else if ((now - front.received).toSec() < params_.max_wait_s && pending_.size() < 2 * static_cast<std::size_t>(params_.image_cache_size)) {
+      return;  // its frames may still come; later flows wait behind it to keep the order
+    } else {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
+                              "compensation: dropping gyro flow %.6f: frame %s (%.6f) not received on %s",
+                              front.flow->header.stamp.toSec(), image_a ? "b" : "a",
+                              (image_a ? front.flow->header.stamp : front.flow->previous_stamp).toSec(),
+                              image_sub_.getTopic().c_str());
+      // No output without its frames, but its motion is known: keep the history unbroken.
+      std::vector<Eigen::Matrix3d> homographies;
+      cv::Mat gyro_flow;
+      if (readGyroFlowMsg(*front.flow, homographies, gyro_flow).empty()) {
+        stream_.observe(gyro_flow, static_cast<std::int64_t>(front.flow->previous_stamp.toNSec()),
+                        static_cast<std::int64_t>(front.flow->header.stamp.toNSec()));
+      }
+    }
+    pending_.pop_front();
+  }
+}
+
+void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
+                              const sensor_msgs::ImageConstPtr& image_b) {
+  std::vector<Eigen::Matrix3d> homographies;
+  cv::Mat gyro_flow;
+  const std::string problem = readGyroFlowMsg(gyro, homographies, gyro_flow);
+  if (!problem.empty()) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: %s",
+                            gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str(), problem.c_str());
+    return;
+  }
+  if (image_a->width != gyro.image_width || image_a->height != gyro.image_height ||
+      image_b->width != gyro.image_width || image_b->height != gyro.image_height) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
+                            "compensation: dropping gyro flow %.6f: it is for %ux%u images but %s has %ux%u",
+                            gyro.header.stamp.toSec(), gyro.image_width, gyro.image_height,
+                            image_sub_.getTopic().c_str(), image_b->width, image_b->height);
+    return;
+  }
+  const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+                                                 static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+
+  if (compensated_pub_.getNumSubscribers() > 0) {
+    auto msg = boost::make_shared<GyroFlow>(gyro);
+    // Same grid, encoding and size as the gyro flow (readGyroFlowMsg checked the layout).
+    CV_Assert(compensated.isContinuous() && msg->flow.data.size() == compensated.total() * compensated.elemSize());
+    std::memcpy(msg->flow.data.data(), compensated.data, msg->flow.data.size());
+    compensated_pub_.publish(msg);
+  }
+  if (color_pub_.getNumSubscribers() > 0) {
+    color_pub_.publish(cv_bridge::CvImage(gyro.header, sensor_msgs::image_encodings::RGB8,
+                                          colorizeFlow(compensated, params_.color_max_flow_px))
+                           .toImageMsg());
+  }
+  const bool want_aligned = aligned_pub_.getNumSubscribers() > 0, want_ghost = ghost_pub_.getNumSubscribers() > 0;
+  if (!want_aligned && !want_ghost) return;
+  try {
+    const cv::Mat map = inverseFlowMap(compensated, cv::Size(static_cast<int>(gyro.image_width),
+                                                             static_cast<int>(gyro.image_height)),
+                                       params_.warp_iterations);
+    std_msgs::Header header = image_b->header;
+    if (want_aligned) {
+      const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a);
+      aligned_pub_.publish(
+          cv_bridge::CvImage(header, image_a->encoding, warpWithInverseMap(a->image, map)).toImageMsg());
+    }
+    if (want_ghost) {
+      const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a, sensor_msgs::image_encodings::RGB8);
+      const cv_bridge::CvImageConstPtr b = cv_bridge::toCvShare(image_b, sensor_msgs::image_encodings::RGB8);
+      ghost_pub_.publish(cv_bridge::CvImage(header, sensor_msgs::image_encodings::RGB8,
+                                            ghostOverlay(warpWithInverseMap(a->image, map), b->image))
+                             .toImageMsg());
+    }
+  } catch (const cv_bridge::Exception& e) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: cannot convert the images on %s: %s",
+                            image_sub_.getTopic().c_str(), e.what());
+    return;
+  }
+  ++published_;
+}
+
+}  // namespace deep_ois

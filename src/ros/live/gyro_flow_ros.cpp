@@ -1,0 +1,320 @@
+#include "deep_ois/ros/live/gyro_flow_ros.h"
+
+#include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/image_encodings.h>
+#include <tf2/exceptions.h>
+
+#include <Eigen/Geometry>
+#include <boost/make_shared.hpp>
+
+#include "deep_ois/core/flow/flow_color.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/ros/messages/conversions.h"
+
+namespace deep_ois {
+
+namespace {
+constexpr double kWarnPeriodS = 2.0;         // throttle of per-message warnings
+constexpr double kWaitingCheckPeriodS = 5.0;  // period of the "still waiting" diagnostics
+constexpr std::size_t kMaxPendingFrames = 60;  // two seconds of 30 fps video
+}  // namespace
+
+GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
+    : nh_(nh),
+      private_nh_(private_nh),
+      params_(loadGyroFlowParameters(private_nh)),
+      it_(nh),
+      imu_buffer_(params_.imu_buffer_duration_s) {
+  if (params_.rotation_from_tf) {
+    tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_, nh_);
+  }
+  // Held across advertise so that a subscriber connecting meanwhile waits for the publishers.
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto on_flow_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
+  auto on_color_subscribers = [this](const image_transport::SingleSubscriberPublisher&) {
+    connectCallback();
+  };
+  flow_pub_ = nh_.advertise<GyroFlow>("gyro_flow", 5, on_flow_subscribers, on_flow_subscribers);
+  color_pub_ = it_.advertise("gyro_flow/color", 5, on_color_subscribers, on_color_subscribers);
+  waiting_timer_ = nh_.createWallTimer(ros::WallDuration(kWaitingCheckPeriodS),
+                                       &GyroFlowRos::waitingTimerCallback, this);
+  ROS_INFO_NAMED("gyro_flow",
+                 "gyro_flow: %d patches, readout %.4f s, time offset %.4f s, grid %dx%d, IMU-to-camera "
+                 "rotation from %s",
+                 params_.rolling_shutter.patch_count, params_.rolling_shutter.readout_time_s,
+                 params_.rolling_shutter.time_offset_s, params_.grid_size.width,
+                 params_.grid_size.height, params_.rotation_from_tf ? "tf" : "~imu_to_camera_rotation");
+}
+
+GyroFlowRos::~GyroFlowRos() {
+  waiting_timer_.stop();
+  std::lock_guard<std::mutex> lock(mutex_);
+  imu_sub_.shutdown();
+  camera_sub_.shutdown();
+}
+
+void GyroFlowRos::connectCallback() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const bool wanted = flow_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0;
+  const bool subscribed = static_cast<bool>(imu_sub_);
+  if (!wanted && subscribed) {
+    imu_sub_.shutdown();
+    camera_sub_.shutdown();
+    resetState("");  // a later subscriber starts from fresh data
+  } else if (wanted && !subscribed) {
+    const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh_);
+    camera_sub_ = it_.subscribeCamera("image_raw", params_.image_queue_size,
+                                      &GyroFlowRos::cameraCallback, this, hints);
+    imu_sub_ = nh_.subscribe("imu", params_.imu_queue_size, &GyroFlowRos::imuCallback, this,
+                             ros::TransportHints().tcpNoDelay());
+  }
+}
+
+void GyroFlowRos::checkRosTimeJump() {
+  const ros::Time now = ros::Time::now();
+  if (!last_ros_time_.isZero() && now < last_ros_time_) {
+    resetState("ROS time jumped backwards by " + std::to_string((last_ros_time_ - now).toSec()) +
+               " s (bag loop?)");
+  }
+  last_ros_time_ = now;
+}
+
+void GyroFlowRos::resetState(const std::string& why) {
+  if (!why.empty()) {
+    ROS_WARN_NAMED("gyro_flow", "gyro_flow: %s: clearing IMU buffer and frame history", why.c_str());
+  }
+  imu_buffer_.clear();
+  pending_frames_.clear();
+  previous_.reset();
+  cached_rotation_.reset();
+  last_ros_time_ = ros::Time();
+  time_base_.reset();
+}
+
+double GyroFlowRos::secondsSinceBase(const ros::Time& stamp) {
+  if (!time_base_) time_base_ = ros::Time(stamp.sec, 0);
+  return (stamp - *time_base_).toSec();
+}
+
+void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  checkRosTimeJump();
+  ++imu_received_;
+  last_imu_arrival_ = ros::Time::now();
+  secondsSinceBase(imu->header.stamp);  // sets the time base on the first message
+  const ImuSample sample = toImuSample(*imu, *time_base_);
+  if (!imu_buffer_.empty() && sample.stamp_s < imu_buffer_.newestStamp() - params_.time_jump_reset_s) {
+    resetState("IMU stamps on " + imu_sub_.getTopic() + " jumped backwards by " +
+               std::to_string(imu_buffer_.newestStamp() - sample.stamp_s) + " s");
+  }
+  // Rates in different frames cannot be integrated together: the buffer holds one frame's samples.
+  const std::string& frame_id = params_.imu_frame_id.empty() ? imu->header.frame_id : params_.imu_frame_id;
+  if (!imu_buffer_.empty() && frame_id != imu_frame_id_) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: frame_id on %s changed from '%s' to '%s': clearing the IMU buffer",
+                            imu_sub_.getTopic().c_str(), imu_frame_id_.c_str(), frame_id.c_str());
+    imu_buffer_.clear();
+  }
+  const ImuAddResult added = imu_buffer_.add(sample);
+  if (!added.accepted()) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping IMU sample on %s: %s",
+                            imu_sub_.getTopic().c_str(), added.reason.c_str());
+    return;
+  }
+  imu_frame_id_ = frame_id;
+  processPendingFrames();
+}
+
+void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
+                                 const sensor_msgs::CameraInfoConstPtr& info) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  checkRosTimeJump();
+  ++frames_received_;
+  const std::string& topic = camera_sub_.getTopic();
+  const double stamp_s = image->header.stamp.toSec();
+
+  std::string problem = validateImage(*image);
+  if (!problem.empty()) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f on %s: %s",
+                            stamp_s, topic.c_str(), problem.c_str());
+    return;
+  }
+  Frame frame;
+  problem = toCameraModel(*info, frame.camera);
+  if (!problem.empty()) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s: %s",
+                            stamp_s, camera_sub_.getInfoTopic().c_str(), problem.c_str());
+    return;
+  }
+  if (image->width != info->width || image->height != info->height) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u",
+                            stamp_s, topic.c_str(), image->width, image->height,
+                            camera_sub_.getInfoTopic().c_str(), info->width, info->height);
+    return;
+  }
+  frame.stamp = image->header.stamp;
+  frame.frame_id = params_.camera_frame_id.empty() ? image->header.frame_id : params_.camera_frame_id;
+  frame.distortion_model = info->distortion_model;
+  frame.distortion = info->D;
+  frame.received = ros::Time::now();
+
+  const ros::Time* latest = !pending_frames_.empty() ? &pending_frames_.back().stamp
+                            : previous_                 ? &previous_->stamp
+                                                        : nullptr;
+  if (latest != nullptr && frame.stamp <= *latest) {
+    const double back_s = (*latest - frame.stamp).toSec();
+    if (back_s > params_.time_jump_reset_s) {
+      resetState("camera stamps on " + topic + " jumped backwards by " + std::to_string(back_s) + " s");
+    } else {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                              "gyro_flow: dropping frame %.6f on %s: %s stamp (latest frame %.6f)",
+                              stamp_s, topic.c_str(), back_s == 0.0 ? "duplicate" : "out-of-order",
+                              latest->toSec());
+      return;
+    }
+  }
+  pending_frames_.push_back(frame);
+  if (pending_frames_.size() > kMaxPendingFrames) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: %zu frames wait for IMU data on %s: dropping the oldest",
+                            pending_frames_.size(), imu_sub_.getTopic().c_str());
+    previous_ = pending_frames_.front();
+    pending_frames_.pop_front();
+  }
+  processPendingFrames();
+}
+
+void GyroFlowRos::processPendingFrames() {
+  while (!pending_frames_.empty()) {
+    const Frame& frame = pending_frames_.front();
+    if (previous_ && processFrame(frame) == Outcome::kWaitForImu) return;
+    // Published or dropped, this frame is the earlier frame of the next pair.
+    previous_ = frame;
+    pending_frames_.pop_front();
+  }
+}
+
+std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::string& camera_frame) {
+  if (!params_.rotation_from_tf) return params_.rolling_shutter.imu_to_camera_rotation;
+  if (imu_frame_id_.empty() || camera_frame.empty()) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: %s has an empty frame_id: set ~%s or ~imu_to_camera_rotation",
+                            imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : camera_sub_.getTopic().c_str(),
+                            imu_frame_id_.empty() ? "imu_frame_id" : "camera_frame_id");
+    return std::nullopt;
+  }
+  // The IMU is rigidly mounted on the camera: one lookup per frame pair is plenty, and the
+  // result is kept until the frames change or the state resets.
+  const std::string frames = imu_frame_id_ + " -> " + camera_frame;
+  if (cached_rotation_ && cached_rotation_frames_ == frames) return cached_rotation_;
+  try {
+    const geometry_msgs::TransformStamped transform =
+        tf_buffer_.lookupTransform(camera_frame, imu_frame_id_, ros::Time(0));
+    const auto& q = transform.transform.rotation;
+    cached_rotation_ = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+    cached_rotation_frames_ = frames;
+    return cached_rotation_;
+  } catch (const tf2::TransformException& e) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: no IMU-to-camera transform %s in tf (%s); set "
+                            "~imu_to_camera_rotation or publish it on /tf_static",
+                            frames.c_str(), e.what());
+    return std::nullopt;
+  }
+}
+
+GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
+  const Frame& previous = *previous_;
+  const double interval_s = (frame.stamp - previous.stamp).toSec();
+  if (interval_s > params_.max_frame_interval_s) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
+                            "%.1f ms): not pairing them",
+                            previous.stamp.toSec(), frame.stamp.toSec(), camera_sub_.getTopic().c_str(),
+                            interval_s * 1e3, params_.max_frame_interval_s * 1e3);
+    return Outcome::kDropped;
+  }
+  if (frame.camera != previous.camera) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: %s changed between frames %.6f and %.6f: not pairing them",
+                            camera_sub_.getInfoTopic().c_str(), previous.stamp.toSec(), frame.stamp.toSec());
+    return Outcome::kDropped;
+  }
+  const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame.frame_id);
+  if (!rotation) return Outcome::kDropped;
+
+  RollingShutterConfig config = params_.rolling_shutter;
+  config.imu_to_camera_rotation = *rotation;
+  const RollingShutterHomographies result = computeRollingShutterHomographies(
+      imu_buffer_, params_.integration, config, frame.camera.K(), secondsSinceBase(previous.stamp),
+      secondsSinceBase(frame.stamp));
+  if (!result.ok()) {
+    const bool may_still_come = result.status == IntegrationStatus::kNotYetAvailable ||
+                                result.status == IntegrationStatus::kEmptyBuffer;
+    // Give up only when the IMU stream itself went quiet: a frame whose samples are still
+    // queued behind a stalled callback thread (a loaded machine) keeps waiting, as IMU messages
+    // keep arriving; kMaxPendingFrames bounds the wait when the IMU lags for good.
+    const ros::Time now = ros::Time::now();
+    const double waited_s = (now - frame.received).toSec();
+    const double imu_quiet_s = last_imu_arrival_.isZero() ? waited_s : (now - last_imu_arrival_).toSec();
+    if (may_still_come && (waited_s < params_.imu_wait_timeout_s || imu_quiet_s < params_.imu_wait_timeout_s)) {
+      return Outcome::kWaitForImu;
+    }
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",
+                            frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
+                            may_still_come ? " (waited ~imu_wait_timeout)" : "");
+    return Outcome::kDropped;
+  }
+
+  if (!renderer_ || !renderer_->compatible(frame.camera, params_.grid_size, config.patch_count)) {
+    renderer_ = std::make_unique<HomographyFlowRenderer>(frame.camera, params_.grid_size, config.patch_count);
+  }
+  cv::Mat flow;
+  renderer_->render(result.homographies, flow);
+
+  GyroFlowMetadata metadata;
+  metadata.header.stamp = frame.stamp;
+  metadata.header.frame_id = frame.frame_id;
+  metadata.previous_stamp = previous.stamp;
+  metadata.camera = frame.camera;
+  metadata.distortion_model = frame.distortion_model;
+  metadata.distortion = frame.distortion;
+  metadata.rolling_shutter = config;
+  if (flow_pub_.getNumSubscribers() > 0) {
+    auto msg = boost::make_shared<GyroFlow>();
+    fillGyroFlowMsg(metadata, result.homographies, flow, *msg);
+    flow_pub_.publish(msg);
+  }
+  if (color_pub_.getNumSubscribers() > 0) {
+    const cv::Mat rgb = colorizeFlow(flow, params_.color_max_flow_px);
+    color_pub_.publish(cv_bridge::CvImage(metadata.header, sensor_msgs::image_encodings::RGB8, rgb).toImageMsg());
+  }
+  ++flows_published_;
+  return Outcome::kPublished;
+}
+
+void GyroFlowRos::waitingTimerCallback(const ros::WallTimerEvent&) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!imu_sub_) return;
+  if (flows_published_ == flows_published_at_last_check_) {
+    if (imu_received_ == 0) {
+      ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/Imu on %s",
+                     imu_sub_.getTopic().c_str());
+    }
+    if (frames_received_ == 0) {
+      ROS_WARN_NAMED("gyro_flow",
+                     "gyro_flow: still waiting for images on %s with camera_info on %s (stamps must match)",
+                     camera_sub_.getTopic().c_str(), camera_sub_.getInfoTopic().c_str());
+    }
+    if (imu_received_ > 0 && frames_received_ > 0) {
+      ROS_WARN_NAMED("gyro_flow",
+                     "gyro_flow: received %zu IMU samples and %zu frames but published nothing in "
+                     "the last %.0f s (see the warnings above)",
+                     imu_received_, frames_received_, kWaitingCheckPeriodS);
+    }
+  }
+  flows_published_at_last_check_ = flows_published_;
+}
+
+}  // namespace deep_ois

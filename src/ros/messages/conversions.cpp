@@ -1,0 +1,162 @@
+#include "deep_ois/ros/messages/conversions.h"
+
+#include <sensor_msgs/distortion_models.h>
+#include <sensor_msgs/image_encodings.h>
+
+#include <cmath>
+#include <sstream>
+
+namespace deep_ois {
+
+namespace enc = sensor_msgs::image_encodings;
+
+ImuSample toImuSample(const sensor_msgs::Imu& imu, const ros::Time& time_base) {
+  ImuSample sample;
+  sample.stamp_s = (imu.header.stamp - time_base).toSec();
+  sample.angular_velocity_rad_s =
+      Eigen::Vector3d(imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z);
+  return sample;
+}
+
+std::string validateImage(const sensor_msgs::Image& image) {
+  std::ostringstream why;
+  if (image.width == 0 || image.height == 0) {
+    why << "image has zero size (" << image.width << "x" << image.height << ")";
+    return why.str();
+  }
+  int channels = 0, bit_depth = 0;
+  try {
+    channels = enc::numChannels(image.encoding);
+    bit_depth = enc::bitDepth(image.encoding);
+  } catch (const std::exception&) {
+    why << "unsupported image encoding '" << image.encoding << "'";
+    return why.str();
+  }
+  // Packed YUV formats report 2 channels of 8 bits; everything else is channels x depth.
+  const std::size_t bytes_per_pixel = static_cast<std::size_t>(channels) * (bit_depth / 8);
+  if (image.step < image.width * bytes_per_pixel) {
+    why << "image step " << image.step << " bytes is smaller than width " << image.width << " x "
+        << bytes_per_pixel << " bytes per pixel of '" << image.encoding << "'";
+    return why.str();
+  }
+  if (image.data.size() < static_cast<std::size_t>(image.step) * image.height) {
+    why << "image data holds " << image.data.size() << " bytes, fewer than step " << image.step
+        << " x height " << image.height;
+    return why.str();
+  }
+  return {};
+}
+
+std::string toCameraModel(const sensor_msgs::CameraInfo& info, CameraModel& camera) {
+  std::ostringstream why;
+  const std::string& model = info.distortion_model;
+  const bool no_distortion_model = model.empty() || model == "none";
+  if (!no_distortion_model && model != sensor_msgs::distortion_models::PLUMB_BOB) {
+    why << "unsupported distortion model '" << model << "' (supported: plumb_bob, or none)";
+    return why.str();
+  }
+  if (model == sensor_msgs::distortion_models::PLUMB_BOB && info.D.size() > 5) {
+    why << "plumb_bob distortion has " << info.D.size() << " coefficients, expected at most 5";
+    return why.str();
+  }
+  std::vector<double> distortion;
+  if (!no_distortion_model) distortion = info.D;
+  camera = CameraModel(static_cast<int>(info.width), static_cast<int>(info.height),
+                       rowMajorToMatrix(info.K.data()), distortion);
+  return camera.validate();
+}
+
+Eigen::Matrix3d rowMajorToMatrix(const double* values) {
+  Eigen::Matrix3d matrix;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) matrix(r, c) = values[3 * r + c];
+  return matrix;
+}
+
+void matrixToRowMajor(const Eigen::Matrix3d& matrix, double* values) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) values[3 * r + c] = matrix(r, c);
+}
+
+std::vector<double> flattenMatrices(const std::vector<Eigen::Matrix3d>& matrices) {
+  std::vector<double> values(9 * matrices.size());
+  for (std::size_t i = 0; i < matrices.size(); ++i) matrixToRowMajor(matrices[i], &values[9 * i]);
+  return values;
+}
+
+std::vector<Eigen::Matrix3d> unflattenMatrices(const std::vector<double>& values) {
+  std::vector<Eigen::Matrix3d> matrices;
+  for (std::size_t i = 0; i + 9 <= values.size(); i += 9) matrices.push_back(rowMajorToMatrix(&values[i]));
+  return matrices;
+}
+
+std::vector<double> flattenPoints(const std::vector<Eigen::Vector2d>& points) {
+  std::vector<double> values;
+  values.reserve(2 * points.size());
+  for (const Eigen::Vector2d& p : points) {
+    values.push_back(p.x());
+    values.push_back(p.y());
+  }
+  return values;
+}
+
+std::vector<Eigen::Vector2d> unflattenPoints(const std::vector<double>& values) {
+  std::vector<Eigen::Vector2d> points;
+  for (std::size_t i = 0; i + 2 <= values.size(); i += 2) points.emplace_back(values[i], values[i + 1]);
+  return points;
+}
+
+void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::Matrix3d>& homographies,
+                     const cv::Mat& flow, GyroFlow& msg) {
+  msg.header = metadata.header;
+  msg.previous_stamp = metadata.previous_stamp;
+  msg.image_width = static_cast<uint32_t>(metadata.camera.width());
+  msg.image_height = static_cast<uint32_t>(metadata.camera.height());
+  msg.patch_count = static_cast<uint32_t>(homographies.size());
+  msg.homographies = flattenMatrices(homographies);
+  matrixToRowMajor(metadata.camera.K(), msg.K.data());
+  msg.distortion_model = metadata.distortion_model;
+  msg.D = metadata.distortion;
+  const RollingShutterConfig& rs = metadata.rolling_shutter;
+  msg.readout_time = rs.readout_time_s;
+  msg.time_offset = rs.time_offset_s;
+  msg.patch_time_fraction = rs.patch_time == PatchTimeReference::kPatchCentre ? 0.5 : 0.0;
+  matrixToRowMajor(rs.imu_to_camera_rotation, msg.imu_to_camera_rotation.data());
+
+  msg.flow.header = metadata.header;
+  msg.flow.height = static_cast<uint32_t>(flow.rows);
+  msg.flow.width = static_cast<uint32_t>(flow.cols);
+  msg.flow.encoding = sensor_msgs::image_encodings::TYPE_32FC2;
+  msg.flow.is_bigendian = false;
+  msg.flow.step = static_cast<uint32_t>(flow.cols * flow.elemSize());
+  msg.flow.data.resize(static_cast<std::size_t>(msg.flow.step) * flow.rows);
+  for (int y = 0; y < flow.rows; ++y) {
+    std::memcpy(&msg.flow.data[static_cast<std::size_t>(y) * msg.flow.step], flow.ptr(y), msg.flow.step);
+  }
+}
+
+std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& homographies,
+                            cv::Mat& flow_view) {
+  std::ostringstream why;
+  if (msg.patch_count == 0 || msg.homographies.size() != 9 * msg.patch_count) {
+    why << "GyroFlow has " << msg.homographies.size() << " homography values for patch_count "
+        << msg.patch_count << " (expected 9 per patch)";
+    return why.str();
+  }
+  if (!(msg.previous_stamp < msg.header.stamp)) {
+    why << "GyroFlow previous_stamp " << msg.previous_stamp << " is not before its stamp " << msg.header.stamp;
+    return why.str();
+  }
+  if (msg.flow.encoding != sensor_msgs::image_encodings::TYPE_32FC2) {
+    why << "GyroFlow flow encoding is '" << msg.flow.encoding << "', expected 32FC2";
+    return why.str();
+  }
+  const std::string image_problem = validateImage(msg.flow);
+  if (!image_problem.empty()) return "GyroFlow flow: " + image_problem;
+  homographies = unflattenMatrices(msg.homographies);
+  flow_view = cv::Mat(static_cast<int>(msg.flow.height), static_cast<int>(msg.flow.width), CV_32FC2,
+                      const_cast<uint8_t*>(msg.flow.data.data()), msg.flow.step);
+  return {};
+}
+
+}  // namespace deep_ois

@@ -1,0 +1,311 @@
+#include "deep_ois/tools/support/evaluation_report.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+
+#include "deep_ois/core/evaluation/annotation_file.h"
+
+namespace deep_ois {
+namespace {
+
+std::string jsonString(const std::string& text) {
+  std::ostringstream out;
+  out << '"';
+  for (const char c : text) {
+    switch (c) {
+      case '"':
+        out << "\\\"";
+        break;
+      case '\\':
+        out << "\\\\";
+        break;
+      case '\n':
+        out << "\\n";
+        break;
+      case '\t':
+        out << "\\t";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          out << "\\u" << std::hex << std::setw(4) << std::setfill('0') << static_cast<int>(c)
+              << std::dec;
+        } else {
+          out << c;
+        }
+    }
+  }
+  out << '"';
+  return out.str();
+}
+
+std::string jsonNumber(double value) {
+  if (!std::isfinite(value)) return "null";
+  std::ostringstream out;
+  out << std::setprecision(6) << value;
+  return out.str();
+}
+
+std::string csvField(const std::string& text) {
+  if (text.find_first_of(",\"\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (const char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+std::size_t methodTotal(const EvaluationTable& table, const std::string& method,
+                        std::size_t (EvaluationTable::*field)(const std::string&,
+                                                              const std::string&) const) {
+  std::size_t total = 0;
+  for (const std::string& category : table.categories()) total += (table.*field)(method, category);
+  return total;
+}
+
+void writeText(const std::string& path, const std::string& text,
+               std::vector<std::string>& written) {
+  std::ofstream out(path);
+  out << text;
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  written.push_back(path);
+}
+
+void writePng(const std::string& path, const cv::Mat& rgb, std::vector<std::string>& written) {
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path, bgr);
+  } catch (const cv::Exception& e) {
+    throw std::runtime_error(path + ": cannot write: " + e.what());
+  }
+  if (!ok) throw std::runtime_error(path + ": cannot write");
+  written.push_back(path);
+}
+
+// A file name part from a category (free text in annotation files).
+std::string fileSafe(const std::string& text) {
+  std::string safe;
+  for (const char c : text)
+    safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+  return safe.empty() ? "_" : safe;
+}
+
+}  // namespace
+
+std::size_t EvaluationReport::failedRecordings() const {
+  std::size_t failed = 0;
+  for (const RecordingOutcome& recording : recordings) failed += recording.error.empty() ? 0 : 1;
+  return failed;
+}
+
+bool EvaluationReport::complete() const { return failedRecordings() == 0 && errors.empty(); }
+
+std::string EvaluationReport::markdown() const {
+  std::ostringstream out;
+  out << table.markdown();
+  std::vector<std::string> notes;
+  for (const std::string& method : table.methods()) {
+    const std::size_t pairs = methodTotal(table, method, &EvaluationTable::count);
+    const std::size_t failed = methodTotal(table, method, &EvaluationTable::failures);
+    const std::size_t capped = methodTotal(table, method, &EvaluationTable::capped);
+    if (failed == 0 && capped == 0) continue;
+    std::ostringstream note;
+    note << "- " << method << ": " << pairs << " pairs";
+    if (failed > 0) {
+      note << "; " << failed << " without an estimate, scored as identity (";
+      const auto reasons = failure_reasons.find(method);
+      bool first = true;
+      if (reasons != failure_reasons.end()) {
+        for (const auto& [reason, count] : reasons->second) {
+          note << (first ? "" : ", ") << reason << ": " << count;
+          first = false;
+        }
+      }
+      note << ")";
+    }
+    if (capped > 0) note << "; " << capped << " worse than identity, capped";
+    notes.push_back(note.str());
+  }
+  if (!notes.empty()) {
+    out << "\n";
+    for (const std::string& note : notes) out << note << "\n";
+  }
+  for (const RecordingOutcome& recording : recordings) {
+    if (!recording.error.empty()) out << "\n**not scored**: " << recording.error << "\n";
+  }
+  for (const std::string& error : errors) out << "\n**error**: " << error << "\n";
+  return out.str();
+}
+
+std::string EvaluationReport::json() const {
+  std::ostringstream out;
+  out << "{\n  \"metric\": "
+      << jsonString(
+             "geometry distance |p_a + flow(p_a) - p_b| in pixels, mean over the points of a pair, "
+             "then "
+             "over the pairs of a category; each pair capped at its identity error, a method "
+             "without an "
+             "estimate scored as identity; avg = mean of the category means")
+      << ",\n  \"categories\": [";
+  for (std::size_t c = 0; c < table.categories().size(); ++c) {
+    out << (c ? ", " : "") << jsonString(table.categories()[c]);
+  }
+  out << "],\n  \"methods\": [";
+  for (std::size_t m = 0; m < table.methods().size(); ++m) {
+    const std::string& method = table.methods()[m];
+    out << (m ? "," : "") << "\n    {\"name\": " << jsonString(method)
+        << ", \"avg_px\": " << jsonNumber(table.average(method)) << ", \"categories\": {";
+    bool first = true;
+    for (const std::string& category : table.categories()) {
+      if (table.count(method, category) == 0) continue;
+      out << (first ? "" : ", ") << jsonString(category)
+          << ": {\"pairs\": " << table.count(method, category)
+          << ", \"mean_px\": " << jsonNumber(table.mean(method, category))
+          << ", \"failed\": " << table.failures(method, category)
+          << ", \"capped\": " << table.capped(method, category) << "}";
+      first = false;
+    }
+    out << "}, \"failure_reasons\": {";
+    first = true;
+    const auto reasons = failure_reasons.find(method);
+    if (reasons != failure_reasons.end()) {
+      for (const auto& [reason, count] : reasons->second) {
+        out << (first ? "" : ", ") << jsonString(reason) << ": " << count;
+        first = false;
+      }
+    }
+    out << "}}";
+  }
+  out << "\n  ],\n  \"recordings\": [";
+  for (std::size_t r = 0; r < recordings.size(); ++r) {
+    const RecordingOutcome& recording = recordings[r];
+    out << (r ? "," : "") << "\n    {\"path\": " << jsonString(recording.path)
+        << ", \"pairs_scored\": " << recording.pairs_scored
+        << ", \"pairs_skipped\": " << recording.pairs_skipped << ", \"skip_reasons\": {";
+    bool first = true;
+    for (const auto& [reason, count] : recording.skip_reasons) {
+      out << (first ? "" : ", ") << jsonString(reason) << ": " << count;
+      first = false;
+    }
+    out << "}, \"error\": " << (recording.error.empty() ? "null" : jsonString(recording.error))
+        << "}";
+  }
+  out << "\n  ],\n  \"errors\": [";
+  for (std::size_t e = 0; e < errors.size(); ++e) out << (e ? ", " : "") << jsonString(errors[e]);
+  out << "],\n  \"elapsed_s\": " << jsonNumber(elapsed_s)
+      << ",\n  \"reading_s\": " << jsonNumber(reading_s) << ",\n  \"method_s\": {";
+  bool first_method = true;
+  for (const auto& [method, seconds] : method_s) {
+    out << (first_method ? "" : ", ") << jsonString(method) << ": " << jsonNumber(seconds);
+    first_method = false;
+  }
+  out << "}\n}\n";
+  return out.str();
+}
+
+std::string EvaluationReport::pairsCsv() const {
+  std::ostringstream out;
+  out << std::setprecision(6)
+      << "recording,stamp_a,stamp_b,category,method,distance_px,identity_px,scored_px,failure\n";
+  for (const PairScore& pair : pairs) {
+    out << csvField(pair.recording < recordings.size() ? recordings[pair.recording].path : "")
+        << "," << formatStampNs(pair.stamp_a_ns) << "," << formatStampNs(pair.stamp_b_ns) << ","
+        << csvField(pair.category) << "," << csvField(pair.method) << ",";
+    if (std::isfinite(pair.distance_px)) out << pair.distance_px;
+    out << "," << pair.identity_px << "," << pair.scored_px << "," << csvField(pair.failure)
+        << "\n";
+  }
+  return out.str();
+}
+
+std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
+                                               const std::string& directory) {
+  std::error_code error;
+  std::filesystem::create_directories(directory, error);
+  if (error)
+    throw std::runtime_error(directory +
+                             ": cannot create the output directory: " + error.message());
+  std::vector<std::string> written;
+  writeText(directory + "/evaluation.csv", report.table.csv(), written);
+  writeText(directory + "/evaluation.json", report.json(), written);
+  writeText(directory + "/evaluation_pairs.csv", report.pairsCsv(), written);
+  const EvaluationTable& table = report.table;
+  const std::string unit = "geometry distance, px (capped at identity; lower is better)";
+  std::vector<std::string> columns = table.categories();
+  columns.push_back("Avg");
+  for (const std::string& column : columns) {
+    std::vector<std::string> labels;
+    std::vector<double> values;
+    std::size_t pairs = 0;
+    for (const std::string& method : table.methods()) {
+      const bool average = column == "Avg";
+      if (!average && table.count(method, column) == 0) continue;
+      labels.push_back(method);
+      values.push_back(average ? table.average(method) : table.mean(method, column));
+      if (!average) pairs = std::max(pairs, table.count(method, column));
+    }
+    if (labels.empty()) continue;
+    const std::string title =
+        column == "Avg" ? "Avg: mean of the category means"
+                        : "Category " + column + ": " + std::to_string(pairs) + " frame pairs";
+    writePng(directory + "/bars_" + fileSafe(column) + ".png",
+             drawBarChart(title, labels, values, unit), written);
+  }
+  for (const std::string& category : table.categories()) {
+    std::vector<GhostSample> samples;
+    std::vector<std::string> columns;  // the table's rows that have a panel here, in table order
+    for (const GhostSample& sample : report.ghosts) {
+      if (sample.category == category) samples.push_back(sample);
+    }
+    for (const std::string& method : table.methods()) {
+      for (const GhostSample& sample : samples) {
+        if (std::any_of(sample.panels.begin(), sample.panels.end(),
+                        [&](const GhostPanel& panel) { return panel.method == method; })) {
+          columns.push_back(method);
+          break;
+        }
+      }
+    }
+    const cv::Mat grid = drawGhostGrid(
+        "Ghosts, category " + category +
+            ": red channel of frame b, moved onto frame a by each method, over frame a",
+        samples, columns);
+    if (!grid.empty())
+      writePng(directory + "/ghosts_" + fileSafe(category) + ".png", grid, written);
+  }
+  return written;
+}
+
+MethodAgreement compareMethods(const EvaluationReport& report, const std::string& first, const std::string& second) {
+  using PairKey = std::tuple<std::size_t, std::int64_t, std::int64_t>;
+  std::map<PairKey, double> second_distance;
+  for (const PairScore& pair : report.pairs) {
+    if (pair.method == second && pair.failure.empty()) {
+      second_distance[{pair.recording, pair.stamp_a_ns, pair.stamp_b_ns}] = pair.distance_px;
+    }
+  }
+  MethodAgreement agreement;
+  for (const PairScore& pair : report.pairs) {
+    if (pair.method != first || !pair.failure.empty()) continue;
+    const auto found = second_distance.find({pair.recording, pair.stamp_a_ns, pair.stamp_b_ns});
+    if (found == second_distance.end()) {
+      ++agreement.missing_in_second;
+      continue;
+    }
+    ++agreement.pairs_compared;
+    agreement.max_abs_difference_px =
+        std::max(agreement.max_abs_difference_px, std::abs(pair.distance_px - found->second));
+  }
+  return agreement;
+}
+
+}  // namespace deep_ois

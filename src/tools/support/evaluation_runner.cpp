@@ -1,0 +1,435 @@
+#include "deep_ois/tools/support/evaluation_runner.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <future>
+#include <map>
+#include <memory>
+#include <set>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+#include "deep_ois/tools/support/evaluation_plots.h"
+#include "deep_ois/core/flow/flow_warp.h"
+#include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/flow/ghost_overlay.h"
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/ros/messages/conversions.h"
+
+namespace deep_ois {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// A frame pair to score, from simulator truth or an annotation file.
+struct PairToScore {
+  std::int64_t stamp_a_ns = 0;
+  std::int64_t stamp_b_ns = 0;
+  std::string category;
+  PairScope scope = kOisCameraPairs;
+  std::vector<Eigen::Vector2d> points_a_px, points_b_px;
+  bool ghost = false;  // draw its ghost images
+};
+
+std::string fileName(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+// Messages on `topic` from the bag's index (no message is read); 0 when the bag cannot be opened
+// (the run reports it when it gets there).
+std::size_t indexedCount(const std::string& path, const std::string& topic) {
+  try {
+    rosbag::Bag bag(path, rosbag::bagmode::Read);
+    return rosbag::View(bag, rosbag::TopicQuery(topic)).size();
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
+
+// Everything the pairs of one recording share.
+struct Recording {
+  std::size_t index = 0;
+  std::string path;
+  BagSequence sequence;
+  std::vector<BagFrame> frames;
+  std::unordered_map<std::int64_t, std::size_t> frame_of_stamp;  // stamp (ns) -> index in frames
+  ImuSampleBuffer imu{1.0};
+  RollingShutterConfig rolling_shutter;
+  std::unique_ptr<HomographyFlowRenderer> flow_renderer;
+  double reading_s = 0.0;  // wall time of loadRecording
+};
+
+// Reads a recording once (IMU, camera_info, tf, truth and every frame) and prepares what its
+// pairs share. Throws std::runtime_error naming the bag and the problem.
+std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& path,
+                                         const EvaluationOptions& options) {
+  const Clock::time_point started = Clock::now();
+  auto recording = std::make_unique<Recording>();
+  recording->index = index;
+  recording->path = path;
+  recording->sequence = readBagSequence(path, options.topics, BagReadFailure::kThrow, &recording->frames);
+  const BagSequence& sequence = recording->sequence;
+  const CameraModel& camera = *sequence.camera;
+  auto fail = [&](const std::string& what) { throw std::runtime_error(path + ": " + what); };
+  if (recording->frames.empty()) fail("no image on " + options.topics.image);
+  for (std::size_t f = 0; f < recording->frames.size(); ++f) {
+    const BagFrame& frame = recording->frames[f];
+    if (frame.rgb.cols != camera.width() || frame.rgb.rows != camera.height()) {
+      fail("frame " + std::to_string(f) + " is " + std::to_string(frame.rgb.cols) + "x" +
+           std::to_string(frame.rgb.rows) + " but camera_info says " +
+           std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+    }
+    recording->frame_of_stamp[static_cast<std::int64_t>(frame.stamp.toNSec())] = f;
+  }
+  recording->rolling_shutter = options.gyro.rolling_shutter;
+  if (options.gyro.rotation_from_tf) {
+    if (!sequence.imu_to_camera_rotation) {
+      fail(
+          "no IMU -> camera transform in /tf_static (set imu_to_camera_rotation in the gyro flow "
+          "config to override)");
+    }
+    recording->rolling_shutter.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
+  }
+  if (sequence.imu_samples.empty()) fail("no IMU sample on " + options.topics.imu);
+  recording->imu = sequence.imuBuffer();
+  recording->flow_renderer = std::make_unique<HomographyFlowRenderer>(
+      camera, options.gyro.grid_size, recording->rolling_shutter.patch_count);
+  recording->reading_s = secondsSince(started);
+  return recording;
+}
+
+}  // namespace
+
+std::string EvaluationOptions::validate() const {
+  if (bags.empty()) return "bags: at least one bag is needed";
+  if (topics.image.empty() || topics.camera_info.empty() || topics.imu.empty()) {
+    return "image, camera_info and imu topics must not be empty";
+  }
+  const std::string problem = gyro.rolling_shutter.validate();
+  if (!problem.empty()) return "gyro flow parameters: " + problem;
+  if (gyro.grid_size.width <= 0 || gyro.grid_size.height <= 0)
+    return "gyro flow grid size must be positive";
+  if (annotated_scope != kOisCameraPairs && annotated_scope != kNonOisCameraPairs &&
+      annotated_scope != kUnspecifiedCameraPairs) {
+    return "annotated_scope must be one of the OIS, non-OIS or unspecified camera scopes";
+  }
+  if (ghost_pairs_per_category < 0) return "ghost_pairs_per_category must be >= 0";
+  if (ghost_zoom < 1) return "ghost_zoom must be >= 1";
+  return "";
+}
+
+EvaluationRunner::EvaluationRunner(EvaluationOptions options) : options_(std::move(options)) {
+  const std::string problem = options_.validate();
+  if (!problem.empty()) throw std::invalid_argument("EvaluationRunner: " + problem);
+}
+
+void EvaluationRunner::addMethod(AlignmentMethod method) {
+  if (method.name.empty())
+    throw std::invalid_argument("EvaluationRunner::addMethod: empty method name");
+  if (!method.estimate)
+    throw std::invalid_argument("EvaluationRunner::addMethod: " + method.name +
+                                " has no estimate function");
+  if ((method.scope & (kBenchmarkPairs | kNonOisTwinPairs)) == 0) {
+    throw std::invalid_argument("EvaluationRunner::addMethod: " + method.name +
+                                " has an empty scope");
+  }
+  for (const AlignmentMethod& existing : methods_) {
+    if (existing.name == method.name)
+      throw std::invalid_argument("EvaluationRunner::addMethod: two methods named " + method.name);
+  }
+  methods_.push_back(std::move(method));
+}
+
+void EvaluationRunner::addMethods(std::vector<AlignmentMethod> methods) {
+  for (AlignmentMethod& method : methods) addMethod(std::move(method));
+}
+
+EvaluationReport EvaluationRunner::run() {
+  const Clock::time_point started = Clock::now();
+  EvaluationReport report;
+  const bool annotated = options_.annotations.has_value();
+  std::vector<bool> annotation_used(annotated ? options_.annotations->pairs.size() : 0, false);
+
+  std::size_t total_pairs = 0;
+  if (annotated) {
+    total_pairs = options_.annotations->pairs.size();
+  } else {
+    for (const std::string& path : options_.bags) {
+      std::size_t pairs = indexedCount(path, options_.topics.frame_pair_truth);
+      if (options_.max_pairs_per_bag > 0) pairs = std::min(pairs, options_.max_pairs_per_bag);
+      total_pairs += pairs;
+    }
+  }
+  std::unique_ptr<ProgressBar> progress;
+  if (options_.show_progress) progress = std::make_unique<ProgressBar>(total_pairs, "pairs");
+  std::size_t pairs_done = 0;
+  std::map<std::string, int> ghost_samples;  // per category
+
+  // Reading a bag (mostly bz2 decompression) overlaps scoring the previous one: one thread reads
+  // ahead, the methods run on this thread, so they need not be thread-safe.
+  auto prefetch = [this](std::size_t index) {
+    return std::async(std::launch::async, loadRecording, index, options_.bags[index],
+                      std::cref(options_));
+  };
+  std::future<std::unique_ptr<Recording>> next = prefetch(0);
+  for (std::size_t index = 0; index < options_.bags.size(); ++index) {
+    RecordingOutcome outcome;
+    outcome.path = options_.bags[index];
+    report.recordings.push_back(outcome);
+    RecordingOutcome& result = report.recordings.back();
+    try {
+      // ---- The recording, read while the previous one was scored. ----
+      const std::unique_ptr<Recording> loaded = next.get();
+      report.reading_s += loaded->reading_s;
+      if (index + 1 < options_.bags.size()) next = prefetch(index + 1);
+      Recording& recording = *loaded;
+      const BagSequence& sequence = recording.sequence;
+      const CameraModel& camera = *sequence.camera;
+      auto fail = [&](const std::string& what) {
+        throw std::runtime_error(recording.path + ": " + what);
+      };
+
+      // ---- The pairs to score. ----
+      std::vector<PairToScore> pairs;
+      if (!annotated) {
+        if (sequence.truths.empty()) {
+          fail("no annotated frame pair on " + options_.topics.frame_pair_truth +
+               " (a recording without simulator truth needs --annotations)");
+        }
+        for (const FramePairTruth& truth : sequence.truths) {
+          PairToScore pair;
+          pair.stamp_a_ns = static_cast<std::int64_t>(truth.previous_stamp.toNSec());
+          pair.stamp_b_ns = static_cast<std::int64_t>(truth.header.stamp.toNSec());
+          pair.category = truth.category;
+          pair.scope = truth.ois_enabled ? kOisCameraPairs : kNonOisTwinPairs;
+          pair.points_a_px = unflattenPoints(truth.points_a);
+          pair.points_b_px = unflattenPoints(truth.points_b);
+          pairs.push_back(std::move(pair));
+        }
+      } else {
+        const AnnotationFile& file = *options_.annotations;
+        for (std::size_t p = 0; p < file.pairs.size(); ++p) {
+          if (annotation_used[p]) continue;
+          const AnnotatedPair& annotated_pair = file.pairs[p];
+          const bool has_a = recording.frame_of_stamp.count(annotated_pair.stamp_a_ns) > 0;
+          const bool has_b = recording.frame_of_stamp.count(annotated_pair.stamp_b_ns) > 0;
+          if (!has_a && !has_b) continue;  // another bag's pair
+          annotation_used[p] = true;
+          const std::string where =
+              file.path + ":" + std::to_string(annotated_pair.lines.front()) + ": ";
+          if (!has_a || !has_b) {
+            report.errors.push_back(
+                where +
+                (has_a ? "stamp_b " + formatStampNs(annotated_pair.stamp_b_ns)
+                       : "stamp_a " + formatStampNs(annotated_pair.stamp_a_ns)) +
+                " is not a frame of " + recording.path + " (the other stamp is)");
+            ++pairs_done;
+            continue;
+          }
+          bool inside = true;
+          for (std::size_t k = 0; k < annotated_pair.points_a_px.size() && inside; ++k) {
+            for (const Eigen::Vector2d& p_px :
+                 {annotated_pair.points_a_px[k], annotated_pair.points_b_px[k]}) {
+              if (p_px.x() < -0.5 || p_px.y() < -0.5 || p_px.x() > camera.width() - 0.5 ||
+                  p_px.y() > camera.height() - 0.5) {
+                report.errors.push_back(file.path + ":" + std::to_string(annotated_pair.lines[k]) +
+                                        ": point (" + std::to_string(p_px.x()) + ", " +
+                                        std::to_string(p_px.y()) + ") is outside the " +
+                                        std::to_string(camera.width()) + "x" +
+                                        std::to_string(camera.height()) + " image of " +
+                                        recording.path + "; pair not scored");
+                inside = false;
+                break;
+              }
+            }
+          }
+          if (!inside) {
+            ++pairs_done;
+            continue;
+          }
+          PairToScore pair;
+          pair.stamp_a_ns = annotated_pair.stamp_a_ns;
+          pair.stamp_b_ns = annotated_pair.stamp_b_ns;
+          pair.category = annotated_pair.category;
+          pair.scope = options_.annotated_scope;
+          pair.points_a_px = annotated_pair.points_a_px;
+          pair.points_b_px = annotated_pair.points_b_px;
+          pairs.push_back(std::move(pair));
+        }
+      }
+      if (options_.max_pairs_per_bag > 0 && pairs.size() > options_.max_pairs_per_bag) {
+        pairs.resize(options_.max_pairs_per_bag);
+      }
+      // Ghost images: the middle pair of each category of this recording (benchmark pairs only;
+      // the twins' only row is the gyro's), while the category needs samples.
+      {
+        std::map<std::string, std::vector<std::size_t>> of_category;
+        for (std::size_t p = 0; p < pairs.size(); ++p) {
+          if (pairs[p].scope & kBenchmarkPairs) of_category[pairs[p].category].push_back(p);
+        }
+        for (const auto& [category, members] : of_category) {
+          if (ghost_samples[category] >= options_.ghost_pairs_per_category) continue;
+          pairs[members[members.size() / 2]].ghost = true;
+          ++ghost_samples[category];
+        }
+      }
+
+      // ---- Score. ----
+      for (std::size_t p = 0; p < pairs.size(); ++p) {
+        const PairToScore& pair = pairs[p];
+        if (progress) progress->update(++pairs_done);
+        auto skip = [&](const std::string& reason) {
+          ++result.pairs_skipped;
+          ++result.skip_reasons[reason];
+        };
+        const auto frame_a = recording.frame_of_stamp.find(pair.stamp_a_ns);
+        const auto frame_b = recording.frame_of_stamp.find(pair.stamp_b_ns);
+        if (frame_a == recording.frame_of_stamp.end() ||
+            frame_b == recording.frame_of_stamp.end()) {
+          skip("truth stamps are not frames of the bag");
+          continue;
+        }
+        if (pair.points_a_px.empty() || pair.points_a_px.size() != pair.points_b_px.size()) {
+          skip("no annotated point");
+          continue;
+        }
+        // The gyro flow nodelet's computation for this pair.
+        const RollingShutterHomographies gyro = computeRollingShutterHomographies(
+            recording.imu, options_.gyro.integration, recording.rolling_shutter, camera.K(),
+            sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns)),
+            sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns)));
+        if (!gyro.ok()) {
+          skip(std::string("gyro: ") + toString(gyro.status));
+          continue;
+        }
+        FramePairContext context;
+        context.recording_id = index;
+        context.stamp_a_ns = pair.stamp_a_ns;
+        context.stamp_b_ns = pair.stamp_b_ns;
+        context.category = pair.category;
+        context.scope = pair.scope;
+        context.camera = &camera;
+        const BagFrame& a = recording.frames[frame_a->second];
+        const BagFrame& b = recording.frames[frame_b->second];
+        context.rgb_a = a.rgb;
+        context.rgb_b = b.rgb;
+        context.gray_a = a.gray;
+        context.gray_b = b.gray;
+        context.gyro_homographies = gyro.homographies;
+        recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
+        context.points_a_px = pair.points_a_px;
+        context.points_b_px = pair.points_b_px;
+        const double identity_px = geometryDistance(pair.points_a_px, pair.points_b_px,
+                                                    {Eigen::Matrix3d::Identity()}, camera.height());
+
+        GhostSample ghost;
+        if (pair.ghost) {
+          ghost.category = pair.category;
+          ghost.label =
+              fileName(recording.path) + ", pair " + std::to_string(p) + " (" +
+              formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) + ")" +
+              (options_.ghost_zoom > 1 ? ", centre " + std::to_string(options_.ghost_zoom) + "x"
+                                       : "");
+        }
+        for (AlignmentMethod& method : methods_) {
+          if ((method.scope & pair.scope) == 0) continue;
+          AlignmentEstimate estimate;
+          PairScore score;
+          score.recording = index;
+          score.stamp_a_ns = pair.stamp_a_ns;
+          score.stamp_b_ns = pair.stamp_b_ns;
+          score.category = pair.category;
+          score.method = method.name;
+          score.identity_px = identity_px;
+          score.distance_px = std::nan("");
+          const Clock::time_point estimating = Clock::now();
+          try {
+            estimate = method.estimate(context);
+            report.method_s[method.name] += secondsSince(estimating);
+            if (estimate.ok()) {
+              score.distance_px = estimateDistance(estimate, context);
+              if (!std::isfinite(score.distance_px)) score.failure = "non-finite motion";
+            } else {
+              score.failure =
+                  estimate.failure_reason.empty() ? "no estimate" : estimate.failure_reason;
+            }
+          } catch (const std::exception& e) {
+            report.method_s[method.name] += secondsSince(estimating);
+            score.failure = std::string("error: ") + e.what();
+          }
+          if (!score.failure.empty()) {
+            estimate = AlignmentEstimate::failed(score.failure);
+            report.table.addFailure(method.name, pair.category, identity_px);
+            ++report.failure_reasons[method.name][score.failure];
+            score.scored_px = identity_px;
+          } else {
+            score.scored_px =
+                report.table.addCapped(method.name, pair.category, score.distance_px, identity_px);
+          }
+          report.pairs.push_back(score);
+          if (pair.ghost) {
+            GhostPanel panel;
+            panel.method = method.name;
+            panel.distance_px = score.scored_px;
+            panel.failed = !estimate.ok();
+            panel.capped = estimate.ok() && score.distance_px > identity_px;
+            try {
+              panel.ghost_rgb = magnifyCentre(
+                  ghostOverlay(
+                      context.rgb_a,
+                      warpFrameBOntoA(context.rgb_b, estimateCameraFlow(estimate, camera))),
+                  options_.ghost_zoom);
+              ghost.panels.push_back(std::move(panel));
+            } catch (const std::exception&) {
+              // A motion that cannot be drawn was already scored (as a failure); the panel stays
+              // blank.
+            }
+          }
+        }
+        if (pair.ghost) report.ghosts.push_back(std::move(ghost));
+        ++result.pairs_scored;
+      }
+    } catch (const std::exception& e) {
+      // One unreadable recording must not lose the others; bag readers' messages name the file.
+      if (index + 1 < options_.bags.size() && !next.valid()) next = prefetch(index + 1);
+      const std::string what = e.what();
+      result.error = what.rfind(result.path, 0) == 0 ? what : result.path + ": " + what;
+      if (progress) std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());
+    }
+  }
+  if (annotated) {
+    for (std::size_t p = 0; p < annotation_used.size(); ++p) {
+      if (annotation_used[p]) continue;
+      const AnnotatedPair& pair = options_.annotations->pairs[p];
+      report.errors.push_back(
+          options_.annotations->path + ":" + std::to_string(pair.lines.front()) + ": pair " +
+          formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) +
+          " matches no frame of the bags given");
+    }
+  }
+  if (progress) {
+    if (pairs_done < total_pairs) progress->update(total_pairs);  // pairs no bag held
+    std::fprintf(stderr, "\n");
+  }
+  report.table.orderCategories({"RE", "LT", "LL", "MF"});  // the paper's column order
+  std::vector<std::string> method_order;
+  for (const AlignmentMethod& method : methods_) method_order.push_back(method.name);
+  report.table.orderMethods(method_order);
+  report.elapsed_s = secondsSince(started);
+  return report;
+}
+
+}  // namespace deep_ois
