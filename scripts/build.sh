@@ -1,19 +1,31 @@
 #!/usr/bin/env bash
 # Configures (first time) and builds deep_ois with plain cmake into _build/main (ignored by git;
 # not build/, whose executables rosrun deliberately skips).
-# Pass --tests to build the gtest and rostest executables too.
+#   build.sh [--tests] [-DOPTION=VALUE ...]
+# --tests also builds the gtest and rostest executables; -D options go to CMake's configure step
+# (e.g. -DDEEP_OIS_WITH_TORCH=OFF; DEEP_OIS_BUILD_DIR chooses the build directory).
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build_dir="${DEEP_OIS_BUILD_DIR:-$repo/_build/main}"
+with_tests=false
+cmake_options=()
+for arg in "$@"; do
+  case "$arg" in
+    --tests) with_tests=true ;;
+    -D*) cmake_options+=("$arg") ;;
+    *) echo "build.sh: unknown argument '$arg' (expected --tests or -DOPTION=VALUE)" >&2; exit 2 ;;
+  esac
+done
 
 # A pyenv or venv python first on PATH lacks catkin_pkg: catkin must use Debian's.
 mkdir -p "$build_dir"
 cmake -S "$repo" -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON \
-  -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$build_dir.cmake.log" 2>&1 ||
+  -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 "${cmake_options[@]}" \
+  >"$build_dir.cmake.log" 2>&1 ||
   { cat "$build_dir.cmake.log"; exit 1; }
 jobs="$(nproc)"
 cmake --build "$build_dir" -- -j"$jobs"
-if [ "${1:-}" = "--tests" ]; then
+if [ "$with_tests" = true ]; then
   cmake --build "$build_dir" --target tests -- -j"$jobs"
 fi
 echo "build: done in $build_dir"
