@@ -1,7 +1,10 @@
 // Writes a simulated OIS (or non-OIS twin) camera sequence with exact ground truth to a rosbag.
 //
 //   simulate --config config/simulator/RE.yaml --seed N --duration S --out file.bag
-//            [--ois on|off] [--compression bz2|lz4|none] [--quiet]
+//            [--overlay config/simulator/modules/M.yaml ...] [--ois on|off]
+//            [--compression bz2|lz4|none] [--quiet]
+//
+// --overlay (repeatable) reads a stabiliser module or camera file over the config.
 //
 // Same config and seed -> identical bag content. Ctrl-C closes the bag after the current frame.
 #include <rosbag/bag.h>
@@ -12,6 +15,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/core/sim/simulator.h"
@@ -26,7 +30,7 @@ int usage(const std::string& problem) {
   std::fprintf(stderr,
                "simulate: %s\n"
                "usage: simulate --config FILE.yaml --seed N --duration SECONDS --out FILE.bag\n"
-               "                [--ois on|off] [--compression bz2|lz4|none] [--quiet]\n",
+               "                [--overlay FILE.yaml ...] [--ois on|off] [--compression bz2|lz4|none] [--quiet]\n",
                problem.c_str());
   return 2;
 }
@@ -35,6 +39,7 @@ int usage(const std::string& problem) {
 
 int main(int argc, char** argv) {
   std::string config_path, out_path, ois_override, compression_name = "bz2";
+  std::vector<std::string> overlays;
   long seed = -1;
   double duration_s = -1.0;
   bool quiet = false;
@@ -49,6 +54,8 @@ int main(int argc, char** argv) {
     try {
       if (flag == "--config") {
         config_path = value;
+      } else if (flag == "--overlay") {
+        overlays.push_back(value);
       } else if (flag == "--out") {
         out_path = value;
       } else if (flag == "--seed") {
@@ -80,7 +87,7 @@ int main(int argc, char** argv) {
   if (!(duration_s > 0.0)) return usage("--duration is required (seconds, > 0)");
 
   try {
-    deep_ois::sim::SimulatorConfig config = deep_ois::sim::loadSimulatorConfig(config_path);
+    deep_ois::sim::SimulatorConfig config = deep_ois::sim::loadSimulatorConfig(config_path, overlays);
     if (!ois_override.empty()) config.ois.enabled = ois_override == "on";
     const auto started = std::chrono::steady_clock::now();
     const deep_ois::sim::Simulator simulator(config, static_cast<std::uint32_t>(seed), duration_s);

@@ -1,6 +1,7 @@
 #include "deep_ois/core/sim/ois_model.h"
 
 #include <algorithm>
+#include <fstream>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -33,7 +34,65 @@ Eigen::Matrix3d expm(const Eigen::Matrix3d& M) {
   return result;
 }
 
+// Reads "t_s,x_px,y_px" rows after a header line. Throws std::runtime_error naming file and line.
+std::vector<std::pair<double, Eigen::Vector2d>> readLensShiftCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open the lens shift CSV");
+  std::vector<std::pair<double, Eigen::Vector2d>> rows;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (number == 1 || line.empty() || line[0] == '#') continue;  // header, comments
+    std::istringstream fields(line);
+    double t = 0.0, x = 0.0, y = 0.0;
+    char comma1 = 0, comma2 = 0;
+    if (!(fields >> t >> comma1 >> x >> comma2 >> y) || comma1 != ',' || comma2 != ',' ||
+        !std::isfinite(t) || !std::isfinite(x) || !std::isfinite(y)) {
+      throw std::runtime_error(path + ":" + std::to_string(number) +
+                               ": expected 't_s,x_px,y_px' with finite numbers");
+    }
+    if (!rows.empty() && !(t > rows.back().first)) {
+      throw std::runtime_error(path + ":" + std::to_string(number) + ": times must increase");
+    }
+    rows.push_back({t, Eigen::Vector2d(x, y)});
+  }
+  if (rows.empty()) throw std::runtime_error(path + ": no lens shift rows");
+  return rows;
+}
+
+// Linear interpolation of the CSV trajectory at time t, held outside it.
+Eigen::Vector2d interpolate(const std::vector<std::pair<double, Eigen::Vector2d>>& rows, double t) {
+  if (t <= rows.front().first) return rows.front().second;
+  if (t >= rows.back().first) return rows.back().second;
+  const auto after = std::upper_bound(rows.begin(), rows.end(), t,
+                                      [](double value, const auto& row) { return value < row.first; });
+  const auto before = after - 1;
+  const double alpha = (t - before->first) / (after->first - before->first);
+  return (1.0 - alpha) * before->second + alpha * after->second;
+}
+
+// The point of the stroke nearest to `command`: per axis for a box, radially for an ellipse.
+Eigen::Vector2d clampToStroke(const Eigen::Vector2d& command, double limit_x, double limit_y,
+                              StrokeShape shape) {
+  if (shape == StrokeShape::kBox) {
+    return Eigen::Vector2d(std::clamp(command.x(), -limit_x, limit_x),
+                           std::clamp(command.y(), -limit_y, limit_y));
+  }
+  const double r = std::hypot(command.x() / limit_x, command.y() / limit_y);
+  return r > 1.0 ? Eigen::Vector2d(command / r) : command;
+}
+
 }  // namespace
+
+const char* toString(StrokeShape shape) { return shape == StrokeShape::kBox ? "box" : "circle"; }
+
+bool parseStrokeShape(const std::string& text, StrokeShape* shape) {
+  if (text == "box") *shape = StrokeShape::kBox;
+  else if (text == "circle") *shape = StrokeShape::kCircle;
+  else return false;
+  return true;
+}
 
 std::string OisConfig::validate() const {
   std::ostringstream why;
@@ -51,6 +110,22 @@ std::string OisConfig::validate() const {
     why << "gain: must be in [0, 2] (got " << gain << ")";
   } else if (!std::isfinite(gyro_noise_rad_s) || gyro_noise_rad_s < 0.0) {
     why << "gyro_noise_rad_s: must be non-negative (got " << gyro_noise_rad_s << ")";
+  } else if (!std::isfinite(stroke_limit_y_deg) || stroke_limit_y_deg < 0.0 ||
+             stroke_limit_y_deg >= 45.0) {
+    why << "stroke_limit_y_deg: must be in [0, 45) degrees, 0 = as stroke_limit_deg (got "
+        << stroke_limit_y_deg << ")";
+  } else if (!std::isfinite(pan_detection_rate_rad_s) || pan_detection_rate_rad_s < 0.0) {
+    why << "pan_detection_rate_rad_s: must be non-negative, 0 = off (got "
+        << pan_detection_rate_rad_s << ")";
+  } else if (!positive(pan_detection_time_constant_s)) {
+    why << "pan_detection_time_constant_s: must be positive (got "
+        << pan_detection_time_constant_s << " s)";
+  } else if (!positive(pan_release_corner_hz)) {
+    why << "pan_release_corner_hz: must be positive (got " << pan_release_corner_hz << " Hz)";
+  } else if (!std::isfinite(hall_noise_px) || hall_noise_px < 0.0) {
+    why << "hall_noise_px: must be non-negative (got " << hall_noise_px << ")";
+  } else if (!std::isfinite(hall_lag_s) || hall_lag_s < 0.0 || hall_lag_s > 0.1) {
+    why << "hall_lag_s: must be in [0, 0.1] s (got " << hall_lag_s << ")";
   } else if (!positive(control_rate_hz) ||
              control_rate_hz < kMinControlStepsPerActuatorPeriod * actuator_natural_hz) {
     why << "control_rate_hz: must be at least " << kMinControlStepsPerActuatorPeriod
@@ -119,14 +194,30 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
     throw std::invalid_argument(why.str());
   }
   stroke_limit_px_ = focal_px * std::tan(config_.stroke_limit_deg * kPi / 180.0);
+  const double limit_y_deg =
+      config_.stroke_limit_y_deg > 0.0 ? config_.stroke_limit_y_deg : config_.stroke_limit_deg;
+  stroke_limit_y_px_ = focal_px * std::tan(limit_y_deg * kPi / 180.0);
   if (!config_.enabled) return;
 
   const double dt = 1.0 / config_.control_rate_hz;
   const int steps = std::max(
       1, static_cast<int>(std::ceil((motion.endTime() - start_s_) * config_.control_rate_hz)));
+  shift_grid_.assign(steps + 1, Eigen::Vector2d::Zero());
+  if (!config_.lens_shift_csv.empty()) {
+    // A logged trajectory instead of the stabiliser: the same seed's motion, another lens.
+    const auto rows = readLensShiftCsv(config_.lens_shift_csv);
+    for (int j = 0; j <= steps; ++j) shift_grid_[j] = interpolate(rows, j * dt);
+    return;
+  }
+
   const double wc = 2.0 * kPi * config_.highpass_corner_hz;
-  const double decay = std::exp(-wc * dt);
-  const double rate_weight = wc > 0.0 ? -std::expm1(-wc * dt) / wc : dt;
+  const double wc_pan = 2.0 * kPi * config_.pan_release_corner_hz;
+  // The leaky integrator's decay and the weight of a step's mean rate, for a corner w.
+  auto decayOf = [dt](double w) { return std::exp(-w * dt); };
+  auto rateWeightOf = [dt](double w) { return w > 0.0 ? -std::expm1(-w * dt) / w : dt; };
+  const double decay_hold = decayOf(wc), weight_hold = rateWeightOf(wc);
+  const double decay_pan = decayOf(wc_pan), weight_pan = rateWeightOf(wc_pan);
+  const double pan_smoothing = -std::expm1(-dt / config_.pan_detection_time_constant_s);
 
   std::mt19937 rng(seed);
   auto measuredRate = [&](int j) {
@@ -140,21 +231,40 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
   LensActuator actuator_x(config_.actuator_natural_hz, config_.actuator_damping, dt,
                           stroke_limit_px_);
   LensActuator actuator_y(config_.actuator_natural_hz, config_.actuator_damping, dt,
-                          stroke_limit_px_);
+                          stroke_limit_y_px_);
   const double scale_px = config_.gain * focal_px;
-  shift_grid_.assign(steps + 1, Eigen::Vector2d::Zero());
+  // Commands waiting out the Hall sensor's delay (the loop reacts to them that much later).
+  const int lag_steps = static_cast<int>(std::lround(config_.hall_lag_s * config_.control_rate_hz));
+  std::vector<Eigen::Vector2d> pending(static_cast<std::size_t>(lag_steps) + 1,
+                                       Eigen::Vector2d::Zero());
   Eigen::Vector2d theta = Eigen::Vector2d::Zero();  // high-passed (x, y) angles, rad
   Eigen::Vector2d rate = measuredRate(0);
+  double smoothed_rate = 0.0;  // low-passed |pan/tilt rate|, rad/s, for the pan detector
+  bool panning = false;
   for (int j = 0; j < steps; ++j) {
     // The command of step j is held until the controller's next update (zero-order hold).
-    const double command_x =
-        std::clamp(scale_px * std::tan(theta.y()), -stroke_limit_px_, stroke_limit_px_);
-    const double command_y =
-        std::clamp(-scale_px * std::tan(theta.x()), -stroke_limit_px_, stroke_limit_px_);
+    const Eigen::Vector2d command = clampToStroke(
+        Eigen::Vector2d(scale_px * std::tan(theta.y()), -scale_px * std::tan(theta.x())),
+        stroke_limit_px_, stroke_limit_y_px_, config_.stroke_shape);
+    pending[static_cast<std::size_t>(j % (lag_steps + 1))] = command;
+    // What the loop acts on: the command of lag_steps ago, against a noisy position reading (the
+    // lens settles where the reading equals the command: off by the reading's noise).
+    Eigen::Vector2d effective = pending[static_cast<std::size_t>((j + 1) % (lag_steps + 1))];
+    if (config_.hall_noise_px > 0.0) {  // no draw otherwise: other configs keep their sequences
+      const double noise_x = gaussian(rng);
+      const double noise_y = gaussian(rng);
+      effective -= config_.hall_noise_px * Eigen::Vector2d(noise_x, noise_y);
+    }
     shift_grid_[j + 1] =
-        Eigen::Vector2d(actuator_x.advance(command_x), actuator_y.advance(command_y));
+        Eigen::Vector2d(actuator_x.advance(effective.x()), actuator_y.advance(effective.y()));
     const Eigen::Vector2d next_rate = measuredRate(j + 1);
-    theta = decay * theta + rate_weight * 0.5 * (rate + next_rate);
+    if (config_.pan_detection_rate_rad_s > 0.0) {
+      smoothed_rate += pan_smoothing * (next_rate.norm() - smoothed_rate);
+      if (!panning && smoothed_rate > config_.pan_detection_rate_rad_s) panning = true;
+      if (panning && smoothed_rate < 0.7 * config_.pan_detection_rate_rad_s) panning = false;
+    }
+    theta = (panning ? decay_pan : decay_hold) * theta +
+            (panning ? weight_pan : weight_hold) * 0.5 * (rate + next_rate);
     rate = next_rate;
   }
 }

@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <optional>
@@ -114,8 +115,10 @@ class SectionReader {
 
 }  // namespace
 
-SimulatorConfig loadSimulatorConfig(const std::string& path) {
-  SimulatorConfig config;
+namespace {
+
+// Reads `path` over `config`: keys the file holds replace the values, the others stay.
+void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
   try {
     YAML::Node root;
     try {
@@ -172,16 +175,34 @@ SimulatorConfig loadSimulatorConfig(const std::string& path) {
         .finish();
 
     OisConfig& o = config.ois;
+    std::string stroke_shape = toString(o.stroke_shape);
     SectionReader(root, "ois")
         .read("enabled", o.enabled)
         .read("highpass_corner_hz", o.highpass_corner_hz)
         .read("actuator_natural_hz", o.actuator_natural_hz)
         .read("actuator_damping", o.actuator_damping)
         .read("stroke_limit_deg", o.stroke_limit_deg)
+        .read("stroke_limit_y_deg", o.stroke_limit_y_deg)
+        .read("stroke_shape", stroke_shape)
         .read("gain", o.gain)
         .read("gyro_noise_rad_s", o.gyro_noise_rad_s)
         .read("control_rate_hz", o.control_rate_hz)
+        .read("pan_detection_rate_rad_s", o.pan_detection_rate_rad_s)
+        .read("pan_detection_time_constant_s", o.pan_detection_time_constant_s)
+        .read("pan_release_corner_hz", o.pan_release_corner_hz)
+        .read("hall_noise_px", o.hall_noise_px)
+        .read("hall_lag_s", o.hall_lag_s)
+        .read("lens_shift_csv", o.lens_shift_csv)
         .finish();
+    if (!parseStrokeShape(stroke_shape, &o.stroke_shape)) {
+      throw std::runtime_error("ois.stroke_shape: '" + stroke_shape + "' is not box or circle");
+    }
+    // A relative lens log path is relative to the file that names it.
+    if (root["ois"] && root["ois"]["lens_shift_csv"] && !o.lens_shift_csv.empty() &&
+        std::filesystem::path(o.lens_shift_csv).is_relative()) {
+      o.lens_shift_csv =
+          (std::filesystem::path(path).parent_path() / o.lens_shift_csv).lexically_normal().string();
+    }
 
     ImuConfig& i = config.imu;
     SectionReader(root, "imu")
@@ -223,11 +244,24 @@ SimulatorConfig loadSimulatorConfig(const std::string& path) {
         .read("start_epoch_s", config.start_epoch_s)
         .finish();
 
-    if (sc.texture_paths.empty()) sc.texture_paths = defaultTexturePaths();
-    const std::string problem = config.validate();
-    if (!problem.empty()) throw std::runtime_error(problem);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(path + ": " + e.what());
+  }
+}
+
+}  // namespace
+
+SimulatorConfig loadSimulatorConfig(const std::string& path,
+                                    const std::vector<std::string>& overlays) {
+  SimulatorConfig config;
+  readSimulatorConfig(path, config);
+  for (const std::string& overlay : overlays) readSimulatorConfig(overlay, config);
+  if (config.scene.texture_paths.empty()) config.scene.texture_paths = defaultTexturePaths();
+  const std::string problem = config.validate();
+  if (!problem.empty()) {
+    std::string files = path;
+    for (const std::string& overlay : overlays) files += " + " + overlay;
+    throw std::runtime_error(files + ": " + problem);
   }
   return config;
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -14,6 +15,7 @@
 #include <tuple>
 
 #include "deep_ois/core/evaluation/annotation_file.h"
+#include "deep_ois/core/evaluation/standard_table_rows.h"
 
 namespace deep_ois {
 namespace {
@@ -109,9 +111,54 @@ std::size_t EvaluationReport::failedRecordings() const {
 
 bool EvaluationReport::complete() const { return failedRecordings() == 0 && errors.empty(); }
 
+EvaluationTable EvaluationReport::uncappedTable() const {
+  EvaluationTable uncapped;
+  for (const PairScore& pair : pairs) {
+    uncapped.add(pair.method, pair.category,
+                 std::isfinite(pair.distance_px) ? pair.distance_px : pair.identity_px);
+  }
+  uncapped.orderCategories(table.categories());
+  uncapped.orderMethods(table.methods());
+  return uncapped;
+}
+
+std::vector<EvaluationReport::GapClosed> EvaluationReport::gapClosed() const {
+  std::vector<GapClosed> rows;
+  const auto& methods = table.methods();
+  auto has = [&methods](const char* name) {
+    return std::find(methods.begin(), methods.end(), name) != methods.end();
+  };
+  if (!has(kGyroOisMethod) || !has(kGyroNonOisMethod)) return rows;
+  const EvaluationTable uncapped = uncappedTable();
+  auto share = [](const EvaluationTable& t, const std::string& method) {
+    const double ois = t.average(kGyroOisMethod), twin = t.average(kGyroNonOisMethod);
+    return 100.0 * (ois - t.average(method)) / (ois - twin);
+  };
+  for (const std::string& method : methods) {
+    if (method == kGyroOisMethod || method == kGyroNonOisMethod || method == kIdentityMethod)
+      continue;
+    rows.push_back({method, share(table, method), share(uncapped, method)});
+  }
+  return rows;
+}
+
 std::string EvaluationReport::markdown() const {
   std::ostringstream out;
   out << table.markdown();
+  if (!pairs.empty()) {
+    out << "\nUncapped (each pair's own distance; the paper caps it at identity):\n\n"
+        << uncappedTable().markdown();
+  }
+  const std::vector<GapClosed> gaps = gapClosed();
+  if (!gaps.empty()) {
+    out << "\nGap closed between the uncompensated OIS gyro and the non-OIS twin (Avg):\n\n";
+    char line[256];
+    for (const GapClosed& gap : gaps) {
+      std::snprintf(line, sizeof(line), "- %s: %.1f %% capped, %.1f %% uncapped\n",
+                    gap.method.c_str(), gap.capped_percent, gap.uncapped_percent);
+      out << line;
+    }
+  }
   std::vector<std::string> notes;
   for (const std::string& method : table.methods()) {
     const std::size_t pairs = methodTotal(table, method, &EvaluationTable::count);

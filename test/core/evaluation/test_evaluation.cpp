@@ -14,6 +14,7 @@
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/core/flow/grid_flow_sampling.h"
 #include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/evaluation/standard_table_rows.h"
 #include "test_helpers.h"
 
 namespace deep_ois {
@@ -233,6 +234,34 @@ TEST(EvaluationReport, NotesFailuresCappingAndErrorsUnderTheTable) {
   EXPECT_NE(json.find("\"ORB + RANSAC\", \"avg_px\": 2"), std::string::npos) << json;
   EXPECT_NE(json.find("\"too few matches (< 8)\": 1"), std::string::npos) << json;
   EXPECT_NE(json.find("\"error\": \"bad.bag: cannot open the bag\""), std::string::npos) << json;
+}
+
+TEST(EvaluationReport, ReportsUncappedMeansAndTheGapClosed) {
+  EvaluationReport report;
+  // Two pairs in RE: the OIS gyro is worse than identity on the second (capped there).
+  auto pair = [&report](const std::string& method, double distance, double identity) {
+    report.table.addCapped(method, "RE", distance, identity);
+    report.pairs.push_back({0, 0, 0, "RE", method, distance, identity,
+                            std::min(distance, identity), ""});
+  };
+  pair("identity", 2.0, 2.0);
+  pair("identity", 2.0, 2.0);
+  pair(kGyroOisMethod, 1.0, 2.0);
+  pair(kGyroOisMethod, 5.0, 2.0);
+  pair(kGyroNonOisMethod, 0.2, 2.0);
+  pair(kGyroNonOisMethod, 0.2, 2.0);
+  pair("model", 0.4, 2.0);
+  pair("model", 0.6, 2.0);
+  EXPECT_DOUBLE_EQ(report.uncappedTable().mean(kGyroOisMethod, "RE"), 3.0);
+  EXPECT_DOUBLE_EQ(report.table.mean(kGyroOisMethod, "RE"), 1.5);
+  const auto gaps = report.gapClosed();
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_EQ(gaps[0].method, "model");
+  EXPECT_NEAR(gaps[0].capped_percent, 100.0 * (1.5 - 0.5) / (1.5 - 0.2), 1e-9);
+  EXPECT_NEAR(gaps[0].uncapped_percent, 100.0 * (3.0 - 0.5) / (3.0 - 0.2), 1e-9);
+  const std::string markdown = report.markdown();
+  EXPECT_NE(markdown.find("Uncapped"), std::string::npos) << markdown;
+  EXPECT_NE(markdown.find("- model: 76.9 % capped, 89.3 % uncapped"), std::string::npos) << markdown;
 }
 
 TEST(EvaluationPlots, DrawsBarsAndGhostGrids) {

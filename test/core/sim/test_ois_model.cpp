@@ -2,6 +2,9 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
 #include <vector>
 
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
@@ -303,6 +306,159 @@ TEST(OisModel, ValidateNamesTheField) {
   const CameraMotion motion(test::stillMotionConfig(), 1, 0.0, 1.0);
   EXPECT_THROW(OisModel(config, motion, kFocalPx, 1), std::invalid_argument);
   EXPECT_THROW(OisModel(OisConfig(), motion, 0.0, 1), std::invalid_argument);
+}
+
+
+// ---- Stabiliser variety -----------------------------------------------------------------------
+
+// Largest lens excursion over the motion, per axis and as a radius, pixels.
+Eigen::Vector3d largestShift(const OisModel& ois, double end_s) {
+  Eigen::Vector3d largest = Eigen::Vector3d::Zero();
+  for (double t = 0.0; t < end_s; t += 0.002) {
+    const Eigen::Vector2d s = ois.lensShift(t);
+    largest = largest.cwiseMax(Eigen::Vector3d(std::abs(s.x()), std::abs(s.y()), s.norm()));
+  }
+  return largest;
+}
+
+TEST(OisModel, AsymmetricAndCircularStrokesBoundTheLens) {
+  CameraMotionConfig config = test::stillMotionConfig();
+  config.pan_peak_rad_s = 0.4;  // pans far beyond the stroke: the lens sits at its end stops
+  config.pan_period_s = 2.0;
+  config.shake_rms_rad_s = Eigen::Vector3d(0.3, 0.3, 0.0);
+  const CameraMotion motion(config, 4, 0.0, 6.0);
+  OisConfig box;
+  box.stroke_limit_deg = 1.0;
+  box.stroke_limit_y_deg = 0.5;
+  const OisModel asymmetric(box, motion, kFocalPx, 1);
+  const Eigen::Vector3d box_largest = largestShift(asymmetric, 6.0);
+  EXPECT_NEAR(asymmetric.strokeLimitYPx(), kFocalPx * std::tan(0.5 * kPi / 180.0), 1e-9);
+  EXPECT_LE(box_largest.x(), asymmetric.strokeLimitPx() + 1e-9);
+  EXPECT_LE(box_largest.y(), asymmetric.strokeLimitYPx() + 1e-9);
+  EXPECT_GT(box_largest.x(), 0.9 * asymmetric.strokeLimitPx());  // it does reach its end stops
+  EXPECT_GT(box_largest.y(), 0.9 * asymmetric.strokeLimitYPx());
+
+  OisConfig circle;
+  circle.stroke_shape = StrokeShape::kCircle;
+  const OisModel round(circle, motion, kFocalPx, 1);
+  OisConfig square;
+  const OisModel boxed(square, motion, kFocalPx, 1);
+  // A box lets the corner reach sqrt(2) x the limit; a circle keeps the radius near the limit
+  // (the commands are clamped radially; the per-axis end stops only catch overshoot).
+  EXPECT_GT(largestShift(boxed, 6.0).z(), 1.2 * boxed.strokeLimitPx());
+  EXPECT_LT(largestShift(round, 6.0).z(), 1.1 * round.strokeLimitPx());
+}
+
+TEST(OisModel, PanDetectionLetsGoDuringADeliberatePan) {
+  CameraMotionConfig config = test::stillMotionConfig();
+  config.pan_peak_rad_s = 0.3;
+  config.pan_period_s = 3.0;
+  const CameraMotion motion(config, 2, 0.0, 6.0);
+  OisConfig holding;
+  holding.stroke_limit_deg = 3.0;  // wide, so the end stop does not hide the difference
+  OisConfig releasing = holding;
+  releasing.pan_detection_rate_rad_s = 0.1;
+  releasing.pan_release_corner_hz = 5.0;
+  const OisModel hold(holding, motion, kFocalPx, 3), release(releasing, motion, kFocalPx, 3);
+  const double hold_px = largestShift(hold, 6.0).z(), release_px = largestShift(release, 6.0).z();
+  std::printf("[ figures  ] pan 0.3 rad/s: largest lens excursion %.2f px holding, %.2f px with "
+              "pan detection\n", hold_px, release_px);
+  EXPECT_LT(release_px, 0.5 * hold_px);
+}
+
+TEST(OisModel, HallSensorNoiseAndLag) {
+  const CameraMotion motion(shakeOnly(1.0, 12.0), 5, 0.0, 4.0);
+  OisConfig clean;
+  OisConfig noisy = clean;
+  noisy.hall_noise_px = 0.2;
+  OisConfig late = clean;
+  late.hall_lag_s = 0.01;
+  const OisModel a(clean, motion, kFocalPx, 9), b(noisy, motion, kFocalPx, 9),
+      c(late, motion, kFocalPx, 9);
+  // Noise: the lens jitters around the clean trajectory (the 35 Hz actuator filters it).
+  double jitter = 0.0;
+  int n = 0;
+  for (double t = 0.5; t < 3.5; t += 0.001, ++n) jitter += (b.lensShift(t) - a.lensShift(t)).squaredNorm();
+  jitter = std::sqrt(jitter / n);
+  EXPECT_GT(jitter, 0.01);
+  EXPECT_LT(jitter, 0.2);
+  // Lag: the lagged lens is the clean one 10 ms later, closely.
+  double lagged = 0.0, unlagged = 0.0;
+  for (double t = 0.5; t < 3.5; t += 0.001) {
+    lagged += (c.lensShift(t) - a.lensShift(t - 0.01)).squaredNorm();
+    unlagged += (c.lensShift(t) - a.lensShift(t)).squaredNorm();
+  }
+  EXPECT_LT(lagged, 0.05 * unlagged);
+  // The default configuration keeps its trajectory (no extra random draws).
+  const OisModel again(OisConfig(), motion, kFocalPx, 9);
+  for (double t = 0.0; t < 4.0; t += 0.1) EXPECT_EQ(a.lensShift(t), again.lensShift(t));
+}
+
+TEST(OisModel, UnderAndOverCompensation) {
+  const CameraMotion motion(shakeOnly(1.0, 12.0), 6, 0.0, 4.0);
+  OisConfig off;
+  off.enabled = false;
+  const OisModel none(off, motion, kFocalPx, 1);
+  double previous_ratio = 0.0;
+  for (const double gain : {0.5, 1.0}) {
+    OisConfig config;
+    config.gain = gain;
+    config.stroke_limit_deg = 3.0;
+    const double ratio = residualRatio(motion, OisModel(config, motion, kFocalPx, 1), none);
+    if (previous_ratio > 0.0) {
+      EXPECT_LT(ratio, previous_ratio);  // more gain cancels more
+    }
+    previous_ratio = ratio;
+  }
+  OisConfig over;
+  over.gain = 1.8;
+  over.stroke_limit_deg = 3.0;
+  OisConfig exact = over;
+  exact.gain = 1.0;
+  // Over-compensation moves the image the other way: worse than the right gain.
+  EXPECT_GT(residualRatio(motion, OisModel(over, motion, kFocalPx, 1), none),
+            residualRatio(motion, OisModel(exact, motion, kFocalPx, 1), none));
+}
+
+TEST(OisModel, FollowsALensShiftLog) {
+  const std::string path = ::testing::TempDir() + "/lens_log.csv";
+  {
+    std::ofstream csv(path);
+    csv << "t_s,x_px,y_px\n0.0,0.0,0.0\n1.0,2.0,-1.0\n2.0,0.0,4.0\n";
+  }
+  const CameraMotion motion(CameraMotionConfig(), 1, 0.0, 3.0);
+  OisConfig config;
+  config.lens_shift_csv = path;
+  const OisModel ois(config, motion, kFocalPx, 1);
+  EXPECT_MATRIX_NEAR(Eigen::Vector2d(1.0, -0.5), ois.lensShift(0.5), 1e-9);
+  EXPECT_MATRIX_NEAR(Eigen::Vector2d(1.0, 1.5), ois.lensShift(1.5), 1e-9);
+  EXPECT_MATRIX_NEAR(Eigen::Vector2d(0.0, 4.0), ois.lensShift(2.7), 1e-9);  // held after the log
+  {
+    std::ofstream csv(path);
+    csv << "t_s,x_px,y_px\n0.0,0.0,0.0\n0.5,two,1.0\n";
+  }
+  try {
+    OisModel bad(config, motion, kFocalPx, 1);
+    FAIL() << "a malformed lens log was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("lens_log.csv:3"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OisModel, ValidatesTheNewFields) {
+  OisConfig config;
+  config.stroke_limit_y_deg = -1.0;
+  EXPECT_NE(config.validate().find("stroke_limit_y_deg"), std::string::npos);
+  config = OisConfig();
+  config.hall_lag_s = 0.5;
+  EXPECT_NE(config.validate().find("hall_lag_s"), std::string::npos);
+  config = OisConfig();
+  config.pan_release_corner_hz = 0.0;
+  EXPECT_NE(config.validate().find("pan_release_corner_hz"), std::string::npos);
+  StrokeShape shape;
+  EXPECT_TRUE(parseStrokeShape("circle", &shape));
+  EXPECT_EQ(StrokeShape::kCircle, shape);
+  EXPECT_FALSE(parseStrokeShape("square", &shape));
 }
 
 }  // namespace

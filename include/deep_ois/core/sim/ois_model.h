@@ -11,6 +11,9 @@
 namespace deep_ois {
 namespace sim {
 
+// How far the lens may travel: per axis (a box) or inside an ellipse with those half-axes.
+enum class StrokeShape { kBox, kCircle };
+
 struct OisConfig {
   bool enabled = true;
   // Pan and tilt only: the stabilizer integrates the rates about camera x and y (never roll).
@@ -19,13 +22,34 @@ struct OisConfig {
   // Second-order actuator (voice coil) from commanded to actual shift.
   double actuator_natural_hz = 35.0;
   double actuator_damping = 0.7;
-  double stroke_limit_deg = 1.0;  // commanded shift is clamped to f * tan(limit) pixels
-  double gain = 1.0;              // fraction of the rotation the stabilizer cancels
+  double stroke_limit_deg = 1.0;  // commanded shift is clamped to f * tan(limit) pixels (x)
+  double stroke_limit_y_deg = 0.0;  // the y axis' limit; 0 = the same as x (asymmetric if not)
+  StrokeShape stroke_shape = StrokeShape::kBox;
+  double gain = 1.0;  // fraction of the rotation the stabilizer cancels (< 1 under-, > 1 over-)
   double gyro_noise_rad_s = 0.002;  // white noise of the stabilizer's own gyro (per sample)
   double control_rate_hz = 4000.0;  // controller and actuator simulation rate
+  // Pan detection (0 = off): while the low-passed pan/tilt rate magnitude exceeds this, the
+  // stabiliser treats the motion as a deliberate pan and re-centres with pan_release_corner_hz
+  // instead of highpass_corner_hz (it lets go); below 0.7 x the threshold it stabilises again.
+  double pan_detection_rate_rad_s = 0.0;
+  double pan_detection_time_constant_s = 0.1;  // low-pass of the rate it decides on
+  double pan_release_corner_hz = 5.0;
+  // Hall position sensor of the lens loop: white noise (pixels, per control step) and delay
+  // (seconds). The loop drives the measured position to the command, so the lens itself sits
+  // off by the noise and follows the command late by the delay.
+  double hall_noise_px = 0.0;
+  double hall_lag_s = 0.0;
+  // When not empty: the lens follows this trajectory instead of the stabiliser (a CSV with a
+  // header line and rows "t_s,x_px,y_px", t in seconds from the start of the motion, e.g. a real
+  // phone's lens log re-timed), linear between rows and held outside them.
+  std::string lens_shift_csv;
 
   std::string validate() const;  // empty, or a sentence naming the bad field
 };
+
+const char* toString(StrokeShape shape);
+// "box" or "circle"; false for anything else.
+bool parseStrokeShape(const std::string& text, StrokeShape* shape);
 
 // The lens actuator of one axis (voice coil with its position loop), a second-order system from
 // the commanded to the actual shift: x'' = wn^2 (x_cmd - x) - 2 zeta wn x', discretised exactly
@@ -57,6 +81,7 @@ class LensActuator {
 // high-passed pan/tilt angle (to first order: s = f * (theta_y, -theta_x)).
 class OisModel {
  public:
+  // Throws std::runtime_error naming the file and line when lens_shift_csv cannot be read.
   // focal_px: camera focal length in pixels (sets the px per rad and the stroke in px). Throws
   // std::invalid_argument with the validate() sentence. Keeps no reference to `motion`.
   OisModel(const OisConfig& config, const CameraMotion& motion, double focal_px, std::uint32_t seed);
@@ -66,11 +91,13 @@ class OisModel {
   Eigen::Vector2d lensShift(double t_s) const;
   bool enabled() const { return config_.enabled; }
   double strokeLimitPx() const { return stroke_limit_px_; }
+  double strokeLimitYPx() const { return stroke_limit_y_px_; }
 
  private:
   OisConfig config_;
   double start_s_ = 0.0;
   double stroke_limit_px_ = 0.0;
+  double stroke_limit_y_px_ = 0.0;
   std::vector<Eigen::Vector2d> shift_grid_;  // at control_rate_hz from start_s_
 };
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/imu_model.h"
@@ -37,9 +38,12 @@ struct SimulatorConfig {
 };
 
 // Reads a YAML file whose sections mirror SimulatorConfig (category, sensor, motion, ois, imu,
-// scene, ground_truth, frames). Missing keys keep their defaults. Throws std::runtime_error with
+// scene, ground_truth, frames), then each overlay file over it in order (e.g. a stabiliser module
+// and a camera of config/simulator/modules/ over a category file): keys a file holds replace the
+// values before it, missing keys keep them (or the defaults). Throws std::runtime_error with
 // "<file>: <section.field>: <problem>" for an unknown key, a wrong type or an invalid value.
-SimulatorConfig loadSimulatorConfig(const std::string& path);
+SimulatorConfig loadSimulatorConfig(const std::string& path,
+                                    const std::vector<std::string>& overlays = {});
 
 }  // namespace sim
 }  // namespace deep_ois

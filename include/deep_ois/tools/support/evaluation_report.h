@@ -52,7 +52,21 @@ struct EvaluationReport {
   bool complete() const;
   std::size_t failedRecordings() const;
 
-  // The table, then a note per method that had failures or capped pairs, and the problems.
+  // The same means without the paper's cap: every pair's own distance (a failure still counts as
+  // identity). The cap hides how far a method that is worse than not aligning is off.
+  EvaluationTable uncappedTable() const;
+  // Per row other than the two gyro rows, the share of the gap between the uncompensated OIS gyro
+  // and the non-OIS twin that the row closed, on the Avg, capped and uncapped:
+  // 100 (gyro_OIS - row) / (gyro_OIS - gyro_non-OIS). Empty unless both gyro rows are present.
+  struct GapClosed {
+    std::string method;
+    double capped_percent = 0.0;
+    double uncapped_percent = 0.0;
+  };
+  std::vector<GapClosed> gapClosed() const;
+
+  // The capped table (the paper's), the uncapped one, the gap closed per row, then a note per
+  // method that had failures or capped pairs, and the problems.
   std::string markdown() const;
   std::string json() const;
   // One line per pair and method: recording,stamp_a,stamp_b,category,method,distance_px,
