@@ -121,12 +121,13 @@ void processBag(const ReadableBag& input, const FundamentalMixturesOfflineOption
   const std::string& path = input.originalPath();
   const BagSequence sequence =
       readBagSequence(input.path(), options.topics, BagReadFailure::kKeepPrefix);
+  // Without IMU messages no pair has a gyro input: say so (not "no transform", its consequence).
+  if (!sequence.imu_problem.empty()) throw std::runtime_error(path + ": " + sequence.imu_problem);
   RollingShutterConfig rs = options.gyro.rolling_shutter;
   if (options.gyro.rotation_from_tf) {
     if (!sequence.imu_to_camera_rotation) {
-      throw std::runtime_error(path +
-                               ": no IMU -> camera transform in /tf_static (set "
-                               "imu_to_camera_rotation in the gyro flow config to override)");
+      throw std::runtime_error(path + ": " + sequence.imu_to_camera_problem +
+                               " (set imu_to_camera_rotation in the gyro flow config to override)");
     }
     rs.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   }
