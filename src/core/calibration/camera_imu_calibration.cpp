@@ -672,6 +672,29 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     result.calibration.imu_to_camera_rotation = state.R_cam_imu;
     return finish();
   }
+  // The rate check passes a still camera on a vibrating mount; what the tracks see between frames
+  // is what carries the information.
+  std::vector<double> image_rotation_px;
+  for (const CoarsePair& pair : coarse_pairs) image_rotation_px.push_back(pair.image_rotation_rad.norm() * focal_px);
+  result.median_image_rotation_px = median(image_rotation_px);
+  if (result.median_image_rotation_px < options.min_median_image_rotation_px) {
+    std::ostringstream why;
+    why << std::fixed << std::setprecision(2)
+        << "motion: the camera hardly rotates between frames (median " << result.median_image_rotation_px
+        << " px of image rotation per frame pair, " << std::setprecision(3)
+        << result.median_image_rotation_px / focal_px * kRadToDeg << " deg; at least " << std::setprecision(2)
+        << options.min_median_image_rotation_px << " px, " << std::setprecision(3)
+        << options.min_median_image_rotation_px / focal_px * kRadToDeg
+        << " deg at this focal length, is needed): track noise and translation parallax are as large as the "
+           "rotation, so no quantity is observable; record again while turning the camera by hand about "
+           "all three axes";
+    result.refusals.push_back(why.str());
+    result.calibration.time_offset_s = state.time_offset_s;
+    result.calibration.readout_time_s = state.readout_time_s;
+    result.calibration.gyro_bias_rad_s = state.bias;
+    result.calibration.imu_to_camera_rotation = state.R_cam_imu;
+    return finish();
+  }
   if (options.estimate_rotation && result.rate_rms_rad_s(1) < options.min_excitation_rate_rad_s) {
     std::ostringstream why;
     why << "IMU-camera rotation: the gyro shows rotation about one axis only (RMS about its principal axes "
