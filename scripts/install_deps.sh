@@ -21,6 +21,7 @@ packages=(
   libroscpp-dev libroslib-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
   libmessage-filters-dev librosbag-dev librosbag-storage-dev libcamera-calibration-parsers-dev
+  libtopic-tools-dev libroslz4-dev libbz2-dev
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic

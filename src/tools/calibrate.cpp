@@ -154,8 +154,7 @@ int main(int argc, char** argv) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - reading_started).count();
     if (rotation_text == "tf") {
       if (!bag.tf_imu_to_camera_rotation) {
-        std::fprintf(stderr, "calibrate: --rotation tf, but %s has no IMU -> camera transform in /tf_static\n",
-                     bag_path.c_str());
+        std::fprintf(stderr, "calibrate: --rotation tf, but %s: %s\n", bag_path.c_str(), bag.tf_problem.c_str());
         return 1;
       }
       options.imu_to_camera_rotation = *bag.tf_imu_to_camera_rotation;

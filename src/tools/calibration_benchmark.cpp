@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "deep_ois/core/calibration/rotation_alignment.h"
+#include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/sim/simulator_config.h"
 #include "deep_ois/ros/bag/calibration_bag_reader.h"
 
@@ -45,6 +46,9 @@ struct Row {
   double true_readout_ms = 0, readout_error_ms = 0, readout_sigma_ms = 0;
   int true_mount = -1, found_mount = -1;
   double rotation_error_deg = 0, rotation_sigma_deg = 0;
+  // The rotation error about the camera x, y, z axes (the estimator's increment frame) and the
+  // reported 1-sigma about each, for the coverage count.
+  Eigen::Vector3d rotation_error_axes_deg = Eigen::Vector3d::Zero(), rotation_sigma_axes_deg = Eigen::Vector3d::Zero();
   double bias_error_mrad_s = 0;
   double median_residual_px = 0;
   double tracking_s = 0, estimation_s = 0;
@@ -88,6 +92,29 @@ void printSummary(const std::string& label, const std::vector<Row>& all) {
               maxAbs(rows, &Row::rotation_error_deg), maxAbs(rows, &Row::bias_error_mrad_s), mounts, rows.size(),
               within, rows.size(), accepted_within, accepted, all.empty() ? 0.0 : tracking / all.size(),
               all.empty() ? 0.0 : estimation / all.size());
+}
+
+// How often the reported 1-sigma (and 2-sigma) covers the actual error, per quantity, over every
+// bag with an estimate (refused ones included); the rotation counted per camera axis (3 per bag).
+void printCoverage(const std::vector<Row>& rows) {
+  int n = 0, offset1 = 0, offset2 = 0, readout1 = 0, readout2 = 0, axes = 0, rotation1 = 0, rotation2 = 0;
+  for (const Row& row : rows) {
+    if (!row.estimated) continue;
+    ++n;
+    offset1 += std::abs(row.offset_error_ms) <= row.offset_sigma_ms;
+    offset2 += std::abs(row.offset_error_ms) <= 2.0 * row.offset_sigma_ms;
+    readout1 += std::abs(row.readout_error_ms) <= row.readout_sigma_ms;
+    readout2 += std::abs(row.readout_error_ms) <= 2.0 * row.readout_sigma_ms;
+    for (int k = 0; k < 3; ++k) {
+      ++axes;
+      rotation1 += std::abs(row.rotation_error_axes_deg(k)) <= row.rotation_sigma_axes_deg(k);
+      rotation2 += std::abs(row.rotation_error_axes_deg(k)) <= 2.0 * row.rotation_sigma_axes_deg(k);
+    }
+  }
+  if (n == 0) return;
+  std::printf("\ncoverage of the reported sigma (|error| <= 1 sigma, <= 2 sigma; a Gaussian gives 68 %%, 95 %%): "
+              "offset %d/%d, %d/%d; readout %d/%d, %d/%d; rotation per axis %d/%d, %d/%d\n",
+              offset1, n, offset2, n, readout1, n, readout2, n, rotation1, axes, rotation2, axes);
 }
 
 }  // namespace
@@ -159,6 +186,9 @@ int main(int argc, char** argv) {
       row.rotation_error_deg =
           deep_ois::rotationAngleBetween(c.imu_to_camera_rotation, truth.imu.imu_to_camera_rotation) * kRadToDeg;
       row.rotation_sigma_deg = c.rotation_sigma_rad.maxCoeff() * kRadToDeg;
+      row.rotation_error_axes_deg =
+          deep_ois::logSO3(c.imu_to_camera_rotation * truth.imu.imu_to_camera_rotation.transpose()) * kRadToDeg;
+      row.rotation_sigma_axes_deg = c.rotation_sigma_rad * kRadToDeg;
       const Eigen::Vector3d true_bias = truth.imu.gyro_initial_bias_vector_rad_s.value_or(Eigen::Vector3d::Zero());
       row.bias_error_mrad_s = (c.gyro_bias_rad_s - true_bias).norm() * 1e3;
       row.median_residual_px = result.median_residual_px;
@@ -183,6 +213,7 @@ int main(int argc, char** argv) {
               "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   printSummary("non-OIS", fixed_lens);
   printSummary("OIS", ois);
+  printCoverage(rows);
 
   if (!csv_path.empty()) {
     std::ofstream csv(csv_path);

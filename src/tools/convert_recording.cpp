@@ -40,6 +40,8 @@ const char kUsage[] =
     "  --frame-stamp-offset S   seconds added to the frame stamps only, so that they mean the start of\n"
     "                           readout of the first row (default 0: cc9pro stamps are start of frame)\n"
     "  --imu-margin S           gyro kept before the first and after the last frame (default 0.5)\n"
+    "  --drop-uncovered-frames  leave out (and count) the frames the gyro log does not cover, instead\n"
+    "                           of refusing the recording\n"
     "  --compression lz4|bz2|none (default lz4)   --quiet (no progress bar)\n";
 
 int usage(const std::string& problem) {
@@ -83,6 +85,10 @@ int main(int argc, char** argv) {
   bool quiet = false;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
+    if (flag == "--drop-uncovered-frames") {
+      options.drop_uncovered_frames = true;
+      continue;
+    }
     if (flag == "--quiet") {
       quiet = true;
       continue;
@@ -144,12 +150,16 @@ int main(int argc, char** argv) {
     const deep_ois::PhoneRecordingBagStats stats =
         deep_ois::writePhoneRecordingBag(files, out, options, progress);
     std::printf("convert_recording: %s: %d frames (indices %d..%d, %d missing) %dx%d %s, stamps %u.%09u .. %u.%09u s, "
-                "%d IMU messages, %.1f s\n",
+                "%d IMU messages, %.1f s%s\n",
                 out.c_str(), stats.frames, stats.first_frame_index, stats.last_frame_index,
                 stats.skipped_frame_indices, stats.width_px, stats.height_px, stats.encoding.c_str(),
                 stats.first_frame_stamp.sec, stats.first_frame_stamp.nsec,
                 stats.last_frame_stamp.sec, stats.last_frame_stamp.nsec, stats.imu_messages,
-                bar ? bar->elapsedSeconds() : 0.0);
+                bar ? bar->elapsedSeconds() : 0.0,
+                stats.dropped_uncovered_frames > 0
+                    ? ("; dropped " + std::to_string(stats.dropped_uncovered_frames) +
+                       " frames the gyro does not cover").c_str()
+                    : "");
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "convert_recording: %s\n", e.what());

@@ -5,8 +5,10 @@
 //       [--image-topic T] [--camera-info-topic T] [--imu-topic T] [--global]
 //
 // Progress on stderr, the summary on stdout. Ctrl-C (or SIGTERM) closes the output after the
-// current pair, with every pair done so far; a second Ctrl-C aborts at once (the output is then
-// left unindexed: `rosbag reindex` recovers it).
+// current pair, with every pair done so far; a second Ctrl-C (or SIGKILL) aborts at once: the
+// output is then left unindexed, and `recover_bag` recovers every pair written (one chunk per
+// pair; `rosbag reindex` all but the last). An input bag without index (cut short) is read up to
+// the damage.
 // Exit status: 0 all bags done, 1 nothing could be done, 2 usage, 3 some bags failed, 130 stopped.
 #include <ros/package.h>
 

@@ -227,6 +227,49 @@ TEST_F(TinyRecording, MonoImagesOffsetsTopicsAndFrames) {
   }
 }
 
+// A gyro log that starts a few ms after the first frame: refused by default, naming how many
+// frames lie outside and the flag; with drop_uncovered_frames only those frames are left out,
+// counted.
+TEST_F(TinyRecording, GyroStartingAfterTheFirstFrameDropsOnlyTheUncoveredFrames) {
+  {
+    // Frame 3 is at 300 ms after the start; the gyro starts 4 ms later.
+    std::ofstream gyro(dir_ + "/gyro.txt");
+    for (int k = 0; k < 200; ++k) {
+      gyro << std::setprecision(18) << 0.001 << "," << 0.0 << "," << 0.5 << ","
+           << (kStartUs + 200000LL + 3 * 33313LL + 4000LL + 5000LL * k) * 1e-6 << "\n";
+    }
+  }
+  std::string error = conversionError();
+  EXPECT_NE(error.find(dir_ + "/gyro.txt: the gyro samples"), std::string::npos) << error;
+  EXPECT_NE(error.find("1 of 4 frames lie outside; --drop-uncovered-frames leaves them out"), std::string::npos)
+      << error;
+  EXPECT_FALSE(fs::exists(bag_path_));
+
+  options_.drop_uncovered_frames = true;
+  const PhoneRecordingBagStats stats = writePhoneRecordingBag(files_, bag_path_, options_);
+  EXPECT_EQ(stats.dropped_uncovered_frames, 1);
+  EXPECT_EQ(stats.frames, 3);
+  EXPECT_EQ(stats.first_frame_index, 4);
+  rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+  EXPECT_EQ(rosbag::View(bag, rosbag::TopicQuery("/camera/image_raw")).size(), 3u);
+}
+
+// Image files numbered from 1 against a stamp list whose line 0 is frame 0: caught before anything
+// is written, with the likely cause, not when the last image finds no stamp.
+TEST_F(TinyRecording, FramesNumberedFromOneAgainstStampsFromZeroAreCaughtAtOnce) {
+  fs::remove_all(dir_ + "/frames");
+  fs::create_directories(dir_ + "/frames");
+  for (int i = 1; i <= 10; ++i) writeImage(dir_ + "/frames/frame-" + std::to_string(i) + ".png", false);
+  const std::string error = conversionError();
+  EXPECT_EQ(error.rfind(dir_ + "/frames: the image files are numbered 1..10 but " + dir_ +
+                            "/framestamp.txt has 10 lines, i.e. frames 0..9",
+                        0),
+            0u)
+      << error;
+  EXPECT_NE(error.find("the files look numbered from 1; renumber them from 0"), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(bag_path_));
+}
+
 TEST_F(TinyRecording, MalformedInputsNameTheFileAndLine) {
   {
     std::ofstream gyro(dir_ + "/gyro.txt", std::ios::app);
@@ -239,7 +282,10 @@ TEST_F(TinyRecording, MalformedInputsNameTheFileAndLine) {
   SetUp();
   writeImage(dir_ + "/frames/frame-12.png", false);  // framestamp.txt has lines 0..9
   error = conversionError();
-  EXPECT_NE(error.find(dir_ + "/frames/frame-12.png: frame index 12 has no stamp"), std::string::npos) << error;
+  EXPECT_NE(error.find(dir_ + "/frames: the image files are numbered 3..12 but " + dir_ +
+                       "/framestamp.txt has 10 lines, i.e. frames 0..9"),
+            std::string::npos)
+      << error;
 
   SetUp();
   writeImage(dir_ + "/frames/frame-x.png", false);
@@ -276,6 +322,8 @@ TEST_F(TinyRecording, MalformedInputsNameTheFileAndLine) {
   options_.imu_to_camera_rotation << 0, 1, 0, 1, 0, 0, 0, 0, 1;  // the authors' improper swap
   error = conversionError();
   EXPECT_NE(error.find("not a proper rotation"), std::string::npos) << error;
+  EXPECT_NE(error.find("it is a reflection (det -1)"), std::string::npos) << error;
+  EXPECT_NE(error.find("rosrun deep_ois calibrate"), std::string::npos) << "say what to do: " << error;
 
   SetUp();
   std::ofstream(dir_ + "/framestamp.txt", std::ios::app) << "4328040.1\n";  // goes back in time

@@ -10,7 +10,12 @@
 
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
 #include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/bag/calibration_bag_reader.h"
+#include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
 #include "deep_ois/ros/messages/conversions.h"
 #include "deep_ois/tools/support/evaluation_runner.h"
 #include "deep_ois/tools/support/simulation_bag_writer.h"
@@ -288,6 +293,62 @@ TEST(EvaluationRunner, AnnotationFilesScoreARecordingWithoutTruth) {
       << partial.errors[1];
   EXPECT_EQ(partial.errors[2],
             fixed_path + ":5: pair 1.000000000 -> 2.000000000 matches no frame of the bags given");
+}
+
+}  // namespace
+}  // namespace deep_ois
+
+namespace deep_ois {
+namespace {
+
+// A copy of bags/sample.bag without its IMU messages (its /tf_static transform stays).
+std::string writeSampleWithoutImu() {
+  const std::string path = ::testing::TempDir() + "/sample_without_imu.bag";
+  rosbag::Bag in(std::string(DEEP_OIS_SOURCE_DIR) + "/bags/sample.bag", rosbag::bagmode::Read);
+  rosbag::Bag out(path, rosbag::bagmode::Write);
+  for (const rosbag::MessageInstance& m : rosbag::View(in)) {
+    if (m.getTopic() != "/imu/data") out.write(m.getTopic(), m.getTime(), m, m.getConnectionHeader());
+  }
+  return path;
+}
+
+// Without IMU messages the tools say so, naming the topic, rather than blaming the transform
+// (which is in /tf_static): evaluate, the Fundamental Mixtures job and calibrate's reader.
+TEST(MissingImu, EveryOfflineToolNamesTheTopicNotTheTransform) {
+  const std::string bag = writeSampleWithoutImu();
+  const std::string expected = bag + ": no IMU messages on /imu/data (sensor_msgs/Imu topics in the bag: none)";
+
+  const BagSequence sequence = readBagSequence(bag);
+  EXPECT_TRUE(sequence.imu_samples.empty());
+  EXPECT_EQ(bag + ": " + sequence.imu_problem, expected);
+  EXPECT_EQ(sequence.imu_to_camera_problem.rfind(sequence.imu_problem, 0), 0u) << sequence.imu_to_camera_problem;
+
+  EvaluationRunner runner(optionsFor({bag}));
+  runner.addMethods(gyroMethods());
+  const EvaluationReport report = runner.run();
+  ASSERT_EQ(report.recordings.size(), 1u) << report.markdown();
+  EXPECT_EQ(report.recordings[0].error.rfind(expected, 0), 0u) << report.recordings[0].error;
+
+  FundamentalMixturesOfflineOptions fm;
+  fm.bags = {bag};
+  fm.output_path = ::testing::TempDir() + "/sample_without_imu_train.bag";
+  fm.gyro = loadGyroFlowParameters(YamlParameters(std::string(DEEP_OIS_SOURCE_DIR) + "/config/gyro_flow.yaml"));
+  const FundamentalMixturesSummary summary = FundamentalMixturesOffline(fm).run();
+  ASSERT_EQ(summary.bag_errors.size(), 1u) << summary.text();
+  EXPECT_EQ(summary.bag_errors[0].rfind(expected, 0), 0u) << summary.bag_errors[0];
+
+  try {
+    readCalibrationBag(bag, CalibrationBagOptions());
+    ADD_FAILURE() << "calibrate's reader accepted a bag without IMU messages";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(expected, 0), 0u) << e.what();
+  }
+
+  // The transform is reported missing for what it is when the IMU is there but the tf is not.
+  const BagSequence intact = readBagSequence(std::string(DEEP_OIS_SOURCE_DIR) + "/bags/sample.bag");
+  EXPECT_TRUE(intact.imu_problem.empty());
+  EXPECT_TRUE(intact.imu_to_camera_problem.empty());
+  EXPECT_TRUE(intact.imu_to_camera_rotation.has_value());
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 #include "deep_ois/TrainingPair.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/bag_recovery.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
 #include "deep_ois/ros/messages/conversions.h"
 #include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
@@ -82,12 +83,19 @@ int corruptMiddleChunk(const std::string& path, const std::string& out, int* cor
   return static_cast<int>(chunk_data.size());
 }
 
-std::string writeTruncatedBag(const std::string& name) {
-  const std::string whole = writeBag(12, 0.2, name + "_whole");
+// The first `fraction` of the bytes of `whole`, as a copy cut short while being written leaves it.
+std::string writeTruncatedBag(const std::string& whole, double fraction, const std::string& name) {
   std::ifstream in(whole, std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::string path = ::testing::TempDir() + "/" + name + ".bag";
-  std::ofstream(path, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  std::ofstream(path, std::ios::binary) << bytes.substr(0, static_cast<std::size_t>(bytes.size() * fraction));
+  return path;
+}
+
+// A file that is no bag at all: nothing in it can be recovered.
+std::string writeNotABag(const std::string& name) {
+  const std::string path = ::testing::TempDir() + "/" + name + ".bag";
+  std::ofstream(path, std::ios::binary) << "this is not a rosbag\n";
   return path;
 }
 
@@ -135,7 +143,7 @@ double median(std::vector<double> values) {
 
 TEST(FundamentalMixturesOffline, TargetsMatchTheTrueMotionAndABrokenBagCostsOnlyItself) {
   const std::string good = writeBag(7, 0.5, "fm_good");
-  const std::string truncated = writeTruncatedBag("fm_truncated");
+  const std::string truncated = writeNotABag("fm_not_a_bag");
   const FundamentalMixturesOfflineOptions options = optionsFor({good, truncated}, "fm_train");
   const FundamentalMixturesSummary summary = FundamentalMixturesOffline(options).run();
   std::cout << "[ measured ] " << summary.text();
@@ -286,6 +294,41 @@ TEST(FundamentalMixturesOffline, CorruptChunkKeepsEveryPairBeforeIt) {
   EXPECT_GE(identical + 2, kept.size()) << identical << " of " << kept.size() << " identical";
 }
 
+// A recording cut at 60 % of its bytes (no index: rosbag cannot open it): the job reads its chunks
+// and keeps every pair before the cut, identical to the same pairs from the whole recording, and
+// says what was lost.
+TEST(FundamentalMixturesOffline, BagCutAt60PercentKeepsThePairsBeforeTheCut) {
+  const std::string whole = writeBag(12, 0.5, "fm_whole_lz4", rosbag::compression::LZ4);
+  const std::string cut = writeTruncatedBag(whole, 0.6, "fm_cut_60");
+  EXPECT_THROW(rosbag::Bag(cut, rosbag::bagmode::Read), rosbag::BagException) << "the cut bag has no index";
+
+  const FundamentalMixturesOfflineOptions reference = optionsFor({whole}, "fm_whole_train");
+  ASSERT_TRUE(FundamentalMixturesOffline(reference).run().bag_errors.empty());
+  const std::vector<TrainingPair> full = readRecords(reference);
+  ASSERT_GE(full.size(), 10u);
+
+  const FundamentalMixturesOfflineOptions options = optionsFor({cut}, "fm_cut_train");
+  const FundamentalMixturesSummary summary = FundamentalMixturesOffline(options).run();
+  std::cout << "[ measured ] " << summary.text();
+  ASSERT_EQ(summary.bag_errors.size(), 1u) << summary.text();
+  EXPECT_EQ(summary.bag_errors[0].rfind(cut + ": the bag has no valid index", 0), 0u) << summary.bag_errors[0];
+  EXPECT_NE(summary.bag_errors[0].find("the rest is lost"), std::string::npos) << summary.bag_errors[0];
+  const std::vector<TrainingPair> kept = readRecords(options);
+  // Images of 360x270 RGB are ~290 KB: the last (768 KB) chunk before the cut holds at most 3.
+  EXPECT_GE(kept.size() + 4, static_cast<std::size_t>(0.6 * full.size())) << kept.size() << " of " << full.size();
+  ASSERT_LT(kept.size(), full.size());
+  EXPECT_EQ(summary.pairs_done, kept.size());
+  std::size_t identical = 0;
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    EXPECT_EQ(kept[k].source_bag, cut);
+    EXPECT_EQ(kept[k].header.stamp, full[k].header.stamp);
+    identical += kept[k].accepted == full[k].accepted && kept[k].gyro_homographies == full[k].gyro_homographies &&
+                 kept[k].target_homographies == full[k].target_homographies;
+  }
+  // Only the last pair may miss IMU samples that lay after the cut.
+  EXPECT_GE(identical + 1, kept.size()) << identical << " of " << kept.size() << " identical";
+}
+
 TEST(FundamentalMixturesOffline, RejectedPairsKeepTheirRecordAndReason) {
   const std::string good = writeBag(5, 0.2, "fm_reject");
   FundamentalMixturesOfflineOptions options = optionsFor({good}, "fm_rejected");
@@ -386,6 +429,62 @@ TEST(FundamentalMixturesOffline, CtrlCOnTheToolClosesTheOutputWithEveryPairDone)
   FundamentalMixturesOfflineOptions written;
   written.output_path = out;
   EXPECT_EQ(readRecords(written).size(), done) << "the output holds every pair done";
+}
+
+// SIGKILL on the command-line tool, for real: no handler runs and no index is written. Every pair
+// the progress bar had reported before the kill must be recoverable from the output, each in a
+// complete chunk of its own (what `rosbag reindex` needs too).
+TEST(FundamentalMixturesOffline, SigkilledToolLeavesEveryFinishedPairRecoverable) {
+  const std::string sample = sourcePath("bags/sample.bag");
+  const std::string out = ::testing::TempDir() + "/fm_sigkill.bag";
+  const std::string stderr_path = ::testing::TempDir() + "/fm_sigkill.stderr";
+  for (const std::string& stale : {out, stderr_path}) std::remove(stale.c_str());
+  std::vector<std::string> args = {DEEP_OIS_FUNDAMENTAL_MIXTURES_EXE, "--bags"};
+  for (int k = 0; k < 8; ++k) args.push_back(sample);
+  for (const char* arg : {"--out", out.c_str(), "--gyro-config"}) args.push_back(arg);
+  args.push_back(sourcePath("config/gyro_flow.yaml"));
+
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::vector<char*> argv;
+    for (std::string& arg : args) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    if (!std::freopen("/dev/null", "w", stdout) || !std::freopen(stderr_path.c_str(), "w", stderr)) _exit(127);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  // The progress bar ("] N/480 pairs") after each pair written; kill once it shows 5 or more.
+  auto reported = [&]() {
+    const std::string progress = readFile(stderr_path);
+    const std::size_t at = progress.rfind("] ");
+    std::size_t done = 0;
+    if (at != std::string::npos) std::sscanf(progress.c_str() + at + 2, "%zu/", &done);
+    return done;
+  };
+  std::size_t done_before_kill = 0;
+  for (int waited_ms = 0; waited_ms < 180000 && done_before_kill < 5; waited_ms += 20) {
+    done_before_kill = reported();
+    if (done_before_kill < 5) usleep(20000);
+  }
+  kill(pid, SIGKILL);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  ASSERT_GE(done_before_kill, 5u) << "no 5 pairs within 180 s: " << readFile(stderr_path);
+
+  EXPECT_THROW(rosbag::Bag(out, rosbag::bagmode::Read), rosbag::BagException) << "killed: no index";
+  const ReadableBag recovered(out);
+  ASSERT_TRUE(recovered.recovered());
+  std::cout << "[ measured ] progress showed " << done_before_kill << " pairs before SIGKILL; " << recovered.note()
+            << "\n";
+  FundamentalMixturesOfflineOptions written;
+  written.output_path = recovered.path();
+  const std::vector<TrainingPair> records = readRecords(written);
+  EXPECT_GE(records.size(), done_before_kill) << "every pair reported done is in the output";
+  EXPECT_EQ(recovered.recovery().messages, records.size());
+  EXPECT_EQ(recovered.recovery().chunks, records.size()) << "one complete chunk per pair";
+  for (std::size_t k = 0; k < records.size(); ++k) EXPECT_EQ(records[k].source_bag, sample) << k;
 }
 
 TEST(FundamentalMixturesOffline, InvalidOptionsAreRejectedByName) {

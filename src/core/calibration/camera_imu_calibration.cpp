@@ -672,6 +672,29 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     result.calibration.imu_to_camera_rotation = state.R_cam_imu;
     return finish();
   }
+  // The rate check passes a still camera on a vibrating mount; what the tracks see between frames
+  // is what carries the information.
+  std::vector<double> image_rotation_px;
+  for (const CoarsePair& pair : coarse_pairs) image_rotation_px.push_back(pair.image_rotation_rad.norm() * focal_px);
+  result.median_image_rotation_px = median(image_rotation_px);
+  if (result.median_image_rotation_px < options.min_median_image_rotation_px) {
+    std::ostringstream why;
+    why << std::fixed << std::setprecision(2)
+        << "motion: the camera hardly rotates between frames (median " << result.median_image_rotation_px
+        << " px of image rotation per frame pair, " << std::setprecision(3)
+        << result.median_image_rotation_px / focal_px * kRadToDeg << " deg; at least " << std::setprecision(2)
+        << options.min_median_image_rotation_px << " px, " << std::setprecision(3)
+        << options.min_median_image_rotation_px / focal_px * kRadToDeg
+        << " deg at this focal length, is needed): track noise and translation parallax are as large as the "
+           "rotation, so no quantity is observable; record again while turning the camera by hand about "
+           "all three axes";
+    result.refusals.push_back(why.str());
+    result.calibration.time_offset_s = state.time_offset_s;
+    result.calibration.readout_time_s = state.readout_time_s;
+    result.calibration.gyro_bias_rad_s = state.bias;
+    result.calibration.imu_to_camera_rotation = state.R_cam_imu;
+    return finish();
+  }
   if (options.estimate_rotation && result.rate_rms_rad_s(1) < options.min_excitation_rate_rad_s) {
     std::ostringstream why;
     why << "IMU-camera rotation: the gyro shows rotation about one axis only (RMS about its principal axes "
@@ -815,23 +838,33 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     // independent overstates the information. The cluster-robust ("sandwich") covariance
     // H^-1 (sum_c s_c s_c^T) H^-1 over clusters of consecutive pairs (s_c the sum of their
     // scores) counts each stretch of the recording once; the larger of the two is reported.
-    ParameterMatrix meat = ParameterMatrix::Zero();
-    int clusters = 0;
-    for (std::size_t start = 0; start < pair_scores.size(); start += kPairsPerCluster, ++clusters) {
-      ParameterVector cluster = ParameterVector::Zero();
-      for (std::size_t p = start; p < std::min(start + kPairsPerCluster, pair_scores.size()); ++p) {
-        cluster += pair_scores[p];
+    // What the model misses stays correlated for longer than 5 pairs when it comes from the scene
+    // (the parallax of its layout under the hand's slow translation and pans lasts seconds): the
+    // sandwich is formed for blocks of 5, 15 and 30 consecutive pairs and for sixths of the
+    // recording, and each quantity takes the largest (a block length chosen conservatively, as in
+    // a block bootstrap); a block length with fewer than 6 blocks is too noisy to count.
+    ParameterVector sandwich_variance = ParameterVector::Zero();
+    std::vector<std::size_t> block_lengths = {kPairsPerCluster, 3 * kPairsPerCluster, 6 * kPairsPerCluster,
+                                              pair_scores.size() / 6};
+    for (const std::size_t block : block_lengths) {
+      if (block == 0 || pair_scores.size() / block < 6) continue;
+      ParameterMatrix meat = ParameterMatrix::Zero();
+      int clusters = 0;
+      for (std::size_t start = 0; start < pair_scores.size(); start += block, ++clusters) {
+        ParameterVector cluster = ParameterVector::Zero();
+        for (std::size_t p = start; p < std::min(start + block, pair_scores.size()); ++p) cluster += pair_scores[p];
+        for (int i = 0; i < kParameterCount; ++i) {
+          if (!active[i]) cluster(i) = 0.0;
+        }
+        meat.noalias() += cluster * cluster.transpose();
       }
-      for (int i = 0; i < kParameterCount; ++i) {
-        if (!active[i]) cluster(i) = 0.0;
-      }
-      meat.noalias() += cluster * cluster.transpose();
+      const double small_sample = clusters > 1 ? clusters / (clusters - 1.0) : 1.0;
+      const ParameterMatrix sandwich = small_sample * H_inverse * meat * H_inverse;
+      sandwich_variance = sandwich_variance.cwiseMax(sandwich.diagonal());
     }
-    const double small_sample = clusters > 1 ? clusters / (clusters - 1.0) : 1.0;
-    const ParameterMatrix sandwich = small_sample * H_inverse * meat * H_inverse;
     ParameterVector sigma = ParameterVector::Zero();
     for (int i = 0; i < kParameterCount; ++i) {
-      if (active[i]) sigma(i) = std::sqrt(std::max({covariance(i, i), sandwich(i, i), 0.0}));
+      if (active[i]) sigma(i) = std::sqrt(std::max({covariance(i, i), sandwich_variance(i), 0.0}));
     }
     calibration.time_offset_sigma_s = sigma(kOffset);
     calibration.readout_time_sigma_s = sigma(kReadout);

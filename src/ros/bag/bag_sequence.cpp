@@ -131,13 +131,33 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
   if (rejected_imu > 0) {
     fail(std::to_string(rejected_imu) + " IMU samples on " + topics.imu + " rejected, first: " + first_imu_problem);
   }
-  if (!sequence.imu_frame_id.empty() && !sequence.camera_frame_id.empty()) {
+  if (sequence.imu_samples.empty()) {
+    // The first thing to say: without IMU messages there is no IMU frame to look a transform up
+    // for (a wrong topic is the usual cause, so the bag's IMU topics are listed).
+    std::string imu_topics;
+    for (const rosbag::ConnectionInfo* connection : rosbag::View(bag).getConnections()) {
+      if (connection->datatype == "sensor_msgs/Imu" && imu_topics.find(connection->topic + " ") == std::string::npos)
+        imu_topics += connection->topic + " ";
+    }
+    sequence.imu_problem = "no IMU messages on " + topics.imu + " (sensor_msgs/Imu topics in the bag: " +
+                           (imu_topics.empty() ? std::string("none") : imu_topics.substr(0, imu_topics.size() - 1)) +
+                           ")";
+    sequence.imu_to_camera_problem = sequence.imu_problem + ", so no IMU frame to look the IMU -> camera transform up";
+  } else if (sequence.imu_frame_id.empty() || sequence.camera_frame_id.empty()) {
+    sequence.imu_to_camera_problem =
+        std::string(sequence.imu_frame_id.empty() ? "the IMU messages on " + topics.imu
+                                                  : "the camera_info messages on " + topics.camera_info) +
+        " have an empty frame_id, so no IMU -> camera transform can be looked up in /tf_static";
+  } else {
     try {
       const auto transform = tf_buffer.lookupTransform(sequence.camera_frame_id, sequence.imu_frame_id, ros::Time(0));
       const auto& q = transform.transform.rotation;
       sequence.imu_to_camera_rotation = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
-    } catch (const tf2::TransformException&) {
+    } catch (const tf2::TransformException& e) {
       // No static transform between the two: the caller must supply the rotation.
+      sequence.imu_to_camera_problem = "no IMU -> camera transform in /tf_static from the IMU frame '" +
+                                       sequence.imu_frame_id + "' to the camera frame '" +
+                                       sequence.camera_frame_id + "' (" + e.what() + ")";
     }
   }
   return sequence;

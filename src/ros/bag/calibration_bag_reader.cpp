@@ -15,7 +15,10 @@ namespace deep_ois {
 CalibrationBag readCalibrationBag(const std::string& path, const CalibrationBagOptions& options,
                                   const ProgressCallback& on_progress) {
   const BagSequence sequence = readBagSequence(path, options.topics);
+  // Before tracking (the slow part): without IMU messages there is nothing to calibrate against.
+  if (!sequence.imu_problem.empty()) throw std::runtime_error(path + ": " + sequence.imu_problem);
   CalibrationBag out;
+  out.tf_problem = sequence.imu_to_camera_problem;
   out.data.gyro = sequence.imu_samples;
   out.data.camera = *sequence.camera;
   out.imu_frame_id = sequence.imu_frame_id;

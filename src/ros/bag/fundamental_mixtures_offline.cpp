@@ -6,6 +6,7 @@
 #include <rosbag/view.h>
 
 #include <chrono>
+#include <memory>
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
@@ -14,6 +15,7 @@
 #include "deep_ois/core/ground_truth/fundamental_mixtures_ground_truth.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
+#include "deep_ois/ros/bag/bag_recovery.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -111,17 +113,21 @@ TrainingPair processPair(const BagContext& bag, const BagFrame& a, const BagFram
 // before the error stay in `output`. A corrupt chunk part-way through costs only the pairs from
 // there on: the pairs before it are computed from what could be read (a pair whose IMU samples
 // lay in the corrupt chunk is written as rejected by the gyro), then the error is thrown.
-void processBag(const std::string& path, const FundamentalMixturesOfflineOptions& options,
+// A bag without a valid index (cut short, or its writer killed) is read from its repaired copy
+// (`input`): every message before the damage.
+void processBag(const ReadableBag& input, const FundamentalMixturesOfflineOptions& options,
                 rosbag::Bag& output, FundamentalMixturesSummary& summary,
                 const std::atomic<bool>* stop) {
+  const std::string& path = input.originalPath();
   const BagSequence sequence =
-      readBagSequence(path, options.topics, BagReadFailure::kKeepPrefix);
+      readBagSequence(input.path(), options.topics, BagReadFailure::kKeepPrefix);
+  // Without IMU messages no pair has a gyro input: say so (not "no transform", its consequence).
+  if (!sequence.imu_problem.empty()) throw std::runtime_error(path + ": " + sequence.imu_problem);
   RollingShutterConfig rs = options.gyro.rolling_shutter;
   if (options.gyro.rotation_from_tf) {
     if (!sequence.imu_to_camera_rotation) {
-      throw std::runtime_error(path +
-                               ": no IMU -> camera transform in /tf_static (set "
-                               "imu_to_camera_rotation in the gyro flow config to override)");
+      throw std::runtime_error(path + ": " + sequence.imu_to_camera_problem +
+                               " (set imu_to_camera_rotation in the gyro flow config to override)");
     }
     rs.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   }
@@ -130,7 +136,7 @@ void processBag(const std::string& path, const FundamentalMixturesOfflineOptions
   const BagContext context{path, sequence, imu, rs, ground_truth};
   const cv::Size camera_size(sequence.camera->width(), sequence.camera->height());
 
-  BagFrameReader reader(path, options.topics.image);
+  BagFrameReader reader(input.path(), options.topics.image);
   BagFrame previous, current;
   if (!reader.next(previous)) return;
   while (!(stop && stop->load()) && reader.next(current)) {
@@ -152,7 +158,7 @@ void processBag(const std::string& path, const FundamentalMixturesOfflineOptions
     std::swap(previous, current);
   }
   // The images may all be readable while the IMU or camera_info stream was not.
-  if (!sequence.read_error.empty()) throw std::runtime_error(sequence.read_error);
+  if (!sequence.read_error.empty()) throw std::runtime_error(input.originalNames(sequence.read_error));
 }
 
 }  // namespace
@@ -240,8 +246,21 @@ FundamentalMixturesOffline::FundamentalMixturesOffline(FundamentalMixturesOfflin
 FundamentalMixturesSummary FundamentalMixturesOffline::run(const std::atomic<bool>* stop) const {
   const auto started = std::chrono::steady_clock::now();
   FundamentalMixturesSummary summary;
-  for (const std::string& path : options_.bags)
-    summary.pairs_total += indexedFramePairCount(path, options_.topics.image);
+  // Each input opened once, up front, for the pair count: a bag without index is repaired here
+  // into a temporary copy (kept until the end of the job).
+  std::vector<std::unique_ptr<ReadableBag>> inputs;
+  std::vector<std::string> open_errors;
+  for (const std::string& path : options_.bags) {
+    try {
+      inputs.push_back(std::make_unique<ReadableBag>(path));
+      summary.pairs_total += indexedFramePairCount(inputs.back()->path(), options_.topics.image);
+    } catch (const std::exception& e) {
+      inputs.push_back(nullptr);
+      open_errors.push_back(e.what());
+      continue;
+    }
+    open_errors.emplace_back();
+  }
 
   {
     // rosbag::Bag closes (and writes its index) in its destructor, so the output is readable
@@ -249,20 +268,31 @@ FundamentalMixturesSummary FundamentalMixturesOffline::run(const std::atomic<boo
     rosbag::Bag output;
     try {
       output.open(options_.output_path, rosbag::bagmode::Write);
+      // One chunk per pair: rosbag flushes a chunk to the file when it closes it, so a job killed
+      // outright (SIGKILL, power loss: no index written) loses at most the pair in progress, and
+      // ReadableBag or `rosbag reindex` recovers every pair before it. Costs ~100 bytes per record.
+      output.setChunkThreshold(0);
     } catch (const rosbag::BagException& e) {
       throw std::runtime_error(options_.output_path +
                                ": cannot create the output bag: " + e.what());
     }
-    for (const std::string& path : options_.bags) {
+    for (std::size_t k = 0; k < options_.bags.size(); ++k) {
+      const std::string& path = options_.bags[k];
       if (stop && stop->load()) break;
+      if (!inputs[k]) {
+        summary.bag_errors.push_back(open_errors[k]);
+        continue;
+      }
+      // What a damaged input lost is said even when every pair that remains goes through.
+      if (inputs[k]->recovered()) summary.bag_errors.push_back(inputs[k]->note());
       try {
-        processBag(path, options_, output, summary, stop);
+        processBag(*inputs[k], options_, output, summary, stop);
       } catch (const OutputError&) {
         throw;
       } catch (const std::exception& e) {
         // One unreadable recording must not lose the others; messages from bag readers already
         // name the file.
-        const std::string what = e.what();
+        const std::string what = inputs[k]->originalNames(e.what());
         summary.bag_errors.push_back(what.rfind(path, 0) == 0 ? what : path + ": " + what);
       }
     }

@@ -38,7 +38,16 @@ void checkOptions(const PhoneRecordingBagOptions& options) {
     fail("the camera and IMU frame ids must differ (both '" + options.imu_frame_id + "')");
   }
   if (!isProperRotation(options.imu_to_camera_rotation)) {
-    fail("the IMU-to-camera rotation is not a proper rotation (orthonormal, det +1)");
+    const Eigen::Matrix3d& R = options.imu_to_camera_rotation;
+    const bool reflection = isProperRotation(-R);  // orthonormal with det -1: a bare axis swap
+    fail(std::string("the IMU-to-camera rotation is not a proper rotation (orthonormal, det +1)") +
+         (reflection ? ": it is a reflection (det -1), as a bare axis swap such as (wy, wx, wz) is; no "
+                       "physical mount is, so one axis must also change sign"
+                     : "") +
+         ". If the mount is unknown, convert with any proper rotation (e.g. the identity, "
+         "--imu-to-camera 1,0,0,0,1,0,0,0,1), run `rosrun deep_ois calibrate --bag OUT.bag --out "
+         "cal.yaml` (it searches all 24 axis permutations and refines the mount) and use its "
+         "imu_to_camera_rotation");
   }
   if (!std::isfinite(options.clock_offset_s) || !std::isfinite(options.frame_stamp_offset_s)) {
     fail("stamp offsets must be finite");
@@ -122,8 +131,23 @@ PhoneRecordingBagStats writePhoneRecordingBag(const PhoneRecordingFiles& files, 
   // Everything that can be checked without decoding the images is checked before the bag exists.
   const std::vector<ImuSample> gyro = loadGyroCsv(files.gyro_csv);
   const std::vector<double> stamps_s = loadFrameStamps(files.frame_stamps);
-  const std::vector<FrameImageFile> images = listFrameImages(files.images_dir);
+  std::vector<FrameImageFile> images = listFrameImages(files.images_dir);
   sensor_msgs::CameraInfo info = loadCameraInfo(files.camera_info);
+  // Numbering first, as a whole: image files numbered from 1 against a stamp list whose line 0
+  // is frame 0 would otherwise pair every image with the previous frame's stamp, unnoticed until
+  // the last image finds no line.
+  if (images.back().index >= static_cast<int>(stamps_s.size())) {
+    const bool from_one = images.front().index == 1 && images.back().index == static_cast<int>(stamps_s.size());
+    throw RecordingFormatError(
+        files.images_dir, 0,
+        "the image files are numbered " + std::to_string(images.front().index) + ".." +
+            std::to_string(images.back().index) + " but " + files.frame_stamps + " has " +
+            std::to_string(stamps_s.size()) + " lines, i.e. frames 0.." + std::to_string(stamps_s.size() - 1) +
+            " (line i is frame i, from 0)" +
+            (from_one ? ": the files look numbered from 1; renumber them from 0 (or drop the first stamp "
+                        "line if the first stamp belongs to no image)"
+                      : ": image and stamp numbering do not match"));
+  }
   for (const FrameImageFile& image : images) {
     if (image.index >= static_cast<int>(stamps_s.size())) {
       throw RecordingFormatError(image.path, 0,
@@ -132,19 +156,47 @@ PhoneRecordingBagStats writePhoneRecordingBag(const PhoneRecordingFiles& files, 
                                      " lines (line i is frame i, from 0)");
     }
   }
-  // Recording time of a frame's stamp; the gyro must cover every frame.
-  const double first_frame_s = stamps_s[images.front().index] + options.frame_stamp_offset_s;
-  const double last_frame_s = stamps_s[images.back().index] + options.frame_stamp_offset_s;
+  // Recording time of a frame's stamp; the gyro must cover every frame, or (drop_uncovered_frames)
+  // the frames it does not cover are left out and counted.
+  auto frameTime = [&](const FrameImageFile& image) { return stamps_s[image.index] + options.frame_stamp_offset_s; };
+  const double uncovered_first_s = frameTime(images.front()), uncovered_last_s = frameTime(images.back());
+  PhoneRecordingBagStats stats;
+  if (options.drop_uncovered_frames) {
+    std::vector<FrameImageFile> covered;
+    for (const FrameImageFile& image : images) {
+      const double t = frameTime(image);
+      if (t >= gyro.front().stamp_s && t <= gyro.back().stamp_s) {
+        covered.push_back(image);
+      } else {
+        ++stats.dropped_uncovered_frames;
+      }
+    }
+    if (covered.size() < 2) {
+      throw RecordingFormatError(files.gyro_csv, 0,
+                                 "the gyro samples (" + describeSeconds(gyro.front().stamp_s) + " .. " +
+                                     describeSeconds(gyro.back().stamp_s) + ") cover " +
+                                     std::to_string(covered.size()) + " of the " + std::to_string(images.size()) +
+                                     " frames (" + describeSeconds(uncovered_first_s) + " .. " +
+                                     describeSeconds(uncovered_last_s) + "): fewer than two are left");
+    }
+    images = std::move(covered);
+  }
+  const double first_frame_s = frameTime(images.front());
+  const double last_frame_s = frameTime(images.back());
   if (gyro.front().stamp_s > first_frame_s || gyro.back().stamp_s < last_frame_s) {
+    int uncovered = 0;
+    for (const FrameImageFile& image : images)
+      uncovered += frameTime(image) < gyro.front().stamp_s || frameTime(image) > gyro.back().stamp_s;
     throw RecordingFormatError(files.gyro_csv, 0,
                                "the gyro samples (" + describeSeconds(gyro.front().stamp_s) + " .. " +
                                    describeSeconds(gyro.back().stamp_s) +
                                    ") do not cover the frames (" + describeSeconds(first_frame_s) +
                                    " .. " + describeSeconds(last_frame_s) + ", from " +
-                                   files.frame_stamps + " and " + files.images_dir + ")");
+                                   files.frame_stamps + " and " + files.images_dir + "): " +
+                                   std::to_string(uncovered) + " of " + std::to_string(images.size()) +
+                                   " frames lie outside; --drop-uncovered-frames leaves them out");
   }
 
-  PhoneRecordingBagStats stats;
   stats.first_frame_index = images.front().index;
   stats.last_frame_index = images.back().index;
   stats.skipped_frame_indices = stats.last_frame_index - stats.first_frame_index + 1 -

@@ -95,15 +95,15 @@ std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& p
     recording->frame_of_stamp[static_cast<std::int64_t>(frame.stamp.toNSec())] = f;
   }
   recording->rolling_shutter = options.gyro.rolling_shutter;
+  // The cause first: without IMU messages there is no IMU frame, hence no transform either.
+  if (!sequence.imu_problem.empty()) fail(sequence.imu_problem);
   if (options.gyro.rotation_from_tf) {
     if (!sequence.imu_to_camera_rotation) {
-      fail(
-          "no IMU -> camera transform in /tf_static (set imu_to_camera_rotation in the gyro flow "
-          "config to override)");
+      fail(sequence.imu_to_camera_problem +
+           " (set imu_to_camera_rotation in the gyro flow config to override)");
     }
     recording->rolling_shutter.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   }
-  if (sequence.imu_samples.empty()) fail("no IMU sample on " + options.topics.imu);
   recording->imu = sequence.imuBuffer();
   recording->flow_renderer = std::make_unique<HomographyFlowRenderer>(
       camera, options.gyro.grid_size, recording->rolling_shutter.patch_count);

@@ -1,7 +1,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -255,14 +254,19 @@ TEST(CameraMotion, ValidateNamesTheField) {
   EXPECT_THROW(CameraMotion(CameraMotionConfig(), 1, 1.0, 1.0), std::invalid_argument);
 }
 
-TEST(CameraMotion, TwelveSecondsWithOisBuildFast) {
-  const auto begin = std::chrono::steady_clock::now();
+// A 12.5 s recording's motion and OIS build and give finite poses and lens shifts over the whole
+// span. How fast they build is a figure for benchmark_simulator, not a test: a loaded machine
+// must not fail it.
+TEST(CameraMotion, TwelveSecondsWithOisBuild) {
   const CameraMotion motion(CameraMotionConfig(), 1, -0.25, 12.25);
   const OisModel ois(OisConfig(), motion, 257.0, 2);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
-  std::printf("[ figures  ] 12.5 s motion + OIS built in %.3f s\n", seconds);
-  EXPECT_LT(seconds, 0.5);
+  EXPECT_DOUBLE_EQ(-0.25, motion.startTime());
+  EXPECT_DOUBLE_EQ(12.25, motion.endTime());
+  for (double t = -0.25; t <= 12.25; t += 0.5) {
+    EXPECT_TRUE(motion.angularVelocity(t).allFinite()) << "t = " << t;
+    EXPECT_TRUE(ois.lensShift(t).allFinite()) << "t = " << t;
+    EXPECT_LE(ois.lensShift(t).cwiseAbs().maxCoeff(), ois.strokeLimitPx() + 1e-9) << "t = " << t;
+  }
 }
 
 }  // namespace

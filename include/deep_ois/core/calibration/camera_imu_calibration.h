@@ -130,6 +130,12 @@ struct CalibrationOptions {
   // Observability. A rotation-rate axis counts as excited when the gyro's RMS rate about it is at
   // least min_excitation_rate_rad_s; the rotation needs two excited axes, everything needs one.
   double min_excitation_rate_rad_s = 0.02;
+  // The rotation between consecutive frames, as the tracks see it (median over pairs of the
+  // fitted image rotation angle times the focal length, pixels), must reach this. Below it, track
+  // noise (~0.1 px), KLT's bias and the parallax of hand or robot translation (tenths of a pixel)
+  // are as large as the signal, and a still recording whose gyro shows vibration passes the rate
+  // check yet gives a confident wrong answer (issue 14: 0.019 deg between frames, 0.15 px).
+  double min_median_image_rotation_px = 0.5;
   // Largest 1-sigma uncertainty accepted for each estimated quantity.
   double max_time_offset_sigma_s = 0.00025;
   double max_readout_time_sigma_s = 0.00025;
@@ -175,6 +181,7 @@ struct CalibrationResult {
   double median_residual_px = 0.0;          // after refinement (with the lens shift removed for OIS)
   double inlier_fraction = 0.0;             // tracks with a Cauchy weight above 0.5
   Eigen::Vector3d rate_rms_rad_s = Eigen::Vector3d::Zero();  // gyro RMS about its principal axes, descending
+  double median_image_rotation_px = 0.0;  // see CalibrationOptions::min_median_image_rotation_px
   double seconds = 0.0;  // wall time of calibrateCameraImu()
 
   bool ok() const { return status == CalibrationStatus::kOk; }

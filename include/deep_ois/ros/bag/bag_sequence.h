@@ -43,6 +43,12 @@ struct BagSequence {
   // R_cam_imu from /tf_static (lookup camera frame <- IMU frame); empty when the bag has no such
   // transform.
   std::optional<Eigen::Matrix3d> imu_to_camera_rotation;
+  // Why imu_to_camera_rotation is empty, naming the cause: no IMU message on the topic (then
+  // there is no IMU frame to look up; the sentence lists the bag's sensor_msgs/Imu topics), a
+  // camera_info without frame_id, or no transform between the two frames. Empty when found.
+  std::string imu_to_camera_problem;
+  // Empty when imu_samples is not; otherwise "no IMU messages on <topic> ...", as above.
+  std::string imu_problem;
   std::vector<FramePairTruth> truths;  // empty for a real recording
   // kKeepPrefix only: empty when the whole bag was read; otherwise a sentence naming the bag,
   // where reading stopped and why. The fields above then hold the messages before that point.

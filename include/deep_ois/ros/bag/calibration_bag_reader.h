@@ -28,6 +28,7 @@ struct CalibrationBag {
   std::string camera_frame_id;
   // R_cam_imu from the bag's /tf_static, when it has one (for comparison or to hold it).
   std::optional<Eigen::Matrix3d> tf_imu_to_camera_rotation;
+  std::string tf_problem;  // why tf_imu_to_camera_rotation is empty (BagSequence::imu_to_camera_problem)
   // Ground truth of a simulator bag: whether its OIS was on (empty for a real recording).
   std::optional<bool> simulated_ois_enabled;
   std::size_t frames = 0;

@@ -70,11 +70,14 @@ class FundamentalMixturesOffline {
   // Throws std::invalid_argument when the options are invalid.
   explicit FundamentalMixturesOffline(FundamentalMixturesOfflineOptions options);
 
-  // Processes every input. A bag that cannot be read (missing, truncated, corrupt, without IMU
-  // transform) is reported in bag_errors, the records already written from it stay, and the job
-  // goes on with the next bag. When `stop` becomes true the output is closed after the current
-  // pair. Throws std::runtime_error naming the output bag only when it cannot be created or
-  // written.
+  // Processes every input. A bag without a valid index (cut short, or its recorder killed) is read
+  // by scanning its chunks (ReadableBag): every pair before the damage is processed and what was
+  // lost is reported in bag_errors. A bag that cannot be read further (missing, not a bag, a
+  // corrupt chunk, no IMU transform) is reported in bag_errors, the records already written from
+  // it stay, and the job goes on with the next bag. When `stop` becomes true the output is closed
+  // after the current pair. The output holds one chunk per pair, so that after SIGKILL every pair
+  // written is recoverable (ReadableBag, recover_bag, or `rosbag reindex`: all but the last).
+  // Throws std::runtime_error naming the output bag only when it cannot be created or written.
   FundamentalMixturesSummary run(const std::atomic<bool>* stop = nullptr) const;
 
   const FundamentalMixturesOfflineOptions& options() const { return options_; }

@@ -46,6 +46,10 @@ struct PhoneRecordingBagOptions {
   // Gyro samples kept before the first and after the last frame stamp, seconds (the gyro flow
   // of the first and last pair needs samples around them; a time offset moves that window).
   double imu_margin_s = 0.5;
+  // Leave out the frames whose stamp the gyro log does not cover (a gyro started a few ms after the
+  // camera, or stopped before it), counted in PhoneRecordingBagStats::dropped_uncovered_frames;
+  // false refuses such a recording, naming how many frames lie outside.
+  bool drop_uncovered_frames = false;
   rosbag::compression::CompressionType compression = rosbag::compression::LZ4;
 };
 
@@ -54,6 +58,7 @@ struct PhoneRecordingBagStats {
   int first_frame_index = 0;
   int last_frame_index = 0;
   int skipped_frame_indices = 0;  // indices between first and last without an image
+  int dropped_uncovered_frames = 0;  // images left out: outside the gyro log (drop_uncovered_frames)
   int imu_messages = 0;
   int width_px = 0;
   int height_px = 0;
