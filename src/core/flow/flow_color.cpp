@@ -7,6 +7,12 @@
 namespace deep_ois {
 
 cv::Mat colorizeFlow(const cv::Mat& flow, double max_magnitude_px) {
+  cv::Mat rgb;
+  colorizeFlow(flow, max_magnitude_px, rgb);
+  return rgb;
+}
+
+void colorizeFlow(const cv::Mat& flow, double max_magnitude_px, cv::Mat& rgb) {
   if (flow.type() != CV_32FC2) throw std::invalid_argument("colorizeFlow: flow must be CV_32FC2");
   cv::Mat channels[2];
   cv::split(flow, channels);
@@ -26,9 +32,7 @@ cv::Mat colorizeFlow(const cv::Mat& flow, double max_magnitude_px) {
                          static_cast<uchar>(std::lround(255.0 * value)));
     }
   }
-  cv::Mat rgb;
   cv::cvtColor(hsv, rgb, cv::COLOR_HSV2RGB);
-  return rgb;
 }
 
 }  // namespace deep_ois
