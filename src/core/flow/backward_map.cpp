@@ -281,8 +281,7 @@ class GridInverse {
       }
     }
     // Kink nodes (second differences with the border continued constant), as a 2-D prefix count.
-    kinks_ = cv::Mat::zeros(h + 1, w + 1, CV_32S);
-    strong_kinks_ = cv::Mat::zeros(h + 1, w + 1, CV_32S);
+    for (cv::Mat& prefix : kink_counts_) prefix = cv::Mat::zeros(h + 1, w + 1, CV_32S);
     for (int gy = 0; gy < h; ++gy) {
       const cv::Vec2f* row = flow.ptr<cv::Vec2f>(gy);
       const cv::Vec2f* up = flow.ptr<cv::Vec2f>(std::max(gy - 1, 0));
@@ -290,46 +289,65 @@ class GridInverse {
       for (int gx = 0; gx < w; ++gx) {
         const cv::Vec2f& left = row[std::max(gx - 1, 0)];
         const cv::Vec2f& right = row[std::min(gx + 1, w - 1)];
-        float second = 0.0f;
+        float along_x = 0.0f, along_y = 0.0f;
         for (int c = 0; c < 2; ++c) {
-          second = std::max(second, std::abs(left[c] - 2.0f * row[gx][c] + right[c]));
-          second = std::max(second, std::abs(up[gx][c] - 2.0f * row[gx][c] + down[gx][c]));
+          along_x = std::max(along_x, std::abs(left[c] - 2.0f * row[gx][c] + right[c]));
+          along_y = std::max(along_y, std::abs(up[gx][c] - 2.0f * row[gx][c] + down[gx][c]));
         }
-        kinks_.at<int>(gy + 1, gx + 1) = (second > kKinkPx ? 1 : 0) + kinks_.at<int>(gy, gx + 1) +
-                                         kinks_.at<int>(gy + 1, gx) - kinks_.at<int>(gy, gx);
-        strong_kinks_.at<int>(gy + 1, gx + 1) = (second > kStrongKinkPx ? 1 : 0) + strong_kinks_.at<int>(gy, gx + 1) +
-                                                strong_kinks_.at<int>(gy + 1, gx) - strong_kinks_.at<int>(gy, gx);
+        const float kinks[4] = {along_x, along_y, along_x, along_y};
+        for (int k = 0; k < 4; ++k) {
+          cv::Mat& prefix = kink_counts_[k];
+          prefix.at<int>(gy + 1, gx + 1) = (kinks[k] > (k < 2 ? kKinkPx : kStrongKinkPx) ? 1 : 0) +
+                                           prefix.at<int>(gy, gx + 1) + prefix.at<int>(gy + 1, gx) - prefix.at<int>(gy, gx);
+        }
       }
     }
     // Cells of frame b (between nodes c and c + 1 per axis) whose corners' positions enclose a kink.
     const int cells_x = std::max(1, w - 1), cells_y = std::max(1, h - 1);
     cell_needs_pixels_ = cv::Mat::zeros(cells_y, cells_x, CV_8U);
+    // Grid position of every node's p = q + d: node + d / s.
+    cv::Mat node_position(h, w, CV_32FC2);
+    const float inv_sx = 1.0f / sx, inv_sy = 1.0f / sy;
+    for (int gy = 0; gy < h; ++gy) {
+      const cv::Vec2f* d = displacement_.ptr<cv::Vec2f>(gy);
+      cv::Vec2f* out = node_position.ptr<cv::Vec2f>(gy);
+      for (int gx = 0; gx < w; ++gx) out[gx] = cv::Vec2f(gx + d[gx][0] * inv_sx, gy + d[gx][1] * inv_sy);
+    }
     for (int cy = 0; cy < cells_y; ++cy) {
+      const cv::Vec2f* upper = node_position.ptr<cv::Vec2f>(cy);
+      const cv::Vec2f* lower = node_position.ptr<cv::Vec2f>(std::min(cy + 1, h - 1));
       for (int cx = 0; cx < cells_x; ++cx) {
-        float min_gx = 1e9f, max_gx = -1e9f, min_gy = 1e9f, max_gy = -1e9f;
-        for (int corner = 0; corner < 4; ++corner) {
-          const int nx = std::min(cx + (corner & 1), w - 1), ny = std::min(cy + (corner >> 1), h - 1);
-          const cv::Vec2f& d = displacement_.at<cv::Vec2f>(ny, nx);
-          // Grid position of p = q + d: node + d / s.
-          min_gx = std::min(min_gx, nx + d[0] / sx);
-          max_gx = std::max(max_gx, nx + d[0] / sx);
-          min_gy = std::min(min_gy, ny + d[1] / sy);
-          max_gy = std::max(max_gy, ny + d[1] / sy);
-        }
+        const int next = std::min(cx + 1, w - 1);
+        const float min_gx = std::min(std::min(upper[cx][0], upper[next][0]), std::min(lower[cx][0], lower[next][0]));
+        const float max_gx = std::max(std::max(upper[cx][0], upper[next][0]), std::max(lower[cx][0], lower[next][0]));
+        const float min_gy = std::min(std::min(upper[cx][1], upper[next][1]), std::min(lower[cx][1], lower[next][1]));
+        const float max_gy = std::max(std::max(upper[cx][1], upper[next][1]), std::max(lower[cx][1], lower[next][1]));
         // The outer half cells of frame b are extrapolated from the border cells: widen those.
         const float left = cx == 0 ? 0.5f : 0.0f, right = cx == cells_x - 1 ? 0.5f : 0.0f;
         const float above = cy == 0 ? 0.5f : 0.0f, below = cy == cells_y - 1 ? 0.5f : 0.0f;
-        const int x0 = std::clamp(static_cast<int>(std::ceil(min_gx - left - kMarginNodes)), 0, w - 1);
-        const int x1 = std::clamp(static_cast<int>(std::floor(max_gx + right + kMarginNodes)), 0, w - 1);
-        const int y0 = std::clamp(static_cast<int>(std::ceil(min_gy - above - kMarginNodes)), 0, h - 1);
-        const int y1 = std::clamp(static_cast<int>(std::floor(max_gy + below + kMarginNodes)), 0, h - 1);
-        if (x0 > x1 || y0 > y1) continue;
-        auto count = [&](const cv::Mat& prefix) {
+        // A kink across x (second difference along x) lies on the node's vertical line: it counts
+        // when the positions straddle that line (none when they all lie beyond the border lines,
+        // where the flow is held constant along x); along the other axis, positions beyond the
+        // border read the border nodes. Likewise for kinks across y.
+        const int straddle_x0 = std::max(static_cast<int>(std::ceil(min_gx - left - kMarginNodes)), 0);
+        const int straddle_x1 = std::min(static_cast<int>(std::floor(max_gx + right + kMarginNodes)), w - 1);
+        const int straddle_y0 = std::max(static_cast<int>(std::ceil(min_gy - above - kMarginNodes)), 0);
+        const int straddle_y1 = std::min(static_cast<int>(std::floor(max_gy + below + kMarginNodes)), h - 1);
+        const int span_x0 = std::clamp(static_cast<int>(std::floor(min_gx - left - kMarginNodes)), 0, w - 1);
+        const int span_x1 = std::clamp(static_cast<int>(std::ceil(max_gx + right + kMarginNodes)), 0, w - 1);
+        const int span_y0 = std::clamp(static_cast<int>(std::floor(min_gy - above - kMarginNodes)), 0, h - 1);
+        const int span_y1 = std::clamp(static_cast<int>(std::ceil(max_gy + below + kMarginNodes)), 0, h - 1);
+        auto count = [&](int k, int x0, int x1, int y0, int y1) {
+          if (x0 > x1 || y0 > y1) return 0;
+          const cv::Mat& prefix = kink_counts_[k];
           return prefix.at<int>(y1 + 1, x1 + 1) - prefix.at<int>(y0, x1 + 1) - prefix.at<int>(y1 + 1, x0) +
                  prefix.at<int>(y0, x0);
         };
-        cell_needs_pixels_.at<uchar>(cy, cx) =
-            count(strong_kinks_) > 0 ? kFullIteration : (count(kinks_) > 0 ? kOneStep : kInterpolate);
+        auto kinks = [&](int first) {
+          return count(first, straddle_x0, straddle_x1, span_y0, span_y1) +
+                 count(first + 1, span_x0, span_x1, straddle_y0, straddle_y1);
+        };
+        cell_needs_pixels_.at<uchar>(cy, cx) = kinks(2) > 0 ? kFullIteration : (kinks(0) > 0 ? kOneStep : kInterpolate);
       }
     }
   }
@@ -394,8 +412,9 @@ class GridInverse {
   }
 
   float border_x_[2], border_y_[2];  // camera positions of the first and last node lines
-  cv::Mat kinks_;              // CV_32S (h+1)x(w+1) prefix count of kink nodes
-  cv::Mat strong_kinks_;       // the same for strong kinks
+  // CV_32S (h+1)x(w+1) prefix counts of kink nodes: across x, across y, strong across x, strong
+  // across y.
+  cv::Mat kink_counts_[4];
   cv::Mat cell_needs_pixels_;  // CellWork per cell of frame b
 };
 
