@@ -241,28 +241,37 @@ class GridInverse {
     border_y_[0] = 0.5f * sy - 0.5f;
     border_y_[1] = (h - 0.5f) * sy - 0.5f;
     displacement_.create(flow.size(), CV_32FC2);
-    // A whole grid row iterates in step: each node's iteration waits on its previous sample, so
-    // interleaving the nodes keeps the processor busy where one chain would wait on latency.
-    std::vector<float> qx(w), px(w), py(w);
-    for (int gx = 0; gx < w; ++gx) qx[gx] = (gx + 0.5f) * sx - 0.5f;
+    // All but the last iteration read the flow with cv::remap (vectorised; positions rounded to
+    // 1/32 grid pixel, which moves the flow read by at most its gradient times s/64). The last one
+    // samples exactly, and being a contraction it shrinks that error by the flow gradient again.
+    // Positions are kept as grid coordinates g = (p + 0.5) / s - 0.5 for cv::remap.
+    cv::Mat position(h, w, CV_32FC2), flow_at_position;
+    const float inv_sx = 1.0f / sx, inv_sy = 1.0f / sy;
+    auto set_positions = [&](const cv::Mat& flow_read) {
+      for (int gy = 0; gy < h; ++gy) {
+        const cv::Vec2f* f = flow_read.ptr<cv::Vec2f>(gy);
+        cv::Vec2f* g = position.ptr<cv::Vec2f>(gy);
+        // q - flow in grid coordinates: node - flow / s.
+        for (int gx = 0; gx < w; ++gx) g[gx] = cv::Vec2f(gx - f[gx][0] * inv_sx, gy - f[gx][1] * inv_sy);
+      }
+    };
+    set_positions(flow);  // the flow at a node is the grid value: p = q - flow(q) needs no sampling
+    for (int i = 0; i + 1 < iterations; ++i) {
+      cv::remap(flow, flow_at_position, position, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+      set_positions(flow_at_position);
+    }
     for (int gy = 0; gy < h; ++gy) {
-      const cv::Vec2f* node_flow = flow.ptr<cv::Vec2f>(gy);
-      const float qy = (gy + 0.5f) * sy - 0.5f;
-      // The flow at a node is the grid value: the start p = q - flow(q) needs no sampling.
-      for (int gx = 0; gx < w; ++gx) {
-        px[gx] = qx[gx] - node_flow[gx][0];
-        py[gx] = qy - node_flow[gx][1];
-      }
-      for (int i = 0; i < iterations; ++i) {
-        for (int gx = 0; gx < w; ++gx) {
-          float u, v;
-          sampler_.sample(px[gx], py[gx], u, v);
-          px[gx] = qx[gx] - u;
-          py[gx] = qy - v;
-        }
-      }
+      const cv::Vec2f* g = position.ptr<cv::Vec2f>(gy);
       cv::Vec2f* out = displacement_.ptr<cv::Vec2f>(gy);
-      for (int gx = 0; gx < w; ++gx) out[gx] = cv::Vec2f(px[gx] - qx[gx], py[gx] - qy);
+      for (int gx = 0; gx < w; ++gx) {
+        if (iterations == 0) {
+          out[gx] = cv::Vec2f((g[gx][0] - gx) * sx, (g[gx][1] - gy) * sy);
+          continue;
+        }
+        float u, v;
+        sampler_.sample((g[gx][0] + 0.5f) * sx - 0.5f, (g[gx][1] + 0.5f) * sy - 0.5f, u, v);
+        out[gx] = cv::Vec2f(-u, -v);  // p - q = -flow(p)
+      }
     }
     // Each grid row interpolated along x to camera columns once (x + d_x, and d_y): the camera rows
     // then only blend two of these.
@@ -280,34 +289,35 @@ class GridInverse {
         hy[x] = d[g0][1] + wx * (d[g1][1] - d[g0][1]);
       }
     }
-    // Kink nodes (second differences with the border continued constant), as a 2-D prefix count.
-    for (cv::Mat& prefix : kink_counts_) prefix = cv::Mat::zeros(h + 1, w + 1, CV_32S);
+    // Kink nodes (second differences with the border continued constant), as 2-D prefix counts.
+    cv::Mat flags[4];  // across x, across y, strong across x, strong across y
+    for (cv::Mat& f : flags) f.create(h, w, CV_8U);
     for (int gy = 0; gy < h; ++gy) {
       const cv::Vec2f* row = flow.ptr<cv::Vec2f>(gy);
       const cv::Vec2f* up = flow.ptr<cv::Vec2f>(std::max(gy - 1, 0));
       const cv::Vec2f* down = flow.ptr<cv::Vec2f>(std::min(gy + 1, h - 1));
+      uchar* out[4] = {flags[0].ptr(gy), flags[1].ptr(gy), flags[2].ptr(gy), flags[3].ptr(gy)};
       for (int gx = 0; gx < w; ++gx) {
         const cv::Vec2f& left = row[std::max(gx - 1, 0)];
         const cv::Vec2f& right = row[std::min(gx + 1, w - 1)];
-        float along_x = 0.0f, along_y = 0.0f;
-        for (int c = 0; c < 2; ++c) {
-          along_x = std::max(along_x, std::abs(left[c] - 2.0f * row[gx][c] + right[c]));
-          along_y = std::max(along_y, std::abs(up[gx][c] - 2.0f * row[gx][c] + down[gx][c]));
-        }
-        const float kinks[4] = {along_x, along_y, along_x, along_y};
-        for (int k = 0; k < 4; ++k) {
-          cv::Mat& prefix = kink_counts_[k];
-          prefix.at<int>(gy + 1, gx + 1) = (kinks[k] > (k < 2 ? kKinkPx : kStrongKinkPx) ? 1 : 0) +
-                                           prefix.at<int>(gy, gx + 1) + prefix.at<int>(gy + 1, gx) - prefix.at<int>(gy, gx);
-        }
+        const float along_x = std::max(std::abs(left[0] - 2.0f * row[gx][0] + right[0]),
+                                       std::abs(left[1] - 2.0f * row[gx][1] + right[1]));
+        const float along_y = std::max(std::abs(up[gx][0] - 2.0f * row[gx][0] + down[gx][0]),
+                                       std::abs(up[gx][1] - 2.0f * row[gx][1] + down[gx][1]));
+        out[0][gx] = along_x > kKinkPx;
+        out[1][gx] = along_y > kKinkPx;
+        out[2][gx] = along_x > kStrongKinkPx;
+        out[3][gx] = along_y > kStrongKinkPx;
       }
     }
+    for (int k = 0; k < 4; ++k) cv::integral(flags[k], kink_counts_[k], CV_32S);
+    const bool any_kink = kink_counts_[0].at<int>(h, w) + kink_counts_[1].at<int>(h, w) > 0;
     // Cells of frame b (between nodes c and c + 1 per axis) whose corners' positions enclose a kink.
     const int cells_x = std::max(1, w - 1), cells_y = std::max(1, h - 1);
     cell_needs_pixels_ = cv::Mat::zeros(cells_y, cells_x, CV_8U);
+    if (!any_kink) return;
     // Grid position of every node's p = q + d: node + d / s.
     cv::Mat node_position(h, w, CV_32FC2);
-    const float inv_sx = 1.0f / sx, inv_sy = 1.0f / sy;
     for (int gy = 0; gy < h; ++gy) {
       const cv::Vec2f* d = displacement_.ptr<cv::Vec2f>(gy);
       cv::Vec2f* out = node_position.ptr<cv::Vec2f>(gy);
@@ -329,14 +339,14 @@ class GridInverse {
         // when the positions straddle that line (none when they all lie beyond the border lines,
         // where the flow is held constant along x); along the other axis, positions beyond the
         // border read the border nodes. Likewise for kinks across y.
-        const int straddle_x0 = std::max(static_cast<int>(std::ceil(min_gx - left - kMarginNodes)), 0);
-        const int straddle_x1 = std::min(static_cast<int>(std::floor(max_gx + right + kMarginNodes)), w - 1);
-        const int straddle_y0 = std::max(static_cast<int>(std::ceil(min_gy - above - kMarginNodes)), 0);
-        const int straddle_y1 = std::min(static_cast<int>(std::floor(max_gy + below + kMarginNodes)), h - 1);
-        const int span_x0 = std::clamp(static_cast<int>(std::floor(min_gx - left - kMarginNodes)), 0, w - 1);
-        const int span_x1 = std::clamp(static_cast<int>(std::ceil(max_gx + right + kMarginNodes)), 0, w - 1);
-        const int span_y0 = std::clamp(static_cast<int>(std::floor(min_gy - above - kMarginNodes)), 0, h - 1);
-        const int span_y1 = std::clamp(static_cast<int>(std::ceil(max_gy + below + kMarginNodes)), 0, h - 1);
+        const int straddle_x0 = std::max(cvCeil(min_gx - left - kMarginNodes), 0);
+        const int straddle_x1 = std::min(cvFloor(max_gx + right + kMarginNodes), w - 1);
+        const int straddle_y0 = std::max(cvCeil(min_gy - above - kMarginNodes), 0);
+        const int straddle_y1 = std::min(cvFloor(max_gy + below + kMarginNodes), h - 1);
+        const int span_x0 = std::clamp(cvFloor(min_gx - left - kMarginNodes), 0, w - 1);
+        const int span_x1 = std::clamp(cvCeil(max_gx + right + kMarginNodes), 0, w - 1);
+        const int span_y0 = std::clamp(cvFloor(min_gy - above - kMarginNodes), 0, h - 1);
+        const int span_y1 = std::clamp(cvCeil(max_gy + below + kMarginNodes), 0, h - 1);
         auto count = [&](int k, int x0, int x1, int y0, int y1) {
           if (x0 > x1 || y0 > y1) return 0;
           const cv::Mat& prefix = kink_counts_[k];
@@ -347,7 +357,7 @@ class GridInverse {
           return count(first, straddle_x0, straddle_x1, span_y0, span_y1) +
                  count(first + 1, span_x0, span_x1, straddle_y0, straddle_y1);
         };
-        cell_needs_pixels_.at<uchar>(cy, cx) = kinks(2) > 0 ? kFullIteration : (kinks(0) > 0 ? kOneStep : kInterpolate);
+        if (kinks(0) > 0) cell_needs_pixels_.at<uchar>(cy, cx) = kinks(2) > 0 ? kFullIteration : kOneStep;
       }
     }
   }
