@@ -66,8 +66,12 @@ double largestMapDifferencePx(const std::vector<cv::Mat>& flows, cv::Size camera
     cv::Mat difference;
     cv::absdiff(backwardMapFromGrid(flow, camera_size, 3), inverseFlowMap(flow, camera_size, 3), difference);
     double worst = 0.0;
-    cv::minMaxLoc(difference.reshape(1), nullptr, &worst);
-    largest = std::max(largest, worst);
+    cv::Point where;
+    cv::minMaxLoc(difference.reshape(1), nullptr, &worst, nullptr, &where);
+    if (worst > largest) {
+      std::printf("  pair %zu: %.5f px at camera pixel (%d, %d)\n", k, worst, where.x / 2, where.y);
+      largest = worst;
+    }
   }
   return largest;
 }

@@ -218,7 +218,7 @@ struct AxisInterpolation {
 //   converges slowly, so the pixel repeats inverseFlowMap's iterations exactly, from scratch.
 class GridInverse {
  public:
-  static constexpr float kKinkPx = 0.02f;
+  static constexpr float kKinkPx = 0.01f;
   static constexpr float kStrongKinkPx = 0.1f;
   // The positions inside a cell follow its corners' up to the inverse's curvature: a quarter node
   // of slack covers it.
