@@ -50,6 +50,8 @@ using Clock = std::chrono::steady_clock;
 constexpr double kFramePeriodS = 1.0 / 30.0;
 constexpr double kImuRateHz = 400.0;
 constexpr std::size_t kReferenceRuns = 10;
+// Pairs run before the timed ones (the first ones after start-up run slower for a while).
+constexpr int kWarmUpPairs = 30;
 
 // CPU time of the calling thread: what the chain costs its one core even while other processes
 // share the machine (wall time then also counts the waits for a core).
@@ -151,7 +153,7 @@ int main(int argc, char** argv) {
                 std::thread::hardware_concurrency());
 
     // The synthetic gyro, shared by all sizes: 400 Hz over the whole run.
-    const double duration_s = (frames + 12) * kFramePeriodS + 1.0;
+    const double duration_s = (frames + kWarmUpPairs + 12) * kFramePeriodS + 1.0;
     deep_ois::ImuSampleBuffer imu(duration_s + 1.0);
     for (double t = 0.0; t <= duration_s; t += 1.0 / kImuRateHz) imu.add({t, angularVelocity(t)});
 
@@ -181,8 +183,7 @@ int main(int argc, char** argv) {
       std::vector<double> chain_ms, bare_remap_ms, one_by_one_share, chain_cpu_ms, bare_remap_cpu_ms, reference_ms;
       deep_ois::FixedPointMap map;
       cv::Mat gyro_flow, bare_out;
-      const int warm_up = 5;
-      for (int k = 0; k < frames + warm_up; ++k) {
+      for (int k = 0; k < frames + kWarmUpPairs; ++k) {
         const double stamp_a_s = 0.5 + k * kFramePeriodS, stamp_b_s = stamp_a_s + kFramePeriodS;
         sensor_msgs::Image& image_a = *images[k % 2];
         sensor_msgs::Image& image_b = *images[(k + 1) % 2];
@@ -254,7 +255,7 @@ int main(int argc, char** argv) {
         cv::remap(a->image, bare_out, map.xy, map.fraction, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
         const double bare = msSince(start);
         const double bare_cpu = threadCpuMs() - bare_cpu_start_ms;
-        if (k < warm_up) continue;
+        if (k < kWarmUpPairs) continue;
         if (reference_ms.size() < kReferenceRuns) {
           // What the map build replaced: the per-pixel inversion and the conversion to fixed point.
           start = Clock::now();
