@@ -9,6 +9,7 @@
 
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/flow_warp.h"
+#include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/core/flow/homography_flow.h"
 
 namespace deep_ois {
@@ -44,7 +45,7 @@ double largestDifferencePx(const cv::Mat& a, const cv::Mat& b) {
 
 TEST(BackwardMap, MatchesThePerPixelInversionOnAStrongRotationAt1080p) {
   const cv::Size camera(1920, 1080);
-  // 0.06 rad: about 80 camera pixels of motion, four times the sample bag's largest.
+  // 0.06 rad: up to about 130 camera pixels of motion at the image corners.
   const cv::Mat flow = rotationFlow(camera, 0.06, 1, 0.0);
   const cv::Mat reference = inverseFlowMap(flow, camera, 3);
   const cv::Mat fast = backwardMapFromGrid(flow, camera, 3);
@@ -80,6 +81,30 @@ TEST(BackwardMap, FixedPointWarpEqualsTheFloatMapWarp) {
   warpWithFixedPointMap(image, fixed, view);
   EXPECT_EQ(view.data, buffer.data());
   EXPECT_EQ(cv::norm(view, expected, cv::NORM_INF), 0.0);
+}
+
+// The live nodelet writes the ghost into its message's buffer, or over the warped frame itself.
+TEST(GhostOverlay, IntoABufferAndInPlaceEqualTheAllocatingForm) {
+  cv::Mat a(48, 64, CV_8UC3), b(48, 64, CV_8UC3);
+  cv::randu(a, 0, 255);
+  cv::randu(b, 0, 255);
+  const cv::Mat expected = ghostOverlay(a, b);
+  for (int y = 0; y < a.rows; ++y) {
+    for (int x = 0; x < a.cols; ++x) {
+      const cv::Vec3b& g = expected.at<cv::Vec3b>(y, x);
+      ASSERT_EQ(g, cv::Vec3b(b.at<cv::Vec3b>(y, x)[0], a.at<cv::Vec3b>(y, x)[1], a.at<cv::Vec3b>(y, x)[2]));
+    }
+  }
+  std::vector<unsigned char> buffer(a.total() * 3);
+  cv::Mat into(a.size(), CV_8UC3, buffer.data());
+  ghostOverlay(a, b, into);
+  EXPECT_EQ(into.data, buffer.data());
+  EXPECT_EQ(cv::norm(into, expected, cv::NORM_INF), 0.0);
+  cv::Mat in_place = a.clone();
+  ghostOverlay(in_place, b, in_place);
+  EXPECT_EQ(cv::norm(in_place, expected, cv::NORM_INF), 0.0);
+  cv::Mat out;
+  EXPECT_THROW(ghostOverlay(a, cv::Mat(10, 10, CV_8UC3), out), std::invalid_argument);
 }
 
 TEST(BackwardMap, RejectsBadInput) {
