@@ -169,7 +169,7 @@ class ReferenceFlowSampler {
     v = v00 * w00 + v01 * w01 + v10 * w10 + v11 * w11;
   }
 
-  const cv::Mat& flow_grid_;
+  cv::Mat flow_grid_;  // a header sharing the caller's flow
   int width_, height_;
   float sx_ = 1.0f, sy_ = 1.0f;
   std::vector<int> column_lower_, row_lower_;

@@ -30,7 +30,8 @@ struct FixedPointMap {
 // camera pixel q = (g + 0.5) s - 0.5 of frame b (working_grid.h), the displacement d in camera
 // pixels with p = q + d and p + flow(p) = q, found by the fixed-point iteration p <- q - flow(p)
 // from p = q - flow(q) (as inverseFlowMap, with the flow sampled bilinearly on the grid, border
-// pixels replicated). `flow_grid` is CV_32FC2 in grid pixels; returns CV_32FC2 of the grid's size
+// pixels replicated; all steps but the last through cv::remap, i.e. at 1/32 grid pixel, the last
+// one exact, which shrinks that rounding's effect by the flow gradient). `flow_grid` is CV_32FC2 in grid pixels; returns CV_32FC2 of the grid's size
 // in camera pixels. Throws std::invalid_argument on an empty or non-CV_32FC2 flow, an empty
 // camera size or negative iterations.
 cv::Mat inverseDisplacementOnGrid(const cv::Mat& flow_grid, cv::Size image_size, int iterations = 3);
