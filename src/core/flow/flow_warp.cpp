@@ -4,6 +4,7 @@
 
 #include <stdexcept>
 
+#include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/grid_flow_sampling.h"
 
 namespace deep_ois {
@@ -40,7 +41,11 @@ cv::Mat warpWithInverseMap(const cv::Mat& image, const cv::Mat& inverse_map) {
 
 cv::Mat warpOntoLaterFrame(const cv::Mat& image_a, const cv::Mat& flow_grid, int iterations) {
   if (image_a.empty()) throw std::invalid_argument("warpOntoLaterFrame: frame a is empty");
-  return warpWithInverseMap(image_a, inverseFlowMap(flow_grid, image_a.size(), iterations));
+  FixedPointMap map;
+  buildFixedPointBackwardMap(flow_grid, image_a.size(), iterations, map);
+  cv::Mat warped;
+  warpWithFixedPointMap(image_a, map, warped);
+  return warped;
 }
 
 cv::Mat warpFrameBOntoA(const cv::Mat& image_b, const cv::Mat& camera_flow) {

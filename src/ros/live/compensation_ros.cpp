@@ -5,11 +5,12 @@
 
 
 #include <boost/make_shared.hpp>
+#include <opencv2/core/utility.hpp>
 #include <cmath>
 #include <stdexcept>
 
 #include "deep_ois/core/flow/flow_color.h"
-#include "deep_ois/core/flow/flow_warp.h"
+#include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/ros/messages/conversions.h"
 
@@ -41,6 +42,8 @@ CompensationParameters loadCompensationParameters(const ros::NodeHandle& nh) {
   if (!std::isfinite(p.max_wait_s) || p.max_wait_s < 0.0) reject(nh, "max_wait", "must be >= 0 seconds");
   p.warp_iterations = nh.param("warp_iterations", p.warp_iterations);
   if (p.warp_iterations < 0 || p.warp_iterations > 20) reject(nh, "warp_iterations", "must be in [0, 20]");
+  p.warp_threads = nh.param("warp_threads", p.warp_threads);
+  if (p.warp_threads < 1) reject(nh, "warp_threads", "must be at least 1");
   p.color_max_flow_px = nh.param("color_max_flow", p.color_max_flow_px);
   if (!std::isfinite(p.color_max_flow_px) || p.color_max_flow_px < 0.0) {
     reject(nh, "color_max_flow", "must be >= 0 pixels (0 = scale each frame by its largest flow)");
@@ -56,6 +59,9 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       stream_(model_),
       it_(nh) {
   setTorchThreads(params_.torch_threads);
+  // OpenCV's thread count is process-wide: the warp (map build and remaps) is the OpenCV work
+  // that splits into stripes; one thread unless ~warp_threads asks for more.
+  cv::setNumThreads(params_.warp_threads);
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
   auto on_image_subscribers = [this](const image_transport::SingleSubscriberPublisher&) { connectCallback(); };
@@ -64,9 +70,10 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   aligned_pub_ = it_.advertise("aligned/image_raw", 5, on_image_subscribers, on_image_subscribers);
   ghost_pub_ = it_.advertise("aligned/ghost", 5, on_image_subscribers, on_image_subscribers);
   const ModelMetadata& m = model_.metadata();
-  ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s)",
+  ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
+                 "%d warp thread(s)",
                  params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
-                 m.training.epochs, params_.torch_threads);
+                 m.training.epochs, params_.torch_threads, params_.warp_threads);
 }
 
 CompensationRos::~CompensationRos() {
@@ -176,29 +183,38 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     std::memcpy(msg->flow.data.data(), compensated.data, msg->flow.data.size());
     compensated_pub_.publish(msg);
   }
+  const cv::Size camera_size(static_cast<int>(gyro.image_width), static_cast<int>(gyro.image_height));
   if (color_pub_.getNumSubscribers() > 0) {
-    color_pub_.publish(cv_bridge::CvImage(gyro.header, sensor_msgs::image_encodings::RGB8,
-                                          colorizeFlow(compensated, params_.color_max_flow_px))
-                           .toImageMsg());
+    cv::Mat color;
+    sensor_msgs::ImagePtr msg = makeImageMsg(gyro.header, sensor_msgs::image_encodings::RGB8, compensated.size(), color);
+    colorizeFlow(compensated, params_.color_max_flow_px, color);
+    color_pub_.publish(msg);
   }
   const bool want_aligned = aligned_pub_.getNumSubscribers() > 0, want_ghost = ghost_pub_.getNumSubscribers() > 0;
   if (!want_aligned && !want_ghost) return;
   try {
-    const cv::Mat map = inverseFlowMap(compensated, cv::Size(static_cast<int>(gyro.image_width),
-                                                             static_cast<int>(gyro.image_height)),
-                                       params_.warp_iterations);
-    std_msgs::Header header = image_b->header;
+    // The flow inverted on its grid; per camera pixel only the map's interpolation and the remaps.
+    buildFixedPointBackwardMap(compensated, camera_size, params_.warp_iterations, warp_map_);
+    const std_msgs::Header& header = image_b->header;
+    cv::Mat aligned;
     if (want_aligned) {
       const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a);
-      aligned_pub_.publish(
-          cv_bridge::CvImage(header, image_a->encoding, warpWithInverseMap(a->image, map)).toImageMsg());
+      sensor_msgs::ImagePtr msg = makeImageMsg(header, image_a->encoding, camera_size, aligned);
+      warpWithFixedPointMap(a->image, warp_map_, aligned);
+      aligned_pub_.publish(msg);
     }
     if (want_ghost) {
-      const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a, sensor_msgs::image_encodings::RGB8);
+      cv::Mat ghost;
+      sensor_msgs::ImagePtr msg = makeImageMsg(header, sensor_msgs::image_encodings::RGB8, camera_size, ghost);
       const cv_bridge::CvImageConstPtr b = cv_bridge::toCvShare(image_b, sensor_msgs::image_encodings::RGB8);
-      ghost_pub_.publish(cv_bridge::CvImage(header, sensor_msgs::image_encodings::RGB8,
-                                            ghostOverlay(warpWithInverseMap(a->image, map), b->image))
-                             .toImageMsg());
+      if (want_aligned && image_a->encoding == sensor_msgs::image_encodings::RGB8) {
+        ghostOverlay(aligned, b->image, ghost);  // frame a is already warped in RGB
+      } else {
+        const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a, sensor_msgs::image_encodings::RGB8);
+        warpWithFixedPointMap(a->image, warp_map_, ghost);
+        ghostOverlay(ghost, b->image, ghost);
+      }
+      ghost_pub_.publish(msg);
     }
   } catch (const cv_bridge::Exception& e) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: cannot convert the images on %s: %s",

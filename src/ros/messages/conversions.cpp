@@ -1,8 +1,10 @@
 #include "deep_ois/ros/messages/conversions.h"
 
+#include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/distortion_models.h>
 #include <sensor_msgs/image_encodings.h>
 
+#include <boost/make_shared.hpp>
 #include <cmath>
 #include <sstream>
 
@@ -157,6 +159,21 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
   flow_view = cv::Mat(static_cast<int>(msg.flow.height), static_cast<int>(msg.flow.width), CV_32FC2,
                       const_cast<uint8_t*>(msg.flow.data.data()), msg.flow.step);
   return {};
+}
+
+sensor_msgs::ImagePtr makeImageMsg(const std_msgs::Header& header, const std::string& encoding, cv::Size size,
+                                   cv::Mat& view) {
+  const int type = cv_bridge::getCvType(encoding);
+  auto msg = boost::make_shared<sensor_msgs::Image>();
+  msg->header = header;
+  msg->encoding = encoding;
+  msg->height = static_cast<std::uint32_t>(size.height);
+  msg->width = static_cast<std::uint32_t>(size.width);
+  msg->is_bigendian = 0;
+  msg->step = static_cast<std::uint32_t>(size.width * CV_ELEM_SIZE(type));
+  msg->data.resize(static_cast<std::size_t>(msg->step) * size.height);
+  view = cv::Mat(size, type, msg->data.data(), msg->step);
+  return msg;
 }
 
 }  // namespace deep_ois

@@ -11,4 +11,8 @@ namespace deep_ois {
 // (a still field is black).
 cv::Mat colorizeFlow(const cv::Mat& flow, double max_magnitude_px = 0.0);
 
+// The same into `rgb`: a caller that allocated it (CV_8UC3 of the flow's size, e.g. over an
+// outgoing message's buffer) gets the result there.
+void colorizeFlow(const cv::Mat& flow, double max_magnitude_px, cv::Mat& rgb);
+
 }  // namespace deep_ois

@@ -7,7 +7,9 @@
 
 namespace deep_ois {
 
-// Backward sampling map for frame b: for every pixel q of b (camera resolution `image_size`), the
+// Backward sampling map for frame b, inverted per camera pixel: the accurate reference of the
+// grid-built map of backward_map.h (what the nodelet and the tools warp with), slower by the
+// camera's pixel count. For every pixel q of b (camera resolution `image_size`), the
 // position p in frame a with p + flow(p) = q. `flow_grid` is CV_32FC2 on any grid in that grid's
 // pixels (the GyroFlow convention). The forward flow is inverted by fixed-point iteration
 // p <- q - flow(p) starting at p = q - flow(q): the flow is smooth (a few homographies), so
@@ -20,7 +22,8 @@ cv::Mat inverseFlowMap(const cv::Mat& flow_grid, cv::Size image_size, int iterat
 cv::Mat warpWithInverseMap(const cv::Mat& image, const cv::Mat& inverse_map);
 
 // Frame a resampled into frame b's pixel grid (bilinear; pixels that come from outside frame a
-// are black): where the flow is right, the result lines up with frame b.
+// are black): where the flow is right, the result lines up with frame b. Builds the map on the
+// flow's grid (buildFixedPointBackwardMap), as the compensation nodelet does.
 cv::Mat warpOntoLaterFrame(const cv::Mat& image_a, const cv::Mat& flow_grid, int iterations = 3);
 
 // Brings frame b into frame a's pixels: result(p) = image_b(p + flow(p)), bilinear, black where

@@ -9,4 +9,9 @@ namespace deep_ois {
 // size): where the two frames align the result looks grey-natural, elsewhere red/cyan fringes.
 cv::Mat ghostOverlay(const cv::Mat& rgb_a, const cv::Mat& rgb_b);
 
+// The same into `ghost` in one pass: a caller that allocated it (CV_8UC3 of the frames' size, e.g.
+// over an outgoing message's buffer) gets the result there; `ghost` may be `rgb_a` itself (then
+// only its red channel is replaced). Throws std::invalid_argument on a type or size mismatch.
+void ghostOverlay(const cv::Mat& rgb_a, const cv::Mat& rgb_b, cv::Mat& ghost);
+
 }  // namespace deep_ois

@@ -12,6 +12,7 @@
 #include <mutex>
 #include <string>
 
+#include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
 
@@ -25,6 +26,7 @@ struct CompensationParameters {
   int image_cache_size = 30;     // ~image_cache_size: frames kept to pair with gyro flows
   double max_wait_s = 1.0;       // ~max_wait: wall time a gyro flow waits for its images
   int warp_iterations = 3;       // ~warp_iterations: fixed-point steps inverting the flow
+  int warp_threads = 1;          // ~warp_threads: OpenCV threads for the warp (process-wide)
   double color_max_flow_px = 0.0;  // ~color_max_flow: as the gyro flow nodelet's
 };
 
@@ -89,6 +91,7 @@ class CompensationRos {
 
   std::deque<sensor_msgs::ImageConstPtr> images_;  // newest last
   std::deque<PendingFlow> pending_;
+  FixedPointMap warp_map_;  // the backward map of the current pair (buffers reused per frame)
   std::size_t published_ = 0;
 };
 

@@ -50,6 +50,13 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
 std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& homographies,
                             cv::Mat& flow_view);
 
+// An outgoing image message of `size` and `encoding` (one cv_bridge knows) with `header`, and in
+// `view` a cv::Mat header over the message's own pixel buffer: whatever is written into `view`
+// (a remap, a colour conversion) is published without a copy. Throws cv_bridge::Exception for an
+// unknown encoding.
+sensor_msgs::ImagePtr makeImageMsg(const std_msgs::Header& header, const std::string& encoding, cv::Size size,
+                                   cv::Mat& view);
+
 // Messages carry matrices and points as flat float64[] arrays: consecutive row-major 3x3 blocks,
 // and (x, y) pairs. The unflatten functions ignore a trailing incomplete block.
 std::vector<double> flattenMatrices(const std::vector<Eigen::Matrix3d>& matrices);
