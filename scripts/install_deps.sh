@@ -21,6 +21,9 @@ packages=(
   libroscpp-dev libroslib-dev librosconsole-dev libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
   libmessage-filters-dev librosbag-dev librosbag-storage-dev libcamera-calibration-parsers-dev
+  # live tuning and health of the nodelets: dynamic_reconfigure, /diagnostics
+  libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
+  libdiagnostic-updater-dev ros-diagnostic-msgs libdiagnostic-msgs-dev
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic

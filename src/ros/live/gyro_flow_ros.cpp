@@ -17,6 +17,18 @@ namespace {
 constexpr double kWarnPeriodS = 2.0;         // throttle of per-message warnings
 constexpr double kWaitingCheckPeriodS = 5.0;  // period of the "still waiting" diagnostics
 constexpr std::size_t kMaxPendingFrames = 60;  // two seconds of 30 fps video
+
+// The calibration in use, shown with the diagnostics.
+void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& params) {
+  const RollingShutterConfig& rs = params.rolling_shutter;
+  diagnostics.setValue("time_offset [s]", std::to_string(rs.time_offset_s));
+  diagnostics.setValue("readout_time [s]", std::to_string(rs.readout_time_s));
+  diagnostics.setValue("patch_count", std::to_string(rs.patch_count));
+  diagnostics.setValue("patch_time", rs.patch_time == PatchTimeReference::kPatchStart ? "start" : "centre");
+  diagnostics.setValue("R_cam_imu source", params.rotation_from_tf ? "tf" : "~imu_to_camera_rotation");
+  diagnostics.setValue("grid [px]", std::to_string(params.grid_size.width) + "x" +
+                                        std::to_string(params.grid_size.height));
+}
 }  // namespace
 
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -28,6 +40,17 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   if (params_.rotation_from_tf) {
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_, nh_);
   }
+  // Live-tunable parameters: a change replaces params_ for the next frame pair; the IMU buffer
+  // and the frame history stay. Built before the lock below: it applies the values once here.
+  diagnostics_ = std::make_unique<LiveDiagnostics>(nh_, private_nh_,
+                                                   std::vector<std::string>{"imu", "frames", "gyro flows"},
+                                                   "gyro flows", nh_.resolveName("image_raw"));
+  reconfigure_ = std::make_unique<GyroFlowReconfigure>(
+      private_nh_, "gyro_flow", params_, [this](const GyroFlowParameters& updated) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        params_ = updated;
+        showCalibration(*diagnostics_, params_);
+      });
   // Held across advertise so that a subscriber connecting meanwhile waits for the publishers.
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_flow_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
@@ -47,6 +70,8 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
 }
 
 GyroFlowRos::~GyroFlowRos() {
+  reconfigure_.reset();  // no more reconfigure callbacks into this
+  diagnostics_.reset();
   waiting_timer_.stop();
   std::lock_guard<std::mutex> lock(mutex_);
   imu_sub_.shutdown();
@@ -100,6 +125,7 @@ void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
   std::lock_guard<std::mutex> lock(mutex_);
   checkRosTimeJump();
   ++imu_received_;
+  diagnostics_->tick("imu");
   last_imu_arrival_ = ros::Time::now();
   secondsSinceBase(imu->header.stamp);  // sets the time base on the first message
   const ImuSample sample = toImuSample(*imu, *time_base_);
@@ -130,6 +156,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   std::lock_guard<std::mutex> lock(mutex_);
   checkRosTimeJump();
   ++frames_received_;
+  diagnostics_->tick("frames");
   const std::string& topic = camera_sub_.getTopic();
   const double stamp_s = image->header.stamp.toSec();
 
@@ -137,6 +164,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f on %s: %s",
                             stamp_s, topic.c_str(), problem.c_str());
+    diagnostics_->drop("invalid image");
     return;
   }
   Frame frame;
@@ -144,6 +172,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s: %s",
                             stamp_s, camera_sub_.getInfoTopic().c_str(), problem.c_str());
+    diagnostics_->drop("unusable camera_info");
     return;
   }
   if (image->width != info->width || image->height != info->height) {
@@ -151,6 +180,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                             "gyro_flow: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u",
                             stamp_s, topic.c_str(), image->width, image->height,
                             camera_sub_.getInfoTopic().c_str(), info->width, info->height);
+    diagnostics_->drop("image and camera_info sizes differ");
     return;
   }
   frame.stamp = image->header.stamp;
@@ -171,6 +201,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                               "gyro_flow: dropping frame %.6f on %s: %s stamp (latest frame %.6f)",
                               stamp_s, topic.c_str(), back_s == 0.0 ? "duplicate" : "out-of-order",
                               latest->toSec());
+      diagnostics_->drop("duplicate or out-of-order frame");
       return;
     }
   }
@@ -179,6 +210,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %zu frames wait for IMU data on %s: dropping the oldest",
                             pending_frames_.size(), imu_sub_.getTopic().c_str());
+    diagnostics_->drop("too many frames waiting for IMU");
     previous_ = pending_frames_.front();
     pending_frames_.pop_front();
   }
@@ -233,16 +265,23 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
                             "%.1f ms): not pairing them",
                             previous.stamp.toSec(), frame.stamp.toSec(), camera_sub_.getTopic().c_str(),
                             interval_s * 1e3, params_.max_frame_interval_s * 1e3);
+    diagnostics_->drop("frames too far apart");
     return Outcome::kDropped;
   }
   if (frame.camera != previous.camera) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s changed between frames %.6f and %.6f: not pairing them",
                             camera_sub_.getInfoTopic().c_str(), previous.stamp.toSec(), frame.stamp.toSec());
+    diagnostics_->drop("camera_info changed");
     return Outcome::kDropped;
   }
   const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame.frame_id);
-  if (!rotation) return Outcome::kDropped;
+  if (!rotation) {
+    diagnostics_->drop("no IMU-to-camera rotation");
+    return Outcome::kDropped;
+  }
+  diagnostics_->setValue("R_cam_imu source", params_.rotation_from_tf ? "tf " + cached_rotation_frames_
+                                                                       : "~imu_to_camera_rotation");
 
   RollingShutterConfig config = params_.rolling_shutter;
   config.imu_to_camera_rotation = *rotation;
@@ -264,6 +303,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",
                             frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
                             may_still_come ? " (waited ~imu_wait_timeout)" : "");
+    diagnostics_->drop("IMU does not cover the pair");
     return Outcome::kDropped;
   }
 
@@ -291,6 +331,8 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     color_pub_.publish(cv_bridge::CvImage(metadata.header, sensor_msgs::image_encodings::RGB8, rgb).toImageMsg());
   }
   ++flows_published_;
+  diagnostics_->tick("gyro flows");
+  diagnostics_->latency((ros::Time::now() - frame.stamp).toSec());
   return Outcome::kPublished;
 }
 

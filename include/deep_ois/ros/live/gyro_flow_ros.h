@@ -21,6 +21,8 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/ros/live/gyro_flow_reconfigure.h"
+#include "deep_ois/ros/live/live_diagnostics.h"
 
 namespace deep_ois {
 
@@ -72,7 +74,8 @@ class GyroFlowRos {
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
-  const GyroFlowParameters params_;
+  // Replaced as a whole (under mutex_) when dynamic_reconfigure changes a live-tunable value.
+  GyroFlowParameters params_;
 
   std::mutex mutex_;
   image_transport::ImageTransport it_;
@@ -83,6 +86,8 @@ class GyroFlowRos {
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   ros::WallTimer waiting_timer_;
+  std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, calibration
+  std::unique_ptr<GyroFlowReconfigure> reconfigure_;
 
   ImuSampleBuffer imu_buffer_;
   std::string imu_frame_id_;  // frame of every sample in imu_buffer_
