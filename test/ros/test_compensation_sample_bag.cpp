@@ -3,6 +3,7 @@
 // an aligned image, a ghost image and a flow colour image, consistent with the frames, and that
 // the aligned previous frame matches the current frame better than the unaligned one does.
 #include <deep_ois/GyroFlow.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -156,6 +157,42 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
   // The shipped model must remove most of the uncompensated gyro flow's error on this OIS camera
   // (measured: 1.057 -> 0.307 px; the first model, without the motion history, reached 0.756).
   EXPECT_LT(compensated_sum_px, 0.5 * gyro_sum_px);
+}
+
+// Runs after the test above: both nodelets report on /diagnostics what they did with the bag and
+// which model and calibration they use.
+TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
+  ros::NodeHandle nh;
+  std::mutex mutex;
+  std::map<std::string, std::map<std::string, std::string>> latest;  // status name -> key -> value
+  ros::Subscriber sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
+        std::lock_guard<std::mutex> lock(mutex);
+        for (const auto& status : msg->status) {
+          for (const auto& kv : status.values) latest[status.name][kv.key] = kv.value;
+        }
+      });
+  const std::string compensation = "deep_ois/compensation: status", gyro = "deep_ois/gyro_flow: status";
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (ros::WallTime::now() < deadline) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (latest.count(compensation) && latest.count(gyro)) break;
+    }
+    ros::WallDuration(0.1).sleep();
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_TRUE(latest.count(compensation)) << "no status '" << compensation << "' on /diagnostics";
+  ASSERT_TRUE(latest.count(gyro)) << "no status '" << gyro << "' on /diagnostics";
+  std::map<std::string, std::string>& values = latest[compensation];
+  for (const auto& [key, value] : values) std::printf("[ INFO     ]   %s: %s\n", key.c_str(), value.c_str());
+  const std::string model = values["model"];
+  const std::string shipped = "models/fast.pt";
+  EXPECT_EQ(model.substr(model.size() - std::min(model.size(), shipped.size())), shipped);
+  EXPECT_EQ(values["torch threads"], "1");
+  EXPECT_GE(std::stoi(values["compensated flows total"]), 28);
+  EXPECT_GE(std::stoi(latest[gyro]["gyro flows total"]), 28);
+  EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);
 }
 
 }  // namespace

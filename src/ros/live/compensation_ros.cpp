@@ -56,6 +56,29 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       stream_(model_),
       it_(nh) {
   setTorchThreads(params_.torch_threads);
+  diagnostics_ = std::make_unique<LiveDiagnostics>(
+      nh_, private_nh_, std::vector<std::string>{"gyro flows", "images", "compensated flows"}, "compensated flows",
+      nh_.resolveName("image_raw"));
+  {
+    const ModelMetadata& m = model_.metadata();
+    diagnostics_->setValue("model", params_.model_path);
+    diagnostics_->setValue("model preset", m.preset);
+    diagnostics_->setValue("working grid [px]", std::to_string(m.working_grid.width) + "x" +
+                                                    std::to_string(m.working_grid.height));
+    diagnostics_->setValue("torch threads", std::to_string(params_.torch_threads));
+  }
+  // Live-tunable parameters; built before the lock below (it applies the values once here).
+  reconfigure_ = std::make_unique<CompensationReconfigure>(
+      private_nh_, "compensation",
+      CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.max_wait_s},
+      [this](const CompensationLiveParameters& live) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        params_.color_max_flow_px = live.color_max_flow_px;
+        params_.warp_iterations = live.warp_iterations;
+        params_.max_wait_s = live.max_wait_s;
+        diagnostics_->setValue("color_max_flow [px]", std::to_string(live.color_max_flow_px));
+        diagnostics_->setValue("warp_iterations", std::to_string(live.warp_iterations));
+      });
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
   auto on_image_subscribers = [this](const image_transport::SingleSubscriberPublisher&) { connectCallback(); };
@@ -70,6 +93,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
 }
 
 CompensationRos::~CompensationRos() {
+  reconfigure_.reset();  // no more reconfigure callbacks into this
+  diagnostics_.reset();
   std::lock_guard<std::mutex> lock(mutex_);
   gyro_flow_sub_.shutdown();
   image_sub_.shutdown();
@@ -98,6 +123,7 @@ void CompensationRos::connectCallback() {
 
 void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
+  diagnostics_->tick("images");
   if (!images_.empty() && msg->header.stamp < images_.back()->header.stamp) {
     // Time went backwards (a bag loops): frames of the old run can never pair with new flows.
     images_.clear();
@@ -109,6 +135,7 @@ void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
 
 void CompensationRos::gyroFlowCallback(const GyroFlowConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
+  diagnostics_->tick("gyro flows");
   pending_.push_back({msg, ros::WallTime::now()});
   processPending();
 }
@@ -136,6 +163,7 @@ void CompensationRos::processPending() {
                               front.flow->header.stamp.toSec(), image_a ? "b" : "a",
                               (image_a ? front.flow->header.stamp : front.flow->previous_stamp).toSec(),
                               image_sub_.getTopic().c_str());
+      diagnostics_->drop("frames not received");
       // No output without its frames, but its motion is known: keep the history unbroken.
       std::vector<Eigen::Matrix3d> homographies;
       cv::Mat gyro_flow;
@@ -156,6 +184,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: %s",
                             gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str(), problem.c_str());
+    diagnostics_->drop("invalid gyro flow");
     return;
   }
   if (image_a->width != gyro.image_width || image_a->height != gyro.image_height ||
@@ -164,10 +193,13 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
                             "compensation: dropping gyro flow %.6f: it is for %ux%u images but %s has %ux%u",
                             gyro.header.stamp.toSec(), gyro.image_width, gyro.image_height,
                             image_sub_.getTopic().c_str(), image_b->width, image_b->height);
+    diagnostics_->drop("image size differs from the gyro flow's");
     return;
   }
   const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
                                                  static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  diagnostics_->tick("compensated flows");
+  diagnostics_->latency((ros::Time::now() - gyro.header.stamp).toSec());
 
   if (compensated_pub_.getNumSubscribers() > 0) {
     auto msg = boost::make_shared<GyroFlow>(gyro);
@@ -203,6 +235,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   } catch (const cv_bridge::Exception& e) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: cannot convert the images on %s: %s",
                             image_sub_.getTopic().c_str(), e.what());
+    diagnostics_->drop("image conversion failed");
     return;
   }
   ++published_;

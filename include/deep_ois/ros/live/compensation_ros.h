@@ -14,6 +14,8 @@
 
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
+#include "deep_ois/ros/live/compensation_reconfigure.h"
+#include "deep_ois/ros/live/live_diagnostics.h"
 
 namespace deep_ois {
 
@@ -74,7 +76,8 @@ class CompensationRos {
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
-  const CompensationParameters params_;
+  // Its live-tunable fields change (under mutex_) through dynamic_reconfigure.
+  CompensationParameters params_;
   CompensationModel model_;
   CompensationStream stream_;  // the model over the camera's pairs, with their motion history
 
@@ -90,6 +93,8 @@ class CompensationRos {
   std::deque<sensor_msgs::ImageConstPtr> images_;  // newest last
   std::deque<PendingFlow> pending_;
   std::size_t published_ = 0;
+  std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, model
+  std::unique_ptr<CompensationReconfigure> reconfigure_;
 };
 
 }  // namespace deep_ois
