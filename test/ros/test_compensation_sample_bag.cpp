@@ -30,6 +30,7 @@ struct Collected {
   std::mutex mutex;
   std::map<ros::Time, GyroFlowConstPtr> flows, gyro_flows;
   std::map<ros::Time, sensor_msgs::ImageConstPtr> aligned, ghosts, colors;
+  std::map<ros::Time, sensor_msgs::ImageConstPtr> gyro_flow_images, compensated_flow_images;  // 32FC2
   std::map<ros::Time, int> duplicates;
 };
 
@@ -58,6 +59,12 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
   ros::Subscriber color_sub = nh.subscribe<sensor_msgs::Image>(
       "/deep_ois/compensated_flow/color", 200,
       [&](const sensor_msgs::ImageConstPtr& m) { store(collected, collected.colors, m); });
+  ros::Subscriber gyro_image_sub = nh.subscribe<sensor_msgs::Image>(
+      "/deep_ois/gyro_flow/image", 200,
+      [&](const sensor_msgs::ImageConstPtr& m) { store(collected, collected.gyro_flow_images, m); });
+  ros::Subscriber compensated_image_sub = nh.subscribe<sensor_msgs::Image>(
+      "/deep_ois/compensated_flow/image", 200,
+      [&](const sensor_msgs::ImageConstPtr& m) { store(collected, collected.compensated_flow_images, m); });
 
   // One publisher per topic of the bag, with queues that hold the whole 2 s recording.
   std::map<std::string, ros::Publisher> publishers;
@@ -77,7 +84,8 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     return publishers["/imu/data"].getNumSubscribers() > 0 && publishers["/camera/image_raw"].getNumSubscribers() > 0 &&
            publishers["/camera/camera_info"].getNumSubscribers() > 0 && publishers["/tf_static"].getNumSubscribers() > 0 &&
            flow_sub.getNumPublishers() > 0 && aligned_sub.getNumPublishers() > 0 && ghost_sub.getNumPublishers() > 0 &&
-           color_sub.getNumPublishers() > 0;
+           color_sub.getNumPublishers() > 0 && gyro_image_sub.getNumPublishers() > 0 &&
+           compensated_image_sub.getNumPublishers() > 0;
   };
   while (!ready() && ros::WallTime::now() < deadline) ros::WallDuration(0.05).sleep();
   ASSERT_TRUE(ready()) << "the pipeline did not subscribe to the bag's topics within 60 s";
@@ -107,7 +115,8 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     {
       std::lock_guard<std::mutex> lock(collected.mutex);
       if (collected.flows.count(last) && collected.aligned.count(last) && collected.ghosts.count(last) &&
-          collected.colors.count(last)) {
+          collected.colors.count(last) && collected.compensated_flow_images.count(last) &&
+          collected.gyro_flow_images.count(last)) {
         break;
       }
     }
@@ -136,6 +145,18 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     EXPECT_EQ(aligned.height, frame.height);
     EXPECT_EQ(aligned.encoding, frame.encoding);
     EXPECT_EQ(collected.ghosts[stamp]->encoding, "rgb8");
+    // The plain 32FC2 image topics carry exactly the flows of the GyroFlow messages.
+    ASSERT_TRUE(collected.compensated_flow_images.count(stamp)) << "no compensated_flow/image";
+    ASSERT_TRUE(collected.gyro_flow_images.count(stamp)) << "no gyro_flow/image";
+    for (const auto& [image, message] : {std::make_pair(collected.compensated_flow_images[stamp], collected.flows[stamp]),
+                                         std::make_pair(collected.gyro_flow_images[stamp], collected.gyro_flows[stamp])}) {
+      ASSERT_TRUE(message);
+      EXPECT_EQ(image->encoding, "32FC2");
+      EXPECT_EQ(image->width, message->flow.width);
+      EXPECT_EQ(image->height, message->flow.height);
+      EXPECT_EQ(image->header.frame_id, message->header.frame_id);
+      EXPECT_TRUE(image->data == message->flow.data) << "the flow image differs from the message's flow";
+    }
     // Geometry distance on the annotated points (the evaluator's metric), uncapped.
     const auto truth = truths.find(stamp);
     if (truth != truths.end() && collected.gyro_flows.count(stamp)) {

@@ -86,6 +86,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   color_pub_ = it_.advertise("compensated_flow/color", 5, on_image_subscribers, on_image_subscribers);
   aligned_pub_ = it_.advertise("aligned/image_raw", 5, on_image_subscribers, on_image_subscribers);
   ghost_pub_ = it_.advertise("aligned/ghost", 5, on_image_subscribers, on_image_subscribers);
+  flow_image_pub_ = FlowImagePublisher(nh_, "compensated_flow/image", [this] { connectCallback(); });
   const ModelMetadata& m = model_.metadata();
   ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s)",
                  params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
@@ -102,7 +103,7 @@ CompensationRos::~CompensationRos() {
 
 bool CompensationRos::anyOutputWanted() const {
   return compensated_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0 ||
-         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0;
+         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0 || flow_image_pub_.wanted();
 }
 
 void CompensationRos::connectCallback() {
@@ -208,6 +209,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     std::memcpy(msg->flow.data.data(), compensated.data, msg->flow.data.size());
     compensated_pub_.publish(msg);
   }
+  flow_image_pub_.publish(gyro.header, compensated);
   if (color_pub_.getNumSubscribers() > 0) {
     color_pub_.publish(cv_bridge::CvImage(gyro.header, sensor_msgs::image_encodings::RGB8,
                                           colorizeFlow(compensated, params_.color_max_flow_px))

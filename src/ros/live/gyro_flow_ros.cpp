@@ -59,6 +59,7 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   };
   flow_pub_ = nh_.advertise<GyroFlow>("gyro_flow", 5, on_flow_subscribers, on_flow_subscribers);
   color_pub_ = it_.advertise("gyro_flow/color", 5, on_color_subscribers, on_color_subscribers);
+  flow_image_pub_ = FlowImagePublisher(nh_, "gyro_flow/image", [this] { connectCallback(); });
   waiting_timer_ = nh_.createWallTimer(ros::WallDuration(kWaitingCheckPeriodS),
                                        &GyroFlowRos::waitingTimerCallback, this);
   ROS_INFO_NAMED("gyro_flow",
@@ -80,7 +81,8 @@ GyroFlowRos::~GyroFlowRos() {
 
 void GyroFlowRos::connectCallback() {
   std::lock_guard<std::mutex> lock(mutex_);
-  const bool wanted = flow_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0;
+  const bool wanted =
+      flow_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0 || flow_image_pub_.wanted();
   const bool subscribed = static_cast<bool>(imu_sub_);
   if (!wanted && subscribed) {
     imu_sub_.shutdown();
@@ -330,6 +332,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     const cv::Mat rgb = colorizeFlow(flow, params_.color_max_flow_px);
     color_pub_.publish(cv_bridge::CvImage(metadata.header, sensor_msgs::image_encodings::RGB8, rgb).toImageMsg());
   }
+  flow_image_pub_.publish(metadata.header, flow);
   ++flows_published_;
   diagnostics_->tick("gyro flows");
   diagnostics_->latency((ros::Time::now() - frame.stamp).toSec());

@@ -15,6 +15,7 @@
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/ros/live/compensation_reconfigure.h"
+#include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
 
 namespace deep_ois {
@@ -89,6 +90,7 @@ class CompensationRos {
   image_transport::Publisher color_pub_;
   image_transport::Publisher aligned_pub_;
   image_transport::Publisher ghost_pub_;
+  FlowImagePublisher flow_image_pub_;  // compensated_flow/image: the flow as a plain 32FC2 image
 
   std::deque<sensor_msgs::ImageConstPtr> images_;  // newest last
   std::deque<PendingFlow> pending_;

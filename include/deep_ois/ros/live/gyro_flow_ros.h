@@ -21,6 +21,7 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/gyro_flow_reconfigure.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
 
@@ -83,6 +84,7 @@ class GyroFlowRos {
   image_transport::CameraSubscriber camera_sub_;
   ros::Publisher flow_pub_;
   image_transport::Publisher color_pub_;
+  FlowImagePublisher flow_image_pub_;  // gyro_flow/image: the flow as a plain 32FC2 image
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   ros::WallTimer waiting_timer_;
