@@ -11,6 +11,7 @@
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
+#include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -18,14 +19,16 @@ namespace deep_ois {
 namespace {
 constexpr double kWarnPeriodS = 2.0;
 
-void reject(const ros::NodeHandle& nh, const std::string& name, const std::string& why) {
-  throw std::invalid_argument("compensation: parameter " + nh.resolveName(name) + " " + why);
+void reject(const ParameterSource& nh, const std::string& name, const std::string& why) {
+  throw std::invalid_argument("compensation: parameter " + nh.describe(name) + " " + why);
 }
 }  // namespace
 
-CompensationParameters loadCompensationParameters(const ros::NodeHandle& nh) {
+CompensationParameters loadCompensationParameters(const ros::NodeHandle& private_nh) {
+  // Strict: a parameter set with the wrong type is an error naming it, not a silent default.
+  const NodeHandleParameters nh(private_nh);
   CompensationParameters p;
-  if (!nh.getParam("model", p.model_path) || p.model_path.empty()) {
+  if (!nh.get("model", p.model_path) || p.model_path.empty()) {
     reject(nh, "model", "is not set: give the model file (e.g. $(find deep_ois)/models/fast.pt)");
   }
   p.torch_threads = nh.param("torch_threads", p.torch_threads);

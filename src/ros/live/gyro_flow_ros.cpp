@@ -1,6 +1,7 @@
 #include "deep_ois/ros/live/gyro_flow_ros.h"
 
 #include <cv_bridge/cv_bridge.h>
+#include <image_transport/camera_common.h>
 #include <sensor_msgs/image_encodings.h>
 #include <tf2/exceptions.h>
 
@@ -77,6 +78,7 @@ GyroFlowRos::~GyroFlowRos() {
   std::lock_guard<std::mutex> lock(mutex_);
   imu_sub_.shutdown();
   camera_sub_.shutdown();
+  info_sub_.shutdown();
 }
 
 void GyroFlowRos::connectCallback() {
@@ -87,11 +89,22 @@ void GyroFlowRos::connectCallback() {
   if (!wanted && subscribed) {
     imu_sub_.shutdown();
     camera_sub_.shutdown();
+    info_sub_.shutdown();
     resetState("");  // a later subscriber starts from fresh data
   } else if (wanted && !subscribed) {
     const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh_);
-    camera_sub_ = it_.subscribeCamera("image_raw", params_.image_queue_size,
-                                      &GyroFlowRos::cameraCallback, this, hints);
+    if (params_.use_camera_info_only) {
+      // Stamps, size and intrinsics are all the gyro flow needs: no image is transported. The
+      // topic is the image topic's camera_info sibling, as with the image subscription.
+      info_sub_ = nh_.subscribe(image_transport::getCameraInfoTopic(nh_.resolveName("image_raw")),
+                                params_.image_queue_size, &GyroFlowRos::cameraInfoCallback, this);
+      image_topic_ = info_topic_ = info_sub_.getTopic();
+    } else {
+      camera_sub_ = it_.subscribeCamera("image_raw", params_.image_queue_size,
+                                        &GyroFlowRos::cameraCallback, this, hints);
+      image_topic_ = image_topic_;
+      info_topic_ = info_topic_;
+    }
     imu_sub_ = nh_.subscribe("imu", params_.imu_queue_size, &GyroFlowRos::imuCallback, this,
                              ros::TransportHints().tcpNoDelay());
   }
@@ -159,10 +172,12 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   checkRosTimeJump();
   ++frames_received_;
   diagnostics_->tick("frames");
-  const std::string& topic = camera_sub_.getTopic();
-  const double stamp_s = image->header.stamp.toSec();
+  const std::string& topic = image_topic_;
+  // Without an image (~use_camera_info_only) the CameraInfo's header stands for the frame's.
+  const std_msgs::Header& header = image ? image->header : info->header;
+  const double stamp_s = header.stamp.toSec();
 
-  std::string problem = validateImage(*image);
+  std::string problem = image ? validateImage(*image) : "";
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f on %s: %s",
                             stamp_s, topic.c_str(), problem.c_str());
@@ -170,23 +185,28 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
     return;
   }
   Frame frame;
-  problem = toCameraModel(*info, frame.camera);
+  std::string note;
+  problem = toCameraModel(*info, frame.camera, &note);
+  if (note != camera_info_note_) {  // said once per change, not per frame
+    if (!note.empty()) ROS_WARN_NAMED("gyro_flow", "gyro_flow: %s: %s", info_topic_.c_str(), note.c_str());
+    camera_info_note_ = note;
+  }
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s: %s",
-                            stamp_s, camera_sub_.getInfoTopic().c_str(), problem.c_str());
+                            stamp_s, info_topic_.c_str(), problem.c_str());
     diagnostics_->drop("unusable camera_info");
     return;
   }
-  if (image->width != info->width || image->height != info->height) {
+  if (image && (image->width != info->width || image->height != info->height)) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u",
                             stamp_s, topic.c_str(), image->width, image->height,
-                            camera_sub_.getInfoTopic().c_str(), info->width, info->height);
+                            info_topic_.c_str(), info->width, info->height);
     diagnostics_->drop("image and camera_info sizes differ");
     return;
   }
-  frame.stamp = image->header.stamp;
-  frame.frame_id = params_.camera_frame_id.empty() ? image->header.frame_id : params_.camera_frame_id;
+  frame.stamp = header.stamp;
+  frame.frame_id = params_.camera_frame_id.empty() ? header.frame_id : params_.camera_frame_id;
   frame.distortion_model = info->distortion_model;
   frame.distortion = info->D;
   frame.received = ros::Time::now();
@@ -219,6 +239,10 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   processPendingFrames();
 }
 
+void GyroFlowRos::cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info) {
+  cameraCallback(nullptr, info);
+}
+
 void GyroFlowRos::processPendingFrames() {
   while (!pending_frames_.empty()) {
     const Frame& frame = pending_frames_.front();
@@ -234,7 +258,7 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
   if (imu_frame_id_.empty() || camera_frame.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s has an empty frame_id: set ~%s or ~imu_to_camera_rotation",
-                            imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : camera_sub_.getTopic().c_str(),
+                            imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : image_topic_.c_str(),
                             imu_frame_id_.empty() ? "imu_frame_id" : "camera_frame_id");
     return std::nullopt;
   }
@@ -265,7 +289,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
                             "%.1f ms): not pairing them",
-                            previous.stamp.toSec(), frame.stamp.toSec(), camera_sub_.getTopic().c_str(),
+                            previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(),
                             interval_s * 1e3, params_.max_frame_interval_s * 1e3);
     diagnostics_->drop("frames too far apart");
     return Outcome::kDropped;
@@ -273,7 +297,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   if (frame.camera != previous.camera) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s changed between frames %.6f and %.6f: not pairing them",
-                            camera_sub_.getInfoTopic().c_str(), previous.stamp.toSec(), frame.stamp.toSec());
+                            info_topic_.c_str(), previous.stamp.toSec(), frame.stamp.toSec());
     diagnostics_->drop("camera_info changed");
     return Outcome::kDropped;
   }
@@ -342,15 +366,19 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
 void GyroFlowRos::waitingTimerCallback(const ros::WallTimerEvent&) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!imu_sub_) return;
+  if (params_.use_camera_info_only && frames_received_ == 0) {
+    ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/CameraInfo on %s (~use_camera_info_only)",
+                   info_topic_.c_str());
+  }
   if (flows_published_ == flows_published_at_last_check_) {
     if (imu_received_ == 0) {
       ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/Imu on %s",
                      imu_sub_.getTopic().c_str());
     }
-    if (frames_received_ == 0) {
+    if (frames_received_ == 0 && !params_.use_camera_info_only) {
       ROS_WARN_NAMED("gyro_flow",
                      "gyro_flow: still waiting for images on %s with camera_info on %s (stamps must match)",
-                     camera_sub_.getTopic().c_str(), camera_sub_.getInfoTopic().c_str());
+                     image_topic_.c_str(), info_topic_.c_str());
     }
     if (imu_received_ > 0 && frames_received_ > 0) {
       ROS_WARN_NAMED("gyro_flow",
