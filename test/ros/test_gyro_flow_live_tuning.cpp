@@ -1,7 +1,8 @@
 // rostest of the gyro flow nodelet's live tuning and health: time_offset changed through
 // dynamic_reconfigure in the middle of a synthetic stream changes the very next GyroFlow (and the
 // pair across the change is still published: the IMU buffer and frame history are kept); then
-// /diagnostics reports the rates, the calibration in use, and a dropped pair with its reason.
+// /diagnostics reports the rates, the calibration in use, and a dropped pair with its reason; and
+// the parameter loader refuses a parameter of the wrong type, naming it.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <dynamic_reconfigure/client.h>
 
@@ -9,6 +10,7 @@
 
 #include <map>
 
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "gyro_flow_rostest_helpers.h"
 
 namespace deep_ois {
@@ -195,6 +197,36 @@ TEST(GyroFlowLiveTuning, DiagnosticsReportRatesDropsAndCalibration) {
   EXPECT_EQ(values["R_cam_imu source"], std::string("tf ") + kImuFrame + " -> " + kCameraFrame);
   EXPECT_GT(max_imu_rate_hz, 100.0) << "the IMU plays at 400 Hz x " << kPlaybackSpeed;
   EXPECT_NE(values.find("latency mean [s]"), values.end());
+}
+
+// One loader, strict types: a parameter set with the wrong type is an error naming it (it used to
+// fall back to the default without a word), and an integer where a double belongs is accepted.
+TEST(GyroFlowParameters, WrongTypeIsAnErrorNamingTheParameter) {
+  const std::string ns = "/strict_parameters_test";
+  ros::param::set(ns + "/readout_time", std::string("fast"));
+  try {
+    loadGyroFlowParameters(ros::NodeHandle(ns));
+    ADD_FAILURE() << "a string readout_time was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(ns + "/readout_time: has the wrong type: expected a number"),
+              std::string::npos)
+        << e.what();
+  }
+  ros::param::set(ns + "/readout_time", 0);  // an integer where a double belongs
+  ros::param::set(ns + "/use_camera_info_only", 1.5);
+  try {
+    loadGyroFlowParameters(ros::NodeHandle(ns));
+    ADD_FAILURE() << "a number use_camera_info_only was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(ns + "/use_camera_info_only: has the wrong type: expected true or false"),
+              std::string::npos)
+        << e.what();
+  }
+  ros::param::set(ns + "/use_camera_info_only", true);
+  const GyroFlowParameters loaded = loadGyroFlowParameters(ros::NodeHandle(ns));
+  EXPECT_EQ(loaded.rolling_shutter.readout_time_s, 0.0);
+  EXPECT_TRUE(loaded.use_camera_info_only);
+  ros::param::del(ns);
 }
 
 }  // namespace

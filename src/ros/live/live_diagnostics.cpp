@@ -1,7 +1,11 @@
 #include "deep_ois/ros/live/live_diagnostics.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <stdexcept>
+
+#include "deep_ois/ros/live/parameter_source.h"
 
 namespace deep_ois {
 
@@ -23,9 +27,12 @@ LiveDiagnostics::LiveDiagnostics(const ros::NodeHandle& nh, const ros::NodeHandl
   for (const std::string& stream : streams_) window_ticks_[stream] = total_ticks_[stream] = 0;
   updater_.setHardwareID(hardware_id);
   updater_.add("status", this, &LiveDiagnostics::report);
-  double period_s = 1.0;
-  private_nh.param("diagnostic_period", period_s, period_s);
-  if (!(period_s > 0.0)) period_s = 1.0;
+  // Read with the nodelets' strict parameter source: a wrong type or value is an error naming it.
+  const double period_s = NodeHandleParameters(private_nh).param("diagnostic_period", 1.0);
+  if (!(period_s > 0.0) || !std::isfinite(period_s)) {
+    throw std::invalid_argument("parameter " + private_nh.resolveName("diagnostic_period") +
+                                ": must be a positive number of seconds, got " + std::to_string(period_s));
+  }
   timer_ = private_nh.createWallTimer(ros::WallDuration(period_s), &LiveDiagnostics::timerCallback, this);
 }
 
