@@ -149,6 +149,7 @@ SimulatorConfig loadSimulatorConfig(const std::string& path) {
         .read("frame_rate_hz", s.frame_rate_hz)
         .read("readout_time_s", s.readout_time_s)
         .read("exposure_time_s", s.exposure_time_s)
+        .read("distortion_model", s.distortion_model)
         .read("distortion", s.distortion)
         .read("supersampling", s.supersampling)
         .read("exposure_samples", s.exposure_samples)
