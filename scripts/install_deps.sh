@@ -22,6 +22,9 @@ packages=(
   libimage-transport-dev libcv-bridge-dev libtf2-ros-dev libtf2-dev libtf2-eigen-dev
   libmessage-filters-dev librosbag-dev librosbag-storage-dev libcamera-calibration-parsers-dev
   libtopic-tools-dev libroslz4-dev libbz2-dev
+  # live tuning and health of the nodelets: dynamic_reconfigure, /diagnostics
+  libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
+  libdiagnostic-updater-dev ros-diagnostic-msgs libdiagnostic-msgs-dev
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ros/package.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -53,7 +55,7 @@ int run(int pairs) {
   cv::setNumThreads(1);
 
   const sim::SimulatorConfig config =
-      sim::loadSimulatorConfig(std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator/RE.yaml");
+      sim::loadSimulatorConfig(ros::package::getPath("deep_ois") + "/config/simulator/RE.yaml");
   const sim::Simulator simulator(config, kSeed, 2.0);
   const int available = simulator.frameCount() - 1;
   const int total = std::min(pairs + kWarmupPairs, available);

@@ -2,6 +2,8 @@
 // frame b and the ghost overlay (red channel of b over a: misalignment shows as colour fringes).
 //
 //   sim_contact_sheet --out docs/simulator_contact_sheet.png [--seed N] [--config-dir DIR]
+#include <ros/package.h>
+
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -30,7 +32,8 @@ cv::Mat captioned(const cv::Mat& rgb, const std::string& caption) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string out, config_dir = std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator";
+  // The installed package's configs (or the source tree's, when run from the devel space).
+  std::string out, config_dir = ros::package::getPath("deep_ois") + "/config/simulator";
   unsigned long seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];

@@ -397,11 +397,12 @@ class GyroFlowHarness {
 
   // Waits until the nodelet listens to every input and publishes to us: it subscribes its inputs
   // only once its output has a subscriber, so streaming earlier would lose the first messages.
-  ::testing::AssertionResult waitForNodelet(double timeout_s) {
+  // `expect_image_subscriber` false: the nodelet runs from camera_info alone.
+  ::testing::AssertionResult waitForNodelet(double timeout_s, bool expect_image_subscriber = true) {
     const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
     while (ros::ok() && ros::WallTime::now() < deadline) {
       if (tf_pub_.getNumSubscribers() > 0 && imu_pub_.getNumSubscribers() > 0 &&
-          image_pub_.getNumSubscribers() > 0 && info_pub_.getNumSubscribers() > 0 &&
+          (image_pub_.getNumSubscribers() > 0) == expect_image_subscriber && info_pub_.getNumSubscribers() > 0 &&
           flow_sub_.getNumPublishers() > 0 && (!color_sub_ || color_sub_.getNumPublishers() > 0)) {
         return ::testing::AssertionSuccess();
       }
@@ -445,6 +446,8 @@ class GyroFlowHarness {
     }
     return false;
   }
+
+  std::size_t imageSubscribers() const { return image_pub_.getNumSubscribers(); }
 
   std::vector<GyroFlowConstPtr> flows() {
     std::lock_guard<std::mutex> lock(mutex_);

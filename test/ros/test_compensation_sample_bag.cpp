@@ -3,6 +3,7 @@
 // an aligned image, a ghost image and a flow colour image, consistent with the frames, and that
 // the aligned previous frame matches the current frame better than the unaligned one does.
 #include <deep_ois/GyroFlow.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -29,6 +30,7 @@ struct Collected {
   std::mutex mutex;
   std::map<ros::Time, GyroFlowConstPtr> flows, gyro_flows;
   std::map<ros::Time, sensor_msgs::ImageConstPtr> aligned, ghosts, colors;
+  std::map<ros::Time, sensor_msgs::ImageConstPtr> gyro_flow_images, compensated_flow_images;  // 32FC2
   std::map<ros::Time, int> duplicates;
 };
 
@@ -57,6 +59,12 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
   ros::Subscriber color_sub = nh.subscribe<sensor_msgs::Image>(
       "/deep_ois/compensated_flow/color", 200,
       [&](const sensor_msgs::ImageConstPtr& m) { store(collected, collected.colors, m); });
+  ros::Subscriber gyro_image_sub = nh.subscribe<sensor_msgs::Image>(
+      "/deep_ois/gyro_flow/image", 200,
+      [&](const sensor_msgs::ImageConstPtr& m) { store(collected, collected.gyro_flow_images, m); });
+  ros::Subscriber compensated_image_sub = nh.subscribe<sensor_msgs::Image>(
+      "/deep_ois/compensated_flow/image", 200,
+      [&](const sensor_msgs::ImageConstPtr& m) { store(collected, collected.compensated_flow_images, m); });
 
   // One publisher per topic of the bag, with queues that hold the whole 2 s recording.
   std::map<std::string, ros::Publisher> publishers;
@@ -76,7 +84,8 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     return publishers["/imu/data"].getNumSubscribers() > 0 && publishers["/camera/image_raw"].getNumSubscribers() > 0 &&
            publishers["/camera/camera_info"].getNumSubscribers() > 0 && publishers["/tf_static"].getNumSubscribers() > 0 &&
            flow_sub.getNumPublishers() > 0 && aligned_sub.getNumPublishers() > 0 && ghost_sub.getNumPublishers() > 0 &&
-           color_sub.getNumPublishers() > 0;
+           color_sub.getNumPublishers() > 0 && gyro_image_sub.getNumPublishers() > 0 &&
+           compensated_image_sub.getNumPublishers() > 0;
   };
   while (!ready() && ros::WallTime::now() < deadline) ros::WallDuration(0.05).sleep();
   ASSERT_TRUE(ready()) << "the pipeline did not subscribe to the bag's topics within 60 s";
@@ -106,7 +115,8 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     {
       std::lock_guard<std::mutex> lock(collected.mutex);
       if (collected.flows.count(last) && collected.aligned.count(last) && collected.ghosts.count(last) &&
-          collected.colors.count(last)) {
+          collected.colors.count(last) && collected.compensated_flow_images.count(last) &&
+          collected.gyro_flow_images.count(last)) {
         break;
       }
     }
@@ -135,6 +145,18 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     EXPECT_EQ(aligned.height, frame.height);
     EXPECT_EQ(aligned.encoding, frame.encoding);
     EXPECT_EQ(collected.ghosts[stamp]->encoding, "rgb8");
+    // The plain 32FC2 image topics carry exactly the flows of the GyroFlow messages.
+    ASSERT_TRUE(collected.compensated_flow_images.count(stamp)) << "no compensated_flow/image";
+    ASSERT_TRUE(collected.gyro_flow_images.count(stamp)) << "no gyro_flow/image";
+    for (const auto& [image, message] : {std::make_pair(collected.compensated_flow_images[stamp], collected.flows[stamp]),
+                                         std::make_pair(collected.gyro_flow_images[stamp], collected.gyro_flows[stamp])}) {
+      ASSERT_TRUE(message);
+      EXPECT_EQ(image->encoding, "32FC2");
+      EXPECT_EQ(image->width, message->flow.width);
+      EXPECT_EQ(image->height, message->flow.height);
+      EXPECT_EQ(image->header.frame_id, message->header.frame_id);
+      EXPECT_TRUE(image->data == message->flow.data) << "the flow image differs from the message's flow";
+    }
     // Geometry distance on the annotated points (the evaluator's metric), uncapped.
     const auto truth = truths.find(stamp);
     if (truth != truths.end() && collected.gyro_flows.count(stamp)) {
@@ -156,6 +178,42 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
   // The shipped model must remove most of the uncompensated gyro flow's error on this OIS camera
   // (measured: 1.057 -> 0.307 px; the first model, without the motion history, reached 0.756).
   EXPECT_LT(compensated_sum_px, 0.5 * gyro_sum_px);
+}
+
+// Runs after the test above: both nodelets report on /diagnostics what they did with the bag and
+// which model and calibration they use.
+TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
+  ros::NodeHandle nh;
+  std::mutex mutex;
+  std::map<std::string, std::map<std::string, std::string>> latest;  // status name -> key -> value
+  ros::Subscriber sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
+        std::lock_guard<std::mutex> lock(mutex);
+        for (const auto& status : msg->status) {
+          for (const auto& kv : status.values) latest[status.name][kv.key] = kv.value;
+        }
+      });
+  const std::string compensation = "deep_ois/compensation: status", gyro = "deep_ois/gyro_flow: status";
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (ros::WallTime::now() < deadline) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (latest.count(compensation) && latest.count(gyro)) break;
+    }
+    ros::WallDuration(0.1).sleep();
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_TRUE(latest.count(compensation)) << "no status '" << compensation << "' on /diagnostics";
+  ASSERT_TRUE(latest.count(gyro)) << "no status '" << gyro << "' on /diagnostics";
+  std::map<std::string, std::string>& values = latest[compensation];
+  for (const auto& [key, value] : values) std::printf("[ INFO     ]   %s: %s\n", key.c_str(), value.c_str());
+  const std::string model = values["model"];
+  const std::string shipped = "models/fast.pt";
+  EXPECT_EQ(model.substr(model.size() - std::min(model.size(), shipped.size())), shipped);
+  EXPECT_EQ(values["torch threads"], "1");
+  EXPECT_GE(std::stoi(values["compensated flows total"]), 28);
+  EXPECT_GE(std::stoi(latest[gyro]["gyro flows total"]), 28);
+  EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);
 }
 
 }  // namespace

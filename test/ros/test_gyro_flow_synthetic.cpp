@@ -52,10 +52,16 @@ TEST(GyroFlowSynthetic, MatchesAnalyticRotationForEveryFramePair) {
   }
   sortByPublishKey(events);
 
+  // gyro_flow_camera_info_only.test: the nodelet subscribes camera_info alone, never the images.
+  bool camera_info_only = false;
+  ros::param::get("~camera_info_only", camera_info_only);
   GyroFlowHarness harness(/*subscribe_color=*/true);
   harness.publishStaticTransform(R_cam_imu);
-  ASSERT_TRUE(harness.waitForNodelet(30.0));
+  ASSERT_TRUE(harness.waitForNodelet(30.0, /*expect_image_subscriber=*/!camera_info_only));
   harness.play(events, kPlaybackSpeed);
+  if (camera_info_only) {
+    EXPECT_EQ(harness.imageSubscribers(), 0u) << "the nodelet subscribed the images";
+  }
 
   // Expected: one GyroFlow per frame after the first, stamped with the later frame.
   std::map<ros::Time, ros::Time> previous_of;

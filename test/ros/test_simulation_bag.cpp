@@ -92,6 +92,51 @@ TEST(SimulationBag, GyroFlowFromTheBagReproducesTheTrueMotionWithoutOis) {
   EXPECT_LT(worst_px, 0.05);
 }
 
+// A fisheye (equidistant) recording: the simulator renders through cv::fisheye's model, the bag's
+// camera_info says so, and the gyro flow through that model, distort(H_i undistort(p)), lands on
+// the annotated correspondences; the same homographies with the fisheye ignored do not.
+TEST(SimulationBag, FisheyeRecordingGyroFlowMatchesTheTruth) {
+  sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
+  config.ois.enabled = false;
+  config.motion.translation_rms_m = 0.0;
+  config.imu.gyro_noise_density = 0.0;
+  config.imu.gyro_bias_random_walk = 0.0;
+  config.imu.gyro_initial_bias_rad_s = 0.0;
+  config.sensor.horizontal_fov_deg = 100.0;
+  config.sensor.distortion_model = "equidistant";
+  config.sensor.distortion = {-0.05, 0.01, -0.002, 0.0005};  // a wide fisheye-like lens
+  ASSERT_EQ(config.validate(), "");
+  const BagSequence bag = readBagSequence(writeBag(config, 5, 1.0, "fisheye"));
+  ASSERT_TRUE(bag.camera.has_value());
+  ASSERT_EQ(bag.camera->distortionModel(), DistortionModel::kEquidistant);
+  ASSERT_EQ(bag.camera->coefficients(), config.sensor.distortion);
+  ASSERT_TRUE(bag.imu_to_camera_rotation.has_value());
+  const auto gyro = gyroHomographies(bag, config.ground_truth.patch_count, config.sensor.readout_time_s);
+  const CameraModel pinhole(bag.camera->width(), bag.camera->height(), bag.camera->K());
+  double error_px = 0.0, error_ignoring_fisheye_px = 0.0, largest_distortion_px = 0.0;
+  int pairs = 0;
+  for (std::size_t k = 0; k < bag.truths.size(); ++k) {
+    const auto points_a = unflattenPoints(bag.truths[k].points_a), points_b = unflattenPoints(bag.truths[k].points_b);
+    if (points_a.empty()) continue;
+    error_px += geometryDistance(points_a, points_b, gyro[k], *bag.camera);
+    error_ignoring_fisheye_px += geometryDistance(points_a, points_b, gyro[k], pinhole);
+    for (const Eigen::Vector2d& p : points_a) {
+      largest_distortion_px = std::max(largest_distortion_px, (bag.camera->undistort(p) - p).norm());
+    }
+    ++pairs;
+  }
+  ASSERT_GT(pairs, 20);
+  error_px /= pairs;
+  error_ignoring_fisheye_px /= pairs;
+  std::cout << "[ measured ] fisheye recording (equidistant, " << config.sensor.horizontal_fov_deg
+            << " deg, annotated points up to " << largest_distortion_px << " px from their undistorted "
+            << "place), " << pairs << " pairs: gyro flow geometry distance " << error_px
+            << " px; with the fisheye ignored " << error_ignoring_fisheye_px << " px\n";
+  EXPECT_GT(largest_distortion_px, 10.0) << "the lens must distort noticeably for the check to mean something";
+  EXPECT_LT(error_px, 0.1);
+  EXPECT_GT(error_ignoring_fisheye_px, 3.0 * error_px);
+}
+
 TEST(SimulationBag, OisMakesTheGyroMissTheAnnotations) {
   sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
   const BagSequence with_ois = readBagSequence(writeBag(config, 5, 1.0, "ois_on"));

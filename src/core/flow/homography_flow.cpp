@@ -27,9 +27,10 @@ HomographyFlowRenderer::HomographyFlowRenderer(const CameraModel& camera, cv::Si
     for (int gx = 0; gx < grid_size.width; ++gx) {
       const std::size_t k = static_cast<std::size_t>(gy) * grid_size.width + gx;
       raw_px_[k] = gridToCamera(gx, gy);
-      undistorted_px_[k] = camera.undistort(raw_px_[k]);
     }
   }
+  undistorted_px_ = raw_px_;
+  camera.undistortPoints(undistorted_px_);  // one OpenCV call for the whole grid
 }
 
 Eigen::Vector2d HomographyFlowRenderer::gridToCamera(double gx, double gy) const {
@@ -45,21 +46,28 @@ void HomographyFlowRenderer::render(const std::vector<Eigen::Matrix3d>& homograp
     throw std::invalid_argument(why.str());
   }
   flow.create(grid_.gridSize(), CV_32FC2);
-  const bool distorted = camera_.hasDistortion();
   const double inv_sx = 1.0 / grid_.scale().x(), inv_sy = 1.0 / grid_.scale().y();
+  // H_i applied to every undistorted grid point, then distorted back in one OpenCV call.
+  std::vector<Eigen::Vector2d> mapped(undistorted_px_.size());
   for (int gy = 0; gy < grid_.gridSize().height; ++gy) {
     const Eigen::Matrix3d& H = homographies[patch_of_grid_row_[gy]];
-    cv::Vec2f* out = flow.ptr<cv::Vec2f>(gy);
     const std::size_t row_start = static_cast<std::size_t>(gy) * grid_.gridSize().width;
     for (int gx = 0; gx < grid_.gridSize().width; ++gx) {
       const Eigen::Vector2d& q = undistorted_px_[row_start + gx];
       const double w = H(2, 0) * q.x() + H(2, 1) * q.y() + H(2, 2);
-      Eigen::Vector2d mapped((H(0, 0) * q.x() + H(0, 1) * q.y() + H(0, 2)) / w,
-                             (H(1, 0) * q.x() + H(1, 1) * q.y() + H(1, 2)) / w);
-      if (distorted) mapped = camera_.distort(mapped);
+      mapped[row_start + gx] = Eigen::Vector2d((H(0, 0) * q.x() + H(0, 1) * q.y() + H(0, 2)) / w,
+                                               (H(1, 0) * q.x() + H(1, 1) * q.y() + H(1, 2)) / w);
+    }
+  }
+  camera_.distortPoints(mapped);
+  for (int gy = 0; gy < grid_.gridSize().height; ++gy) {
+    cv::Vec2f* out = flow.ptr<cv::Vec2f>(gy);
+    const std::size_t row_start = static_cast<std::size_t>(gy) * grid_.gridSize().width;
+    for (int gx = 0; gx < grid_.gridSize().width; ++gx) {
       const Eigen::Vector2d& p = raw_px_[row_start + gx];
-      out[gx] = cv::Vec2f(static_cast<float>((mapped.x() - p.x()) * inv_sx),
-                          static_cast<float>((mapped.y() - p.y()) * inv_sy));
+      const Eigen::Vector2d& m = mapped[row_start + gx];
+      out[gx] = cv::Vec2f(static_cast<float>((m.x() - p.x()) * inv_sx),
+                          static_cast<float>((m.y() - p.y()) * inv_sy));
     }
   }
 }

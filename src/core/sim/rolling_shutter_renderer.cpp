@@ -162,6 +162,26 @@ class UndistortionTable {
     ny_ = static_cast<int>(std::ceil((qy_max - qy0_) / kUndistortionStepPx)) + 2;
     values_.resize(2 * static_cast<std::size_t>(nx_) * ny_);
     const double fx = nominal.K()(0, 0), fy = nominal.K()(1, 1);
+    if (nominal.distortionModel() != DistortionModel::kPlumbBob) {
+      // Other lens models (equidistant): OpenCV's undistortion of every node in one call, on a
+      // camera whose principal point is the origin of the offsets.
+      Eigen::Matrix3d K_offsets = Eigen::Matrix3d::Identity();
+      K_offsets(0, 0) = fx;
+      K_offsets(1, 1) = fy;
+      const CameraModel lens(nominal.width(), nominal.height(), K_offsets, nominal.distortionModel(),
+                             nominal.coefficients());
+      std::vector<Eigen::Vector2d> nodes(static_cast<std::size_t>(nx_) * ny_);
+      for (int j = 0; j < ny_; ++j)
+        for (int i = 0; i < nx_; ++i)
+          nodes[static_cast<std::size_t>(j) * nx_ + i] =
+              Eigen::Vector2d(qx0_ + i * kUndistortionStepPx, qy0_ + j * kUndistortionStepPx);
+      lens.undistortPoints(nodes);
+      for (std::size_t n = 0; n < nodes.size(); ++n) {
+        values_[2 * n] = static_cast<float>(nodes[n].x() / fx);
+        values_[2 * n + 1] = static_cast<float>(nodes[n].y() / fy);
+      }
+      return;
+    }
     const Eigen::Matrix<double, 5, 1>& d = nominal.distortion();
     cv::parallel_for_(cv::Range(0, ny_), [&](const cv::Range& rows) {
       for (int j = rows.start; j < rows.end; ++j) {

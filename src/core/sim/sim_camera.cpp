@@ -27,6 +27,17 @@ bool radialDistortionMonotonic(const Eigen::Matrix<double, 5, 1>& d, double r2) 
   return true;
 }
 
+// The same for the equidistant (fisheye) model: theta_d = theta (1 + k1 theta^2 + k2 theta^4 +
+// k3 theta^6 + k4 theta^8) must grow on [0, theta], theta the angle from the optical axis.
+bool fisheyeDistortionMonotonic(const std::vector<double>& k, double theta) {
+  constexpr int kChecks = 16;
+  for (int i = 1; i <= kChecks; ++i) {
+    const double s = theta * theta * i / kChecks;
+    if (!(1.0 + s * (3.0 * k[0] + s * (5.0 * k[1] + s * (7.0 * k[2] + s * 9.0 * k[3]))) > 0.0)) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 std::string SensorConfig::validate() const {
@@ -43,8 +54,13 @@ std::string SensorConfig::validate() const {
   } else if (!(exposure_time_s > 0.0 && exposure_time_s <= 1.0 / frame_rate_hz)) {
     why << "exposure_time_s must be in (0, frame period " << 1.0 / frame_rate_hz << " s] (got "
         << exposure_time_s << ")";
-  } else if (distortion.size() > 5) {
+  } else if (distortion_model != "plumb_bob" && distortion_model != "equidistant") {
+    why << "distortion_model must be plumb_bob or equidistant (got '" << distortion_model << "')";
+  } else if (distortion_model == "plumb_bob" && distortion.size() > 5) {
     why << "distortion holds at most 5 plumb_bob coefficients k1, k2, p1, p2, k3 (got "
+        << distortion.size() << ")";
+  } else if (distortion_model == "equidistant" && distortion.size() > 4) {
+    why << "distortion holds at most 4 equidistant coefficients k1, k2, k3, k4 (got "
         << distortion.size() << ")";
   } else if (supersampling < 1 || supersampling > 8) {
     why << "supersampling must be between 1 and 8 (got " << supersampling << ")";
@@ -68,7 +84,9 @@ CameraModel nominalCamera(const SensorConfig& sensor) {
   const double f = 0.5 * sensor.width_px / std::tan(0.5 * sensor.horizontal_fov_deg * kPi / 180.0);
   Eigen::Matrix3d K;
   K << f, 0.0, 0.5 * (sensor.width_px - 1), 0.0, f, 0.5 * (sensor.height_px - 1), 0.0, 0.0, 1.0;
-  return CameraModel(sensor.width_px, sensor.height_px, K, sensor.distortion);
+  const DistortionModel model =
+      sensor.distortion_model == "equidistant" ? DistortionModel::kEquidistant : DistortionModel::kPlumbBob;
+  return CameraModel(sensor.width_px, sensor.height_px, K, model, sensor.distortion);
 }
 
 SimCamera::SimCamera(const SensorConfig& sensor, const CameraMotion& motion, const OisModel& ois)
@@ -88,8 +106,8 @@ Eigen::Matrix3d SimCamera::intrinsicsAt(double t_s) const {
 
 Eigen::Vector3d SimCamera::rayDirectionWorld(const Eigen::Vector2d& pixel, double t_s) const {
   // The lens carries its distortion with it: the distortion centre is the shifted principal point.
-  const CameraModel lens(nominal_.width(), nominal_.height(), intrinsicsAt(t_s),
-                         sensor_.distortion);
+  const CameraModel lens(nominal_.width(), nominal_.height(), intrinsicsAt(t_s), nominal_.distortionModel(),
+                         nominal_.coefficients());
   const Eigen::Vector3d ray_cam = lens.Kinv() * lens.undistort(pixel).homogeneous();
   return (motion_.pose(t_s).R_world_cam * ray_cam).normalized();
 }
@@ -99,13 +117,17 @@ bool SimCamera::project(const Eigen::Vector3d& X_world_m, double t_s,
   const CameraPose pose = motion_.pose(t_s);
   const Eigen::Vector3d X_cam = pose.R_world_cam.transpose() * (X_world_m - pose.centre_world_m);
   if (!(X_cam.z() > 0.0)) return false;
-  if (nominal_.hasDistortion() &&
-      !radialDistortionMonotonic(nominal_.distortion(),
-                                 X_cam.head<2>().squaredNorm() / (X_cam.z() * X_cam.z()))) {
+  const double r2 = X_cam.head<2>().squaredNorm() / (X_cam.z() * X_cam.z());
+  if (nominal_.hasDistortion() && nominal_.distortionModel() == DistortionModel::kPlumbBob &&
+      !radialDistortionMonotonic(nominal_.distortion(), r2)) {
     return false;
   }
-  const CameraModel lens(nominal_.width(), nominal_.height(), intrinsicsAt(t_s),
-                         sensor_.distortion);
+  if (nominal_.hasDistortion() && nominal_.distortionModel() == DistortionModel::kEquidistant &&
+      !fisheyeDistortionMonotonic(nominal_.coefficients(), std::atan(std::sqrt(r2)))) {
+    return false;
+  }
+  const CameraModel lens(nominal_.width(), nominal_.height(), intrinsicsAt(t_s), nominal_.distortionModel(),
+                         nominal_.coefficients());
   *pixel = lens.distort((lens.K() * X_cam).hnormalized());
   return true;
 }

@@ -152,6 +152,7 @@ void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
         .read("frame_rate_hz", s.frame_rate_hz)
         .read("readout_time_s", s.readout_time_s)
         .read("exposure_time_s", s.exposure_time_s)
+        .read("distortion_model", s.distortion_model)
         .read("distortion", s.distortion)
         .read("supersampling", s.supersampling)
         .read("exposure_samples", s.exposure_samples)

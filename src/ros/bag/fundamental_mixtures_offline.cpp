@@ -195,13 +195,14 @@ FundamentalMixturesOfflineOptions loadFundamentalMixturesOfflineOptions(
   if (!private_nh.getParam("output", options.output_path) || options.output_path.empty()) {
     fail("output", "the output bag path is required");
   }
-  options.topics.image = private_nh.param<std::string>("image_topic", options.topics.image);
-  options.topics.camera_info =
-      private_nh.param<std::string>("camera_info_topic", options.topics.camera_info);
-  options.topics.imu = private_nh.param<std::string>("imu_topic", options.topics.imu);
-  options.output_topic = private_nh.param<std::string>("output_topic", options.output_topic);
-  options.global_fundamental = private_nh.param<bool>("global_fundamental", false);
-  if (private_nh.param<bool>("show_progress", true)) {
+  // Strict: a parameter set with the wrong type is an error naming it, not a silent default.
+  const NodeHandleParameters source(private_nh);
+  options.topics.image = source.param<std::string>("image_topic", options.topics.image);
+  options.topics.camera_info = source.param<std::string>("camera_info_topic", options.topics.camera_info);
+  options.topics.imu = source.param<std::string>("imu_topic", options.topics.imu);
+  options.output_topic = source.param<std::string>("output_topic", options.output_topic);
+  options.global_fundamental = source.param<bool>("global_fundamental", false);
+  if (source.param<bool>("show_progress", true)) {
     options.on_progress = [](std::size_t done, std::size_t total) {
       ROS_INFO_THROTTLE(10.0, "fundamental_mixtures: %zu of %zu pairs", done, total);
     };
@@ -210,7 +211,7 @@ FundamentalMixturesOfflineOptions loadFundamentalMixturesOfflineOptions(
   // The gyro flow nodelet's own file, so the training input matches what it publishes.
   const std::string package = ros::package::getPath("deep_ois");
   std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
-  private_nh.getParam("gyro_flow_config", gyro_config);
+  source.get("gyro_flow_config", gyro_config);
   if (gyro_config.empty()) fail("gyro_flow_config", "package deep_ois not found, so give the path");
   try {
     options.gyro = loadGyroFlowParameters(YamlParameters(gyro_config));

@@ -12,6 +12,7 @@
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
+#include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -19,14 +20,16 @@ namespace deep_ois {
 namespace {
 constexpr double kWarnPeriodS = 2.0;
 
-void reject(const ros::NodeHandle& nh, const std::string& name, const std::string& why) {
-  throw std::invalid_argument("compensation: parameter " + nh.resolveName(name) + " " + why);
+void reject(const ParameterSource& nh, const std::string& name, const std::string& why) {
+  throw std::invalid_argument("compensation: parameter " + nh.describe(name) + " " + why);
 }
 }  // namespace
 
-CompensationParameters loadCompensationParameters(const ros::NodeHandle& nh) {
+CompensationParameters loadCompensationParameters(const ros::NodeHandle& private_nh) {
+  // Strict: a parameter set with the wrong type is an error naming it, not a silent default.
+  const NodeHandleParameters nh(private_nh);
   CompensationParameters p;
-  if (!nh.getParam("model", p.model_path) || p.model_path.empty()) {
+  if (!nh.get("model", p.model_path) || p.model_path.empty()) {
     reject(nh, "model", "is not set: give the model file (e.g. $(find deep_ois)/models/fast.pt)");
   }
   p.torch_threads = nh.param("torch_threads", p.torch_threads);
@@ -62,6 +65,29 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   // OpenCV's thread count is process-wide: the warp (map build and remaps) is the OpenCV work
   // that splits into stripes; one thread unless ~warp_threads asks for more.
   cv::setNumThreads(params_.warp_threads);
+  diagnostics_ = std::make_unique<LiveDiagnostics>(
+      nh_, private_nh_, std::vector<std::string>{"gyro flows", "images", "compensated flows"}, "compensated flows",
+      nh_.resolveName("image_raw"));
+  {
+    const ModelMetadata& m = model_.metadata();
+    diagnostics_->setValue("model", params_.model_path);
+    diagnostics_->setValue("model preset", m.preset);
+    diagnostics_->setValue("working grid [px]", std::to_string(m.working_grid.width) + "x" +
+                                                    std::to_string(m.working_grid.height));
+    diagnostics_->setValue("torch threads", std::to_string(params_.torch_threads));
+  }
+  // Live-tunable parameters; built before the lock below (it applies the values once here).
+  reconfigure_ = std::make_unique<CompensationReconfigure>(
+      private_nh_, "compensation",
+      CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.max_wait_s},
+      [this](const CompensationLiveParameters& live) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        params_.color_max_flow_px = live.color_max_flow_px;
+        params_.warp_iterations = live.warp_iterations;
+        params_.max_wait_s = live.max_wait_s;
+        diagnostics_->setValue("color_max_flow [px]", std::to_string(live.color_max_flow_px));
+        diagnostics_->setValue("warp_iterations", std::to_string(live.warp_iterations));
+      });
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
   auto on_image_subscribers = [this](const image_transport::SingleSubscriberPublisher&) { connectCallback(); };
@@ -69,6 +95,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   color_pub_ = it_.advertise("compensated_flow/color", 5, on_image_subscribers, on_image_subscribers);
   aligned_pub_ = it_.advertise("aligned/image_raw", 5, on_image_subscribers, on_image_subscribers);
   ghost_pub_ = it_.advertise("aligned/ghost", 5, on_image_subscribers, on_image_subscribers);
+  flow_image_pub_ = FlowImagePublisher(nh_, "compensated_flow/image", [this] { connectCallback(); });
   const ModelMetadata& m = model_.metadata();
   ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
                  "%d warp thread(s)",
@@ -77,6 +104,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
 }
 
 CompensationRos::~CompensationRos() {
+  reconfigure_.reset();  // no more reconfigure callbacks into this
+  diagnostics_.reset();
   std::lock_guard<std::mutex> lock(mutex_);
   gyro_flow_sub_.shutdown();
   image_sub_.shutdown();
@@ -84,7 +113,7 @@ CompensationRos::~CompensationRos() {
 
 bool CompensationRos::anyOutputWanted() const {
   return compensated_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0 ||
-         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0;
+         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0 || flow_image_pub_.wanted();
 }
 
 void CompensationRos::connectCallback() {
@@ -105,6 +134,7 @@ void CompensationRos::connectCallback() {
 
 void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
+  diagnostics_->tick("images");
   if (!images_.empty() && msg->header.stamp < images_.back()->header.stamp) {
     // Time went backwards (a bag loops): frames of the old run can never pair with new flows.
     images_.clear();
@@ -116,6 +146,7 @@ void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
 
 void CompensationRos::gyroFlowCallback(const GyroFlowConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
+  diagnostics_->tick("gyro flows");
   pending_.push_back({msg, ros::WallTime::now()});
   processPending();
 }
@@ -143,6 +174,7 @@ void CompensationRos::processPending() {
                               front.flow->header.stamp.toSec(), image_a ? "b" : "a",
                               (image_a ? front.flow->header.stamp : front.flow->previous_stamp).toSec(),
                               image_sub_.getTopic().c_str());
+      diagnostics_->drop("frames not received");
       // No output without its frames, but its motion is known: keep the history unbroken.
       std::vector<Eigen::Matrix3d> homographies;
       cv::Mat gyro_flow;
@@ -163,6 +195,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: %s",
                             gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str(), problem.c_str());
+    diagnostics_->drop("invalid gyro flow");
     return;
   }
   if (image_a->width != gyro.image_width || image_a->height != gyro.image_height ||
@@ -171,10 +204,13 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
                             "compensation: dropping gyro flow %.6f: it is for %ux%u images but %s has %ux%u",
                             gyro.header.stamp.toSec(), gyro.image_width, gyro.image_height,
                             image_sub_.getTopic().c_str(), image_b->width, image_b->height);
+    diagnostics_->drop("image size differs from the gyro flow's");
     return;
   }
   const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
                                                  static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  diagnostics_->tick("compensated flows");
+  diagnostics_->latency((ros::Time::now() - gyro.header.stamp).toSec());
 
   if (compensated_pub_.getNumSubscribers() > 0) {
     auto msg = boost::make_shared<GyroFlow>(gyro);
@@ -184,6 +220,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     compensated_pub_.publish(msg);
   }
   const cv::Size camera_size(static_cast<int>(gyro.image_width), static_cast<int>(gyro.image_height));
+  flow_image_pub_.publish(gyro.header, compensated);
   if (color_pub_.getNumSubscribers() > 0) {
     cv::Mat color;
     sensor_msgs::ImagePtr msg = makeImageMsg(gyro.header, sensor_msgs::image_encodings::RGB8, compensated.size(), color);
@@ -219,6 +256,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   } catch (const cv_bridge::Exception& e) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: cannot convert the images on %s: %s",
                             image_sub_.getTopic().c_str(), e.what());
+    diagnostics_->drop("image conversion failed");
     return;
   }
   ++published_;

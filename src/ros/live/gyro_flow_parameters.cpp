@@ -105,6 +105,7 @@ GyroFlowParameters loadGyroFlowParameters(const ParameterSource& nh) {
   if (p.imu_buffer_duration_s < 2.0 * p.max_frame_interval_s) {
     reject(nh, "imu_buffer_duration", "must cover at least two frame intervals (2 x max_frame_interval)");
   }
+  p.use_camera_info_only = nh.param("use_camera_info_only", false);
   p.image_queue_size = nh.param("image_queue_size", 5);
   p.imu_queue_size = nh.param("imu_queue_size", 2000);
   if (p.image_queue_size < 1 || p.imu_queue_size < 1) {

@@ -1,6 +1,7 @@
 #include "deep_ois/ros/live/gyro_flow_ros.h"
 
 #include <cv_bridge/cv_bridge.h>
+#include <image_transport/camera_common.h>
 #include <sensor_msgs/image_encodings.h>
 #include <tf2/exceptions.h>
 
@@ -17,6 +18,18 @@ namespace {
 constexpr double kWarnPeriodS = 2.0;         // throttle of per-message warnings
 constexpr double kWaitingCheckPeriodS = 5.0;  // period of the "still waiting" diagnostics
 constexpr std::size_t kMaxPendingFrames = 60;  // two seconds of 30 fps video
+
+// The calibration in use, shown with the diagnostics.
+void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& params) {
+  const RollingShutterConfig& rs = params.rolling_shutter;
+  diagnostics.setValue("time_offset [s]", std::to_string(rs.time_offset_s));
+  diagnostics.setValue("readout_time [s]", std::to_string(rs.readout_time_s));
+  diagnostics.setValue("patch_count", std::to_string(rs.patch_count));
+  diagnostics.setValue("patch_time", rs.patch_time == PatchTimeReference::kPatchStart ? "start" : "centre");
+  diagnostics.setValue("R_cam_imu source", params.rotation_from_tf ? "tf" : "~imu_to_camera_rotation");
+  diagnostics.setValue("grid [px]", std::to_string(params.grid_size.width) + "x" +
+                                        std::to_string(params.grid_size.height));
+}
 }  // namespace
 
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -28,6 +41,17 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   if (params_.rotation_from_tf) {
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_, nh_);
   }
+  // Live-tunable parameters: a change replaces params_ for the next frame pair; the IMU buffer
+  // and the frame history stay. Built before the lock below: it applies the values once here.
+  diagnostics_ = std::make_unique<LiveDiagnostics>(nh_, private_nh_,
+                                                   std::vector<std::string>{"imu", "frames", "gyro flows"},
+                                                   "gyro flows", nh_.resolveName("image_raw"));
+  reconfigure_ = std::make_unique<GyroFlowReconfigure>(
+      private_nh_, "gyro_flow", params_, [this](const GyroFlowParameters& updated) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        params_ = updated;
+        showCalibration(*diagnostics_, params_);
+      });
   // Held across advertise so that a subscriber connecting meanwhile waits for the publishers.
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_flow_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
@@ -36,6 +60,7 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   };
   flow_pub_ = nh_.advertise<GyroFlow>("gyro_flow", 5, on_flow_subscribers, on_flow_subscribers);
   color_pub_ = it_.advertise("gyro_flow/color", 5, on_color_subscribers, on_color_subscribers);
+  flow_image_pub_ = FlowImagePublisher(nh_, "gyro_flow/image", [this] { connectCallback(); });
   waiting_timer_ = nh_.createWallTimer(ros::WallDuration(kWaitingCheckPeriodS),
                                        &GyroFlowRos::waitingTimerCallback, this);
   ROS_INFO_NAMED("gyro_flow",
@@ -47,24 +72,39 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
 }
 
 GyroFlowRos::~GyroFlowRos() {
+  reconfigure_.reset();  // no more reconfigure callbacks into this
+  diagnostics_.reset();
   waiting_timer_.stop();
   std::lock_guard<std::mutex> lock(mutex_);
   imu_sub_.shutdown();
   camera_sub_.shutdown();
+  info_sub_.shutdown();
 }
 
 void GyroFlowRos::connectCallback() {
   std::lock_guard<std::mutex> lock(mutex_);
-  const bool wanted = flow_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0;
+  const bool wanted =
+      flow_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0 || flow_image_pub_.wanted();
   const bool subscribed = static_cast<bool>(imu_sub_);
   if (!wanted && subscribed) {
     imu_sub_.shutdown();
     camera_sub_.shutdown();
+    info_sub_.shutdown();
     resetState("");  // a later subscriber starts from fresh data
   } else if (wanted && !subscribed) {
     const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh_);
-    camera_sub_ = it_.subscribeCamera("image_raw", params_.image_queue_size,
-                                      &GyroFlowRos::cameraCallback, this, hints);
+    if (params_.use_camera_info_only) {
+      // Stamps, size and intrinsics are all the gyro flow needs: no image is transported. The
+      // topic is the image topic's camera_info sibling, as with the image subscription.
+      info_sub_ = nh_.subscribe(image_transport::getCameraInfoTopic(nh_.resolveName("image_raw")),
+                                params_.image_queue_size, &GyroFlowRos::cameraInfoCallback, this);
+      image_topic_ = info_topic_ = info_sub_.getTopic();
+    } else {
+      camera_sub_ = it_.subscribeCamera("image_raw", params_.image_queue_size,
+                                        &GyroFlowRos::cameraCallback, this, hints);
+      image_topic_ = image_topic_;
+      info_topic_ = info_topic_;
+    }
     imu_sub_ = nh_.subscribe("imu", params_.imu_queue_size, &GyroFlowRos::imuCallback, this,
                              ros::TransportHints().tcpNoDelay());
   }
@@ -100,6 +140,7 @@ void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
   std::lock_guard<std::mutex> lock(mutex_);
   checkRosTimeJump();
   ++imu_received_;
+  diagnostics_->tick("imu");
   last_imu_arrival_ = ros::Time::now();
   secondsSinceBase(imu->header.stamp);  // sets the time base on the first message
   const ImuSample sample = toImuSample(*imu, *time_base_);
@@ -130,31 +171,42 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   std::lock_guard<std::mutex> lock(mutex_);
   checkRosTimeJump();
   ++frames_received_;
-  const std::string& topic = camera_sub_.getTopic();
-  const double stamp_s = image->header.stamp.toSec();
+  diagnostics_->tick("frames");
+  const std::string& topic = image_topic_;
+  // Without an image (~use_camera_info_only) the CameraInfo's header stands for the frame's.
+  const std_msgs::Header& header = image ? image->header : info->header;
+  const double stamp_s = header.stamp.toSec();
 
-  std::string problem = validateImage(*image);
+  std::string problem = image ? validateImage(*image) : "";
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f on %s: %s",
                             stamp_s, topic.c_str(), problem.c_str());
+    diagnostics_->drop("invalid image");
     return;
   }
   Frame frame;
-  problem = toCameraModel(*info, frame.camera);
+  std::string note;
+  problem = toCameraModel(*info, frame.camera, &note);
+  if (note != camera_info_note_) {  // said once per change, not per frame
+    if (!note.empty()) ROS_WARN_NAMED("gyro_flow", "gyro_flow: %s: %s", info_topic_.c_str(), note.c_str());
+    camera_info_note_ = note;
+  }
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s: %s",
-                            stamp_s, camera_sub_.getInfoTopic().c_str(), problem.c_str());
+                            stamp_s, info_topic_.c_str(), problem.c_str());
+    diagnostics_->drop("unusable camera_info");
     return;
   }
-  if (image->width != info->width || image->height != info->height) {
+  if (image && (image->width != info->width || image->height != info->height)) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u",
                             stamp_s, topic.c_str(), image->width, image->height,
-                            camera_sub_.getInfoTopic().c_str(), info->width, info->height);
+                            info_topic_.c_str(), info->width, info->height);
+    diagnostics_->drop("image and camera_info sizes differ");
     return;
   }
-  frame.stamp = image->header.stamp;
-  frame.frame_id = params_.camera_frame_id.empty() ? image->header.frame_id : params_.camera_frame_id;
+  frame.stamp = header.stamp;
+  frame.frame_id = params_.camera_frame_id.empty() ? header.frame_id : params_.camera_frame_id;
   frame.distortion_model = info->distortion_model;
   frame.distortion = info->D;
   frame.received = ros::Time::now();
@@ -171,6 +223,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                               "gyro_flow: dropping frame %.6f on %s: %s stamp (latest frame %.6f)",
                               stamp_s, topic.c_str(), back_s == 0.0 ? "duplicate" : "out-of-order",
                               latest->toSec());
+      diagnostics_->drop("duplicate or out-of-order frame");
       return;
     }
   }
@@ -179,10 +232,15 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %zu frames wait for IMU data on %s: dropping the oldest",
                             pending_frames_.size(), imu_sub_.getTopic().c_str());
+    diagnostics_->drop("too many frames waiting for IMU");
     previous_ = pending_frames_.front();
     pending_frames_.pop_front();
   }
   processPendingFrames();
+}
+
+void GyroFlowRos::cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info) {
+  cameraCallback(nullptr, info);
 }
 
 void GyroFlowRos::processPendingFrames() {
@@ -200,7 +258,7 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
   if (imu_frame_id_.empty() || camera_frame.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s has an empty frame_id: set ~%s or ~imu_to_camera_rotation",
-                            imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : camera_sub_.getTopic().c_str(),
+                            imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : image_topic_.c_str(),
                             imu_frame_id_.empty() ? "imu_frame_id" : "camera_frame_id");
     return std::nullopt;
   }
@@ -231,18 +289,25 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
                             "%.1f ms): not pairing them",
-                            previous.stamp.toSec(), frame.stamp.toSec(), camera_sub_.getTopic().c_str(),
+                            previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(),
                             interval_s * 1e3, params_.max_frame_interval_s * 1e3);
+    diagnostics_->drop("frames too far apart");
     return Outcome::kDropped;
   }
   if (frame.camera != previous.camera) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s changed between frames %.6f and %.6f: not pairing them",
-                            camera_sub_.getInfoTopic().c_str(), previous.stamp.toSec(), frame.stamp.toSec());
+                            info_topic_.c_str(), previous.stamp.toSec(), frame.stamp.toSec());
+    diagnostics_->drop("camera_info changed");
     return Outcome::kDropped;
   }
   const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame.frame_id);
-  if (!rotation) return Outcome::kDropped;
+  if (!rotation) {
+    diagnostics_->drop("no IMU-to-camera rotation");
+    return Outcome::kDropped;
+  }
+  diagnostics_->setValue("R_cam_imu source", params_.rotation_from_tf ? "tf " + cached_rotation_frames_
+                                                                       : "~imu_to_camera_rotation");
 
   RollingShutterConfig config = params_.rolling_shutter;
   config.imu_to_camera_rotation = *rotation;
@@ -264,6 +329,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",
                             frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
                             may_still_come ? " (waited ~imu_wait_timeout)" : "");
+    diagnostics_->drop("IMU does not cover the pair");
     return Outcome::kDropped;
   }
 
@@ -290,22 +356,29 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     const cv::Mat rgb = colorizeFlow(flow, params_.color_max_flow_px);
     color_pub_.publish(cv_bridge::CvImage(metadata.header, sensor_msgs::image_encodings::RGB8, rgb).toImageMsg());
   }
+  flow_image_pub_.publish(metadata.header, flow);
   ++flows_published_;
+  diagnostics_->tick("gyro flows");
+  diagnostics_->latency((ros::Time::now() - frame.stamp).toSec());
   return Outcome::kPublished;
 }
 
 void GyroFlowRos::waitingTimerCallback(const ros::WallTimerEvent&) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!imu_sub_) return;
+  if (params_.use_camera_info_only && frames_received_ == 0) {
+    ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/CameraInfo on %s (~use_camera_info_only)",
+                   info_topic_.c_str());
+  }
   if (flows_published_ == flows_published_at_last_check_) {
     if (imu_received_ == 0) {
       ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/Imu on %s",
                      imu_sub_.getTopic().c_str());
     }
-    if (frames_received_ == 0) {
+    if (frames_received_ == 0 && !params_.use_camera_info_only) {
       ROS_WARN_NAMED("gyro_flow",
                      "gyro_flow: still waiting for images on %s with camera_info on %s (stamps must match)",
-                     camera_sub_.getTopic().c_str(), camera_sub_.getInfoTopic().c_str());
+                     image_topic_.c_str(), info_topic_.c_str());
     }
     if (imu_received_ > 0 && frames_received_ > 0) {
       ROS_WARN_NAMED("gyro_flow",

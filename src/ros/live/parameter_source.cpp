@@ -4,6 +4,23 @@
 
 namespace deep_ois {
 
+template <typename T>
+bool NodeHandleParameters::read(const std::string& name, T& value, const char* expected) const {
+  if (!nh_.hasParam(name)) return false;
+  T read_value;
+  if (!nh_.getParam(name, read_value)) {
+    throw std::invalid_argument("parameter " + describe(name) + ": has the wrong type: expected " + expected);
+  }
+  value = read_value;
+  return true;
+}
+
+template bool NodeHandleParameters::read(const std::string&, bool&, const char*) const;
+template bool NodeHandleParameters::read(const std::string&, double&, const char*) const;
+template bool NodeHandleParameters::read(const std::string&, int&, const char*) const;
+template bool NodeHandleParameters::read(const std::string&, std::string&, const char*) const;
+template bool NodeHandleParameters::read(const std::string&, std::vector<double>&, const char*) const;
+
 YamlParameters::YamlParameters(const std::string& path) : path_(path) {
   try {
     root_ = YAML::LoadFile(path);
@@ -25,6 +42,7 @@ bool YamlParameters::read(const std::string& name, T& value) const {
   return true;
 }
 
+template bool YamlParameters::read(const std::string&, bool&) const;
 template bool YamlParameters::read(const std::string&, double&) const;
 template bool YamlParameters::read(const std::string&, int&) const;
 template bool YamlParameters::read(const std::string&, std::string&) const;

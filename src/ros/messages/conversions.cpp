@@ -49,23 +49,48 @@ std::string validateImage(const sensor_msgs::Image& image) {
   return {};
 }
 
-std::string toCameraModel(const sensor_msgs::CameraInfo& info, CameraModel& camera) {
+std::string toCameraModel(const sensor_msgs::CameraInfo& info, CameraModel& camera, std::string* note) {
   std::ostringstream why;
-  const std::string& model = info.distortion_model;
-  const bool no_distortion_model = model.empty() || model == "none";
-  if (!no_distortion_model && model != sensor_msgs::distortion_models::PLUMB_BOB) {
-    why << "unsupported distortion model '" << model << "' (supported: plumb_bob, or none)";
-    return why.str();
-  }
-  if (model == sensor_msgs::distortion_models::PLUMB_BOB && info.D.size() > 5) {
-    why << "plumb_bob distortion has " << info.D.size() << " coefficients, expected at most 5";
-    return why.str();
-  }
+  const std::string& name = info.distortion_model;
+  DistortionModel model = DistortionModel::kPlumbBob;
   std::vector<double> distortion;
-  if (!no_distortion_model) distortion = info.D;
+  if (name.empty() || name == "none") {
+    // no distortion
+  } else if (name == sensor_msgs::distortion_models::PLUMB_BOB) {
+    distortion = info.D;
+  } else if (name == sensor_msgs::distortion_models::RATIONAL_POLYNOMIAL) {
+    model = DistortionModel::kRationalPolynomial;
+    distortion = info.D;
+  } else if (name == sensor_msgs::distortion_models::EQUIDISTANT) {
+    model = DistortionModel::kEquidistant;
+    distortion = info.D;
+  } else {
+    why << "unsupported distortion model '" << name
+        << "' (supported: plumb_bob, rational_polynomial, equidistant, or none)";
+    return why.str();
+  }
   camera = CameraModel(static_cast<int>(info.width), static_cast<int>(info.height),
-                       rowMajorToMatrix(info.K.data()), distortion);
-  return camera.validate();
+                       rowMajorToMatrix(info.K.data()), model, distortion);
+  const std::string problem = camera.validate();
+  if (problem.empty() && note != nullptr) {
+    note->clear();
+    const Eigen::Matrix3d R = rowMajorToMatrix(info.R.data());
+    Eigen::Matrix3d P_left;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) P_left(r, c) = info.P[4 * r + c];
+    const bool r_says_something = !R.isZero(0.0) && !R.isIdentity(1e-9);
+    const bool p_says_something = !P_left.isZero(0.0) && !P_left.isApprox(camera.K(), 1e-9);
+    if (r_says_something || p_says_something) {
+      std::ostringstream text;
+      text << "CameraInfo " << (r_says_something ? "R is not the identity" : "")
+           << (r_says_something && p_says_something ? " and " : "")
+           << (p_says_something ? "P differs from K" : "")
+           << " (a rectified camera): the gyro flow is for the raw image and uses K and D only; "
+              "R and P are not used";
+      *note = text.str();
+    }
+  }
+  return problem;
 }
 
 Eigen::Matrix3d rowMajorToMatrix(const double* values) {

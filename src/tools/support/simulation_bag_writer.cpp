@@ -83,9 +83,8 @@ SimulationBagStats writeSimulationBag(const sim::Simulator& simulator, const std
   info.header.frame_id = config.camera_frame_id;
   info.width = static_cast<uint32_t>(sensor.width_px);
   info.height = static_cast<uint32_t>(sensor.height_px);
-  info.distortion_model = sensor_msgs::distortion_models::PLUMB_BOB;
-  info.D = sensor.distortion;
-  info.D.resize(5, 0.0);
+  info.distortion_model = distortionModelName(camera.distortionModel());
+  info.D = camera.coefficients();
   matrixToRowMajor(camera.K(), info.K.data());
   info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
   for (int r = 0; r < 3; ++r)

@@ -20,7 +20,10 @@ struct SensorConfig {
   double frame_rate_hz = 30.0;
   double readout_time_s = 0.022;  // first row to last row; 0 = global shutter
   double exposure_time_s = 0.008;
-  // plumb_bob k1, k2, p1, p2, k3 (all zero: no distortion)
+  // Lens model, as CameraInfo names it: "plumb_bob" (distortion = k1, k2, p1, p2, k3) or
+  // "equidistant" (a fisheye: distortion = k1, k2, k3, k4).
+  std::string distortion_model = "plumb_bob";
+  // The model's coefficients (all zero: no distortion)
   std::vector<double> distortion{0.0, 0.0, 0.0, 0.0, 0.0};
   int supersampling = 2;     // samples per pixel along each axis (anti-aliasing)
   int exposure_samples = 3;  // time samples inside the exposure (motion blur)

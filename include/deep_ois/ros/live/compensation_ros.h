@@ -15,6 +15,9 @@
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
+#include "deep_ois/ros/live/compensation_reconfigure.h"
+#include "deep_ois/ros/live/flow_image_publisher.h"
+#include "deep_ois/ros/live/live_diagnostics.h"
 
 namespace deep_ois {
 
@@ -76,7 +79,8 @@ class CompensationRos {
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
-  const CompensationParameters params_;
+  // Its live-tunable fields change (under mutex_) through dynamic_reconfigure.
+  CompensationParameters params_;
   CompensationModel model_;
   CompensationStream stream_;  // the model over the camera's pairs, with their motion history
 
@@ -88,11 +92,14 @@ class CompensationRos {
   image_transport::Publisher color_pub_;
   image_transport::Publisher aligned_pub_;
   image_transport::Publisher ghost_pub_;
+  FlowImagePublisher flow_image_pub_;  // compensated_flow/image: the flow as a plain 32FC2 image
 
   std::deque<sensor_msgs::ImageConstPtr> images_;  // newest last
   std::deque<PendingFlow> pending_;
   FixedPointMap warp_map_;  // the backward map of the current pair (buffers reused per frame)
   std::size_t published_ = 0;
+  std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, model
+  std::unique_ptr<CompensationReconfigure> reconfigure_;
 };
 
 }  // namespace deep_ois

@@ -29,6 +29,8 @@ struct GyroFlowParameters {
   double imu_wait_timeout_s = 0.5;     // how long a frame may wait for IMU samples covering it
   double max_frame_interval_s = 0.25;  // frames further apart are not paired (dropped frames)
   double time_jump_reset_s = 1.0;      // a stamp this much older than the newest one resets state
+  // Subscribe camera_info alone (stamp, size, intrinsics), not the images: ~use_camera_info_only.
+  bool use_camera_info_only = false;
   int image_queue_size = 5;
   int imu_queue_size = 2000;
 };

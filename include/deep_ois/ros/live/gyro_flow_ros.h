@@ -21,6 +21,9 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/ros/live/flow_image_publisher.h"
+#include "deep_ois/ros/live/gyro_flow_reconfigure.h"
+#include "deep_ois/ros/live/live_diagnostics.h"
 
 namespace deep_ois {
 
@@ -55,7 +58,9 @@ class GyroFlowRos {
 
   void connectCallback();
   void imuCallback(const sensor_msgs::ImuConstPtr& imu);
+  // `image` is null with ~use_camera_info_only: the CameraInfo alone describes the frame.
   void cameraCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
+  void cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info);
   void waitingTimerCallback(const ros::WallTimerEvent&);
 
   // Pairs pending frames with the previous frame as far as the IMU data allows.
@@ -72,17 +77,23 @@ class GyroFlowRos {
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
-  const GyroFlowParameters params_;
+  // Replaced as a whole (under mutex_) when dynamic_reconfigure changes a live-tunable value.
+  GyroFlowParameters params_;
 
   std::mutex mutex_;
   image_transport::ImageTransport it_;
   ros::Subscriber imu_sub_;
   image_transport::CameraSubscriber camera_sub_;
+  ros::Subscriber info_sub_;  // instead of camera_sub_ with ~use_camera_info_only
+  std::string image_topic_, info_topic_;  // resolved input topics, for messages
   ros::Publisher flow_pub_;
   image_transport::Publisher color_pub_;
+  FlowImagePublisher flow_image_pub_;  // gyro_flow/image: the flow as a plain 32FC2 image
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   ros::WallTimer waiting_timer_;
+  std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, calibration
+  std::unique_ptr<GyroFlowReconfigure> reconfigure_;
 
   ImuSampleBuffer imu_buffer_;
   std::string imu_frame_id_;  // frame of every sample in imu_buffer_
@@ -92,6 +103,7 @@ class GyroFlowRos {
   std::optional<Eigen::Matrix3d> cached_rotation_;     // tf rotation for cached_rotation_frames_
   std::string cached_rotation_frames_;
   ros::Time last_ros_time_;
+  std::string camera_info_note_;  // the last warning about CameraInfo R and P (said once)
   // Origin of the seconds handed to the core (whole second of the first stamp since a reset).
   std::optional<ros::Time> time_base_;
   double secondsSinceBase(const ros::Time& stamp);

@@ -15,6 +15,7 @@ class ParameterSource {
   virtual ~ParameterSource() = default;
   // Each returns false (and leaves `value` alone) when the parameter is absent; throws
   // std::invalid_argument naming the parameter when it is present with the wrong type.
+  virtual bool get(const std::string& name, bool& value) const = 0;
   virtual bool get(const std::string& name, double& value) const = 0;
   virtual bool get(const std::string& name, int& value) const = 0;
   virtual bool get(const std::string& name, std::string& value) const = 0;
@@ -31,18 +32,25 @@ class ParameterSource {
   }
 };
 
+// The parameter server under a node handle (a nodelet's private namespace). A parameter that is
+// set with another type (a string where a number belongs, ...) is an error naming it, never a
+// silent fall back to the default. Integers are accepted where a double belongs.
 class NodeHandleParameters : public ParameterSource {
  public:
   explicit NodeHandleParameters(const ros::NodeHandle& nh) : nh_(nh) {}
-  bool get(const std::string& name, double& value) const override { return nh_.getParam(name, value); }
-  bool get(const std::string& name, int& value) const override { return nh_.getParam(name, value); }
-  bool get(const std::string& name, std::string& value) const override { return nh_.getParam(name, value); }
+  bool get(const std::string& name, bool& value) const override { return read(name, value, "true or false"); }
+  bool get(const std::string& name, double& value) const override { return read(name, value, "a number"); }
+  bool get(const std::string& name, int& value) const override { return read(name, value, "a whole number"); }
+  bool get(const std::string& name, std::string& value) const override { return read(name, value, "a string"); }
   bool get(const std::string& name, std::vector<double>& value) const override {
-    return nh_.getParam(name, value);
+    return read(name, value, "a list of numbers");
   }
   std::string describe(const std::string& name) const override { return nh_.resolveName(name); }
 
  private:
+  template <typename T>
+  bool read(const std::string& name, T& value, const char* expected) const;
+
   ros::NodeHandle nh_;
 };
 
@@ -51,6 +59,7 @@ class YamlParameters : public ParameterSource {
  public:
   // Throws std::runtime_error naming the file when it cannot be read or is not a mapping.
   explicit YamlParameters(const std::string& path);
+  bool get(const std::string& name, bool& value) const override { return read(name, value); }
   bool get(const std::string& name, double& value) const override { return read(name, value); }
   bool get(const std::string& name, int& value) const override { return read(name, value); }
   bool get(const std::string& name, std::string& value) const override { return read(name, value); }

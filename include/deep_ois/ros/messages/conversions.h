@@ -26,9 +26,15 @@ ImuSample toImuSample(const sensor_msgs::Imu& imu, const ros::Time& time_base);
 // and data size that hold width x height pixels); otherwise a sentence naming the problem.
 std::string validateImage(const sensor_msgs::Image& image);
 
-// Builds the camera model of a CameraInfo. Returns an empty string on success, or a sentence
-// naming the problem (unsupported distortion model, non-finite or degenerate K, zero size).
-std::string toCameraModel(const sensor_msgs::CameraInfo& info, CameraModel& camera);
+// Builds the camera model of a CameraInfo (K and D; distortion models plumb_bob,
+// rational_polynomial, equidistant, or none/empty). Returns an empty string on success, or a
+// sentence naming the problem (unsupported distortion model, wrong number of coefficients,
+// non-finite or degenerate K, zero size).
+//
+// R and P describe a rectified image; the gyro flow is for the raw image the CameraInfo comes
+// with, so they are not used. When they say something (R not the identity, or the left 3x3 of P
+// not K), `note` (if given) receives a sentence naming the field, for the caller to log.
+std::string toCameraModel(const sensor_msgs::CameraInfo& info, CameraModel& camera, std::string* note = nullptr);
 
 // Everything a GyroFlow message states besides its flow and homographies.
 struct GyroFlowMetadata {

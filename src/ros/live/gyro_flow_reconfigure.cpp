@@ -1,0 +1,84 @@
+#include "deep_ois/ros/live/gyro_flow_reconfigure.h"
+
+#include <ros/console.h>
+
+#include <cmath>
+
+namespace deep_ois {
+
+std::string applyGyroFlowConfig(const GyroFlowConfig& config, GyroFlowParameters& params) {
+  // The same bounds as the loader (loadGyroFlowParameters); the .cfg ranges already clamp most.
+  if (!std::isfinite(config.time_offset) || std::abs(config.time_offset) > 10.0) {
+    return "time_offset must be within +-10 s, got " + std::to_string(config.time_offset);
+  }
+  if (!std::isfinite(config.readout_time) || config.readout_time < 0.0 || config.readout_time > 1.0) {
+    return "readout_time must be between 0 and 1 s, got " + std::to_string(config.readout_time);
+  }
+  PatchTimeReference patch_time;
+  if (config.patch_time == "centre" || config.patch_time == "center") {
+    patch_time = PatchTimeReference::kPatchCentre;
+  } else if (config.patch_time == "start") {
+    patch_time = PatchTimeReference::kPatchStart;
+  } else {
+    return "patch_time must be 'centre' or 'start', got '" + config.patch_time + "'";
+  }
+  if (!std::isfinite(config.color_max_flow) || config.color_max_flow < 0.0) {
+    return "color_max_flow must be >= 0 pixels, got " + std::to_string(config.color_max_flow);
+  }
+  if (!std::isfinite(config.imu_wait_timeout) || config.imu_wait_timeout <= 0.0) {
+    return "imu_wait_timeout must be a positive number of seconds, got " +
+           std::to_string(config.imu_wait_timeout);
+  }
+  params.rolling_shutter.time_offset_s = config.time_offset;
+  params.rolling_shutter.readout_time_s = config.readout_time;
+  params.rolling_shutter.patch_time = patch_time;
+  params.color_max_flow_px = config.color_max_flow;
+  params.imu_wait_timeout_s = config.imu_wait_timeout;
+  return "";
+}
+
+GyroFlowConfig toGyroFlowConfig(const GyroFlowParameters& params) {
+  GyroFlowConfig config = GyroFlowConfig::__getDefault__();
+  config.time_offset = params.rolling_shutter.time_offset_s;
+  config.readout_time = params.rolling_shutter.readout_time_s;
+  config.patch_time =
+      params.rolling_shutter.patch_time == PatchTimeReference::kPatchStart ? "start" : "centre";
+  config.color_max_flow = params.color_max_flow_px;
+  config.imu_wait_timeout = params.imu_wait_timeout_s;
+  return config;
+}
+
+GyroFlowReconfigure::GyroFlowReconfigure(const ros::NodeHandle& private_nh, const std::string& log_name,
+                                         const GyroFlowParameters& loaded, Apply apply)
+    : log_name_(log_name), current_(loaded), apply_(std::move(apply)), server_(server_mutex_, private_nh) {
+  GyroFlowConfig initial = toGyroFlowConfig(loaded);
+  server_.updateConfig(initial);
+  server_.setCallback([this](GyroFlowConfig& config, uint32_t level) { callback(config, level); });
+}
+
+void GyroFlowReconfigure::callback(GyroFlowConfig& config, uint32_t) {
+  GyroFlowParameters updated = current_;
+  const std::string problem = applyGyroFlowConfig(config, updated);
+  if (!problem.empty()) {
+    ROS_WARN_NAMED(log_name_, "%s: reconfigure refused: %s; keeping the previous values",
+                   log_name_.c_str(), problem.c_str());
+    config = toGyroFlowConfig(current_);
+    return;
+  }
+  const RollingShutterConfig& a = updated.rolling_shutter;
+  const RollingShutterConfig& b = current_.rolling_shutter;
+  const bool changed = a.time_offset_s != b.time_offset_s || a.readout_time_s != b.readout_time_s ||
+                       a.patch_time != b.patch_time || updated.color_max_flow_px != current_.color_max_flow_px ||
+                       updated.imu_wait_timeout_s != current_.imu_wait_timeout_s;
+  current_ = updated;
+  if (changed) {
+    ROS_INFO_NAMED(log_name_,
+                   "%s: reconfigured: time offset %.4f s, readout %.4f s, patch time %s, color max flow "
+                   "%.2f px, IMU wait timeout %.3f s (from the next frame pair)",
+                   log_name_.c_str(), config.time_offset, config.readout_time, config.patch_time.c_str(),
+                   config.color_max_flow, config.imu_wait_timeout);
+  }
+  apply_(current_);
+}
+
+}  // namespace deep_ois
