@@ -1,10 +1,7 @@
 // Times the compensation nodelet's per-frame work at the 360x270 grid: model inference (resample
 // to the working grid, network, resample back) and warp (flow inversion + remap of an RGB frame)
 // for each preset, then the whole per-frame chain of the two nodelets (gyro homographies, flow
-// render, model, warp, ghost, colour) over the frame pairs of a bag.
-//
-//   benchmark_compensation [--model models/fast.pt] [--bag bags/sample.bag] [--threads 1]
-//                          [--frames 200]
+// render, model, warp, ghost, colour) over the frame pairs of a bag. Flags: --help.
 #include <ros/package.h>
 
 #include <opencv2/core/utility.hpp>
@@ -30,6 +27,7 @@
 #include "deep_ois/ros/bag/bag_frame_reader.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
@@ -79,21 +77,31 @@ void report(const char* what, const std::vector<double>& ms) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Times the compensation nodelet's per-frame work at the 360x270 grid: model inference (resample "
+    "to the working grid, network, resample back) and warp (flow inversion + remap of an RGB frame) "
+    "for each preset, then the whole per-frame chain of the two nodelets (gyro homographies, flow "
+    "render, model, warp, ghost, colour) over the frame pairs of a bag. Prints milliseconds per "
+    "frame (median, 95th percentile) and frames per second against the target (>= 30 fps, p95 <= 15 ms).";
+
 int main(int argc, char** argv) {
   const std::string package = ros::package::getPath("deep_ois");
   std::string model_path = package + "/models/fast.pt", bag_path = package + "/bags/sample.bag";
   int threads = 1, frames = 200;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string flag = argv[i];
-    if (flag == "--model") model_path = argv[i + 1];
-    else if (flag == "--bag") bag_path = argv[i + 1];
-    else if (flag == "--threads") threads = std::stoi(argv[i + 1]);
-    else if (flag == "--frames") frames = std::stoi(argv[i + 1]);
-    else {
-      std::fprintf(stderr, "benchmark_compensation: unknown flag %s\n", flag.c_str());
-      return 2;
-    }
-  }
+  deep_ois::ToolCommandLine command_line("benchmark_compensation", kDescription,
+                                         "Exit status: 0 measured (target met or not), 1 failed, 2 usage.");
+  command_line.app()
+      .add_option("--model", model_path, "the model of the chain (default: the package's models/fast.pt)")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.pt");
+  command_line.app()
+      .add_option("--bag", bag_path, "the recording of the chain (default: the package's bags/sample.bag)")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.bag");
+  command_line.addNumber("--threads", threads, "torch threads")->check(deep_ois::atLeast(1));
+  command_line.addNumber("--frames", frames, "model runs per preset (paper preset: a twentieth, >= 5)")
+      ->check(deep_ois::atLeast(1));
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   try {
     cv::setNumThreads(1);  // the nodelet's OpenCV work runs in its callback thread
     deep_ois::setTorchThreads(threads);

@@ -1,7 +1,6 @@
 // Runs the camera-IMU calibration over simulator bags whose truth is in their simulator config
 // and prints the error table, bags with a fixed lens (non-OIS) and with OIS reported apart.
-//
-//   calibration_benchmark --manifest DIR/manifest.txt [--csv out.csv] [--ois-rotation tf]
+// Flags: --help.
 //
 // The manifest (scripts/make_calibration_bags.sh writes it) has one line per bag,
 // "<bag> <config.yaml>", paths relative to the manifest's folder. Whether a bag has OIS is read
@@ -22,18 +21,11 @@
 #include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/core/sim/simulator_config.h"
 #include "deep_ois/ros/bag/calibration_bag_reader.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "calibration_benchmark: %s\n"
-               "usage: calibration_benchmark --manifest DIR/manifest.txt [--csv OUT.csv] [--ois-rotation tf]\n",
-               problem.c_str());
-  return 2;
-}
 
 struct Row {
   std::string bag;
@@ -92,27 +84,35 @@ void printSummary(const std::string& label, const std::vector<Row>& all) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Runs the camera-IMU calibration over simulator bags whose truth is in their simulator config "
+    "and prints the error table (time offset and readout in ms, rotation in degrees, bias in "
+    "mrad/s), bags with a fixed lens (non-OIS) and with OIS reported apart. OIS bags are calibrated "
+    "with the per-frame lens shift (calibrate --ois on), the others without. --ois-rotation tf "
+    "holds the rotation of OIS bags at their /tf_static (the mount known from a recording with OIS "
+    "off or from CAD), to show the timing alone.";
+constexpr char kFooter[] =
+    "The manifest (scripts/make_calibration_bags.sh writes it) has one line per bag,\n"
+    "\"<bag> <config.yaml>\", paths relative to the manifest's folder.\n"
+    "Exit status: 0 done, 1 failed, 2 usage.";
+
 int main(int argc, char** argv) {
-  std::string manifest_path, csv_path;
-  bool hold_ois_rotation = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-    if (flag == "--manifest") {
-      manifest_path = argv[++i];
-    } else if (flag == "--csv") {
-      csv_path = argv[++i];
-    } else if (flag == "--ois-rotation") {
-      const std::string value = argv[++i];
-      if (value != "tf" && value != "estimate") return usage("--ois-rotation must be 'tf' or 'estimate'");
-      hold_ois_rotation = value == "tf";
-    } else {
-      return usage("unknown flag " + flag);
-    }
-  }
-  if (manifest_path.empty()) return usage("--manifest is required");
+  std::string manifest_path, csv_path, ois_rotation = "estimate";
+  deep_ois::ToolCommandLine command_line("calibration_benchmark", kDescription, kFooter);
+  CLI::App& app = command_line.app();
+  app.add_option("--manifest", manifest_path, "the bags and their configs")
+      ->required()
+      ->check(deep_ois::existingFile())
+      ->type_name("DIR/manifest.txt");
+  app.add_option("--csv", csv_path, "also write one line per bag")->type_name("OUT.csv");
+  app.add_option("--ois-rotation", ois_rotation, "the rotation of OIS bags: estimated or held at /tf_static")
+      ->check(deep_ois::oneOf({"tf", "estimate"}))
+      ->capture_default_str()
+      ->type_name("tf|estimate");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  const bool hold_ois_rotation = ois_rotation == "tf";
   std::ifstream manifest(manifest_path);
-  if (!manifest) return usage("cannot read " + manifest_path);
+  if (!manifest) return command_line.usageError("cannot read " + manifest_path);
   const std::string folder = manifest_path.find('/') == std::string::npos
                                  ? "."
                                  : manifest_path.substr(0, manifest_path.find_last_of('/'));
@@ -124,7 +124,7 @@ int main(int argc, char** argv) {
     if (!(words >> bag >> config) || bag[0] == '#') continue;
     entries.emplace_back(folder + "/" + bag, folder + "/" + config);
   }
-  if (entries.empty()) return usage(manifest_path + " lists no bags");
+  if (entries.empty()) return command_line.usageError(manifest_path + " lists no bags");
 
   std::vector<Row> rows;
   std::printf("| bag | OIS | offset ms | error ms (1-sigma) | readout ms | error ms (1-sigma) | mount | rotation error deg (1-sigma) | bias error mrad/s | residual px | result |\n"

@@ -1,7 +1,6 @@
 // A PNG contact sheet of the simulator: one row per category (RE, LT, LL, MF) with frame a,
 // frame b and the ghost overlay (red channel of b over a: misalignment shows as colour fringes).
-//
-//   sim_contact_sheet --out docs/simulator_contact_sheet.png [--seed N] [--config-dir DIR]
+// Flags: --help.
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -10,14 +9,9 @@
 
 #include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/core/sim/simulator.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr, "sim_contact_sheet: %s\nusage: sim_contact_sheet --out FILE.png [--seed N] [--config-dir DIR]\n",
-               problem.c_str());
-  return 2;
-}
 
 // A panel with a caption strip above it.
 cv::Mat captioned(const cv::Mat& rgb, const std::string& caption) {
@@ -29,28 +23,22 @@ cv::Mat captioned(const cv::Mat& rgb, const std::string& caption) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Draws a PNG contact sheet of the simulator: one row per category (RE, LT, LL, MF) with frame a, "
+    "frame b and the ghost overlay (red channel of b over a: misalignment shows as colour fringes).";
+
 int main(int argc, char** argv) {
   std::string out, config_dir = std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator";
-  unsigned long seed = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-    const std::string value = argv[++i];
-    if (flag == "--out") {
-      out = value;
-    } else if (flag == "--config-dir") {
-      config_dir = value;
-    } else if (flag == "--seed") {
-      try {
-        seed = std::stoul(value);
-      } catch (const std::exception&) {
-        return usage("--seed needs a whole number, got '" + value + "'");
-      }
-    } else {
-      return usage("unknown flag " + flag);
-    }
-  }
-  if (out.empty()) return usage("--out is required");
+  std::uint32_t seed = 1;
+  deep_ois::ToolCommandLine command_line("sim_contact_sheet", kDescription,
+                                         "Exit status: 0 written, 1 failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--out", out, "the sheet, e.g. docs/simulator_contact_sheet.png")->required()->type_name("FILE.png");
+  command_line.addNumber("--seed", seed, "the simulator's seed");
+  app.add_option("--config-dir", config_dir, "folder with RE.yaml, LT.yaml, LL.yaml and MF.yaml")
+      ->check(deep_ois::existingDirectory())
+      ->type_name("DIR");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   try {
     std::vector<cv::Mat> rows;
     for (const char* name : {"RE", "LT", "LL", "MF"}) {

@@ -1,13 +1,5 @@
-// Trains the compensation network on training-set bags of the Fundamental Mixtures job.
-//
-//   train --data gt.bag [more.bag ...] --out models/NAME.pt [--preset fast|paper] [--epochs 40]
-//         [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50]
-//         [--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1]
-//         [--threads 2] [--resume] [--max-pairs N] [--history none|S,S,...] [--widths W,W,...]
-//
-// Writes NAME.pt (weights + metadata), NAME.yaml (the metadata, for people), NAME_loss.png and,
-// during training, NAME.checkpoint.pt (after every epoch; Ctrl-C writes it too; --resume goes on
-// from it).
+// Trains the compensation network on training-set bags of the Fundamental Mixtures job (flags:
+// `train --help`, docs/command_line_tools.md).
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
@@ -23,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/dataset_hash.h"
 #include "deep_ois/tools/support/line_plot.h"
 #include "deep_ois/core/common/portable_random.h"
@@ -35,16 +28,6 @@ namespace {
 
 std::atomic<bool> g_stop_requested{false};
 void onSignal(int) { g_stop_requested = true; }
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "train: %s\nusage: train --data GT.bag [GT.bag ...] --out models/NAME.pt [--preset fast|paper] "
-               "[--epochs N] [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50] "
-               "[--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1] [--threads 2] "
-               "[--resume] [--max-pairs N] [--history none|S,S,...] [--widths W,W,...]\n",
-               problem.c_str());
-  return 2;
-}
 
 // Whole recordings go to validation (pairs of one recording are correlated): a seeded choice of
 // ceil(fraction * recordings) of them; with a single recording, its last pairs.
@@ -75,18 +58,6 @@ void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double f
   for (const auto& sample : all) (validation_sources.count(sample.source) ? validation : train).push_back(sample);
 }
 
-// "a,b,c" -> {"a", "b", "c"}.
-std::vector<std::string> splitList(const std::string& list) {
-  std::vector<std::string> items;
-  std::size_t start = 0;
-  while (start <= list.size()) {
-    const std::size_t comma = std::min(list.find(',', start), list.size());
-    items.push_back(list.substr(start, comma - start));
-    start = comma + 1;
-  }
-  return items;
-}
-
 std::string stripSuffix(const std::string& path, const std::string& suffix) {
   if (path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
     return path.substr(0, path.size() - suffix.size());
@@ -96,6 +67,13 @@ std::string stripSuffix(const std::string& path, const std::string& suffix) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Trains the compensation network on training-set bags of the Fundamental Mixtures job. Writes "
+    "NAME.pt (weights + metadata, with the SHA-256 of the training bags), NAME.yaml (the metadata, "
+    "for people), NAME_loss.png and, during training, NAME.checkpoint.pt (after every epoch; Ctrl-C "
+    "writes it too; --resume goes on from it). Losses and errors are in working-grid pixels.";
+constexpr char kFooter[] = "Exit status: 0 trained, 1 failed, 2 usage, 130 stopped (checkpoint written).";
+
 int main(int argc, char** argv) {
   std::vector<std::string> data;
   std::string out, preset = "fast";
@@ -103,67 +81,61 @@ int main(int argc, char** argv) {
   double validation_fraction = 0.1;
   int threads = 2;
   std::size_t max_pairs = 0;
-  bool history_given = false;
-  std::vector<double> history_time_constants_s;
+  std::string history = "preset";
   std::vector<int> widths;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string flag = argv[i];
-      const bool has_value = i + 1 < argc;
-      if (flag == "--data") {
-        while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0) data.push_back(argv[++i]);
-      } else if (flag == "--resume") {
-        options.resume = true;
-      } else if (!has_value) {
-        return usage("unknown flag or missing value: " + flag);
-      } else if (flag == "--out") {
-        out = argv[++i];
-      } else if (flag == "--preset") {
-        preset = argv[++i];
-      } else if (flag == "--epochs") {
-        options.epochs = std::stoi(argv[++i]);
-      } else if (flag == "--batch-size") {
-        options.batch_size = std::stoi(argv[++i]);
-      } else if (flag == "--lr") {
-        options.learning_rate = std::stod(argv[++i]);
-      } else if (flag == "--beta1") {
-        options.beta1 = std::stod(argv[++i]);
-      } else if (flag == "--beta2") {
-        options.beta2 = std::stod(argv[++i]);
-      } else if (flag == "--lr-decay-epochs") {
-        options.lr_decay_every_epochs = std::stoi(argv[++i]);
-      } else if (flag == "--lr-decay-factor") {
-        options.lr_decay_factor = std::stod(argv[++i]);
-      } else if (flag == "--loss") {
-        options.loss = argv[++i];
-      } else if (flag == "--validation-fraction") {
-        validation_fraction = std::stod(argv[++i]);
-      } else if (flag == "--seed") {
-        options.seed = static_cast<unsigned>(std::stoul(argv[++i]));
-      } else if (flag == "--threads") {
-        threads = std::stoi(argv[++i]);
-      } else if (flag == "--max-pairs") {
-        max_pairs = static_cast<std::size_t>(std::stoul(argv[++i]));
-      } else if (flag == "--history") {
-        // The motion history's time constants in seconds, or none (the gyro flow alone).
-        history_given = true;
-        const std::string list = argv[++i];
-        if (list != "none") {
-          for (const std::string& item : splitList(list)) history_time_constants_s.push_back(std::stod(item));
-        }
-      } else if (flag == "--widths") {
-        // The UNet's level widths instead of the preset's (the preset becomes "custom").
-        for (const std::string& item : splitList(argv[++i])) widths.push_back(std::stoi(item));
-      } else {
-        return usage("unknown flag: " + flag);
-      }
-    }
-  } catch (const std::exception&) {
-    return usage("a numeric flag has a value that is not a number");
+  deep_ois::ToolCommandLine command_line("train", kDescription, kFooter);
+  CLI::App& app = command_line.app();
+  app.add_option("--data", data, "training-set bags (fundamental_mixtures output)")
+      ->required()
+      ->type_name("FILE.bag");
+  app.add_option("--out", out, "the model file, e.g. models/NAME.pt")->required()->type_name("FILE.pt");
+  app.add_option("--preset", preset, "architecture and working grid")
+      ->check(deep_ois::oneOf({"fast", "paper"}))
+      ->capture_default_str()
+      ->type_name("fast|paper");
+  command_line.addNumber("--epochs", options.epochs, "training epochs");
+  command_line.addNumber("--batch-size", options.batch_size, "frame pairs per step (paper: 8)");
+  command_line.addNumber("--lr", options.learning_rate, "Adam learning rate (paper: 1e-4)");
+  command_line.addNumber("--beta1", options.beta1, "Adam beta1");
+  command_line.addNumber("--beta2", options.beta2, "Adam beta2");
+  command_line.addNumber("--lr-decay-epochs", options.lr_decay_every_epochs,
+                         "multiply the learning rate by --lr-decay-factor every this many epochs");
+  command_line.addNumber("--lr-decay-factor", options.lr_decay_factor, "learning-rate decay factor");
+  app.add_option("--loss", options.loss, "per flow component, working-grid pixels")
+      ->check(deep_ois::oneOf({"l1", "l2"}))
+      ->capture_default_str()
+      ->type_name("l1|l2");
+  command_line.addNumber("--validation-fraction", validation_fraction,
+                         "share of the recordings held out for validation, in [0, 1)");
+  command_line.addNumber("--seed", options.seed, "initial weights, split and batch order");
+  command_line.addNumber("--threads", threads, "torch threads");
+  app.add_flag("--resume", options.resume, "go on from NAME.checkpoint.pt");
+  command_line.addNumber("--max-pairs", max_pairs, "use at most this many pairs (0: all)");
+  // The motion history's time constants in seconds, or none (the gyro flow alone).
+  app.add_option("--history", history,
+                 "motion-history time constants in seconds, or none (the gyro flow alone); "
+                 "default: the preset's")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            if (text == "none") return {};
+            try {
+              deep_ois::splitCommaSeparatedNumbers(text);
+              return {};
+            } catch (const std::invalid_argument& e) {
+              return "needs none or comma-separated seconds, got '" + text + "' (" + e.what() + ")";
+            }
+          },
+          ""))
+      ->type_name("none|S,S,...");
+  // The UNet's level widths instead of the preset's (the preset becomes "custom").
+  app.add_option("--widths", widths, "UNet level widths instead of the preset's (preset becomes custom)")
+      ->delimiter(',')
+      ->check(deep_ois::strictNumber<int>())
+      ->type_name("W,W,...");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (validation_fraction < 0.0 || validation_fraction >= 1.0) {
+    return command_line.usageError("--validation-fraction must be in [0, 1)");
   }
-  if (data.empty()) return usage("--data needs at least one training-set bag");
-  if (out.empty()) return usage("--out is required (e.g. models/fast.pt)");
-  if (validation_fraction < 0.0 || validation_fraction >= 1.0) return usage("--validation-fraction must be in [0, 1)");
 
   const std::string stem = stripSuffix(out, ".pt");
   options.checkpoint_path = stem + ".checkpoint.pt";
@@ -174,8 +146,9 @@ int main(int argc, char** argv) {
       metadata.architecture.widths = widths;
       metadata.preset = "custom";
     }
-    if (history_given) {
-      metadata.setHistoryTimeConstants(history_time_constants_s);
+    if (history != "preset") {
+      metadata.setHistoryTimeConstants(history == "none" ? std::vector<double>{}
+                                                         : deep_ois::splitCommaSeparatedNumbers(history));
     }
     deep_ois::CompensationModel model(metadata, options.seed);
 
@@ -226,7 +199,7 @@ int main(int argc, char** argv) {
 
     deep_ois::TrainingRecord& record = model.metadata().training;
     record.data_files = data;
-    record.data_hash = deep_ois::fnv1aHashOfFiles(data);
+    record.data_sha256 = deep_ois::sha256OfFiles(data);
     model.save(out);
     std::ofstream yaml(stem + ".yaml");
     yaml << "# Metadata of " << out << " (also stored inside it).\n" << model.metadata().toYaml();
