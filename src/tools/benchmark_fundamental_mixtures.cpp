@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/vision/feature_tracker.h"
 #include "deep_ois/core/ground_truth/fundamental_mixtures.h"
 #include "deep_ois/core/sim/simulator.h"
+#include "deep_ois/core/vision/feature_tracker.h"
 #include "deep_ois/tools/support/command_line.h"
 
 namespace deep_ois {
@@ -169,7 +169,8 @@ int run(int pairs) {
 }  // namespace deep_ois
 
 constexpr char kDescription[] =
-    "Times the per-pair Fundamental Mixtures path of the offline ground-truth nodelet at the paper's "
+    "Times the per-pair Fundamental Mixtures path of the offline ground-truth nodelet at the "
+    "paper's "
     "360x270, single-threaded: gray conversion, uniform FAST corners, KLT tracking and "
     "estimateFundamentalMixtures. Frames come from the simulator (RE category); rendering is not "
     "timed. Prints milliseconds per pair and pairs per second.";

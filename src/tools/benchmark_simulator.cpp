@@ -90,7 +90,8 @@ int run(int frames, std::uint32_t seed, const std::vector<double>& distortion) {
 }  // namespace deep_ois
 
 constexpr char kDescription[] =
-    "Times the simulator's renderer: frames of an RE scene (photographs at depth, hand-held motion, "
+    "Times the simulator's renderer: frames of an RE scene (photographs at depth, hand-held "
+    "motion, "
     "OIS, rolling shutter, supersampling, motion blur, noise) on one thread, as one core of a data "
     "set build runs it. Prints frames per second and the per-frame median and 95th percentile in "
     "milliseconds, and whether the target (>= 20 frames/s at the median) is met.";
@@ -99,13 +100,15 @@ int main(int argc, char** argv) {
   int frames = 60;
   std::uint32_t seed = 1;
   bool with_distortion = false;
-  deep_ois::ToolCommandLine command_line("benchmark_simulator", kDescription,
-                                         "Exit status: 0 target met, 1 failed, 2 usage, 3 target missed.");
+  deep_ois::ToolCommandLine command_line(
+      "benchmark_simulator", kDescription,
+      "Exit status: 0 target met, 1 failed, 2 usage, 3 target missed.");
   command_line.addNumber("--frames", frames, "frames to render")->check(deep_ois::atLeast(1));
   command_line.addNumber("--seed", seed, "the simulator's seed");
   command_line.app().add_flag("--distortion", with_distortion,
                               "render through a phone lens's plumb_bob distortion");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   static const std::vector<double> kPhoneLensDistortion = {-0.12, 0.03, 0.0005, -0.0003, 0.0};
-  return deep_ois::sim::run(frames, seed, with_distortion ? kPhoneLensDistortion : std::vector<double>{});
+  return deep_ois::sim::run(frames, seed,
+                            with_distortion ? kPhoneLensDistortion : std::vector<double>{});
 }

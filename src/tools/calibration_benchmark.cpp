@@ -4,8 +4,8 @@
 //
 // The manifest (scripts/make_calibration_bags.sh writes it) has one line per bag,
 // "<bag> <config.yaml>", paths relative to the manifest's folder. Whether a bag has OIS is read
-// from its ground truth; OIS bags are calibrated with the per-frame lens shift (calibrate --ois on),
-// the others without. The bias truth is the config's gyro_initial_bias_vector_rad_s (the bias
+// from its ground truth; OIS bags are calibrated with the per-frame lens shift (calibrate --ois
+// on), the others without. The bias truth is the config's gyro_initial_bias_vector_rad_s (the bias
 // random walk moves it by ~1e-5 rad/s over a few seconds). --ois-rotation tf holds the rotation of
 // OIS bags at their /tf_static (calibrate --ois on --rotation tf: the mount known from a
 // recording with OIS off or from CAD), to show the timing alone.
@@ -66,20 +66,22 @@ void printSummary(const std::string& label, const std::vector<Row>& all) {
     estimation += row.estimation_s;
     if (!row.estimated) continue;
     rows.push_back(row);
-    const bool in_target = std::abs(row.offset_error_ms) <= 0.5 && std::abs(row.readout_error_ms) <= 0.5 &&
-                           row.rotation_error_deg <= 0.5;
+    const bool in_target = std::abs(row.offset_error_ms) <= 0.5 &&
+                           std::abs(row.readout_error_ms) <= 0.5 && row.rotation_error_deg <= 0.5;
     within += in_target;
     accepted += row.ok;
     accepted_within += row.ok && in_target;
     mounts += row.found_mount == row.true_mount;
   }
-  std::printf("| %s | %zu | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %d/%zu | %d/%zu | %d/%d | %.1f + %.1f |\n",
-              label.c_str(), all.size(), accepted, rms(rows, &Row::offset_error_ms),
-              maxAbs(rows, &Row::offset_error_ms), rms(rows, &Row::readout_error_ms),
-              maxAbs(rows, &Row::readout_error_ms), rms(rows, &Row::rotation_error_deg),
-              maxAbs(rows, &Row::rotation_error_deg), maxAbs(rows, &Row::bias_error_mrad_s), mounts, rows.size(),
-              within, rows.size(), accepted_within, accepted, all.empty() ? 0.0 : tracking / all.size(),
-              all.empty() ? 0.0 : estimation / all.size());
+  std::printf(
+      "| %s | %zu | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %d/%zu | %d/%zu | %d/%d "
+      "| %.1f + %.1f |\n",
+      label.c_str(), all.size(), accepted, rms(rows, &Row::offset_error_ms),
+      maxAbs(rows, &Row::offset_error_ms), rms(rows, &Row::readout_error_ms),
+      maxAbs(rows, &Row::readout_error_ms), rms(rows, &Row::rotation_error_deg),
+      maxAbs(rows, &Row::rotation_error_deg), maxAbs(rows, &Row::bias_error_mrad_s), mounts,
+      rows.size(), within, rows.size(), accepted_within, accepted,
+      all.empty() ? 0.0 : tracking / all.size(), all.empty() ? 0.0 : estimation / all.size());
 }
 
 }  // namespace
@@ -87,7 +89,8 @@ void printSummary(const std::string& label, const std::vector<Row>& all) {
 constexpr char kDescription[] =
     "Runs the camera-IMU calibration over simulator bags whose truth is in their simulator config "
     "and prints the error table (time offset and readout in ms, rotation in degrees, bias in "
-    "mrad/s), bags with a fixed lens (non-OIS) and with OIS reported apart. OIS bags are calibrated "
+    "mrad/s), bags with a fixed lens (non-OIS) and with OIS reported apart. OIS bags are "
+    "calibrated "
     "with the per-frame lens shift (calibrate --ois on), the others without. --ois-rotation tf "
     "holds the rotation of OIS bags at their /tf_static (the mount known from a recording with OIS "
     "off or from CAD), to show the timing alone.";
@@ -105,7 +108,8 @@ int main(int argc, char** argv) {
       ->check(deep_ois::existingFile())
       ->type_name("DIR/manifest.txt");
   app.add_option("--csv", csv_path, "also write one line per bag")->type_name("OUT.csv");
-  app.add_option("--ois-rotation", ois_rotation, "the rotation of OIS bags: estimated or held at /tf_static")
+  app.add_option("--ois-rotation", ois_rotation,
+                 "the rotation of OIS bags: estimated or held at /tf_static")
       ->check(deep_ois::oneOf({"tf", "estimate"}))
       ->capture_default_str()
       ->type_name("tf|estimate");
@@ -127,19 +131,24 @@ int main(int argc, char** argv) {
   if (entries.empty()) return command_line.usageError(manifest_path + " lists no bags");
 
   std::vector<Row> rows;
-  std::printf("| bag | OIS | offset ms | error ms (1-sigma) | readout ms | error ms (1-sigma) | mount | rotation error deg (1-sigma) | bias error mrad/s | residual px | result |\n"
-              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  std::printf(
+      "| bag | OIS | offset ms | error ms (1-sigma) | readout ms | error ms (1-sigma) | mount | "
+      "rotation error deg (1-sigma) | bias error mrad/s | residual px | result |\n"
+      "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (const auto& [bag_path, config_path] : entries) {
     Row row;
     row.bag = bag_path.substr(bag_path.find_last_of('/') + 1);
     try {
       const deep_ois::sim::SimulatorConfig truth = deep_ois::sim::loadSimulatorConfig(config_path);
-      const deep_ois::CalibrationBag bag = deep_ois::readCalibrationBag(bag_path, deep_ois::CalibrationBagOptions());
+      const deep_ois::CalibrationBag bag =
+          deep_ois::readCalibrationBag(bag_path, deep_ois::CalibrationBagOptions());
       row.ois = bag.simulated_ois_enabled.value_or(false);
       deep_ois::CalibrationOptions options;
-      options.lens_shift = row.ois ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
+      options.lens_shift = row.ois ? deep_ois::LensShiftHandling::kPerFrameShift
+                                   : deep_ois::LensShiftHandling::kNone;
       if (row.ois && hold_ois_rotation) {
-        if (!bag.tf_imu_to_camera_rotation) throw std::runtime_error(bag_path + ": no /tf_static rotation to hold");
+        if (!bag.tf_imu_to_camera_rotation)
+          throw std::runtime_error(bag_path + ": no /tf_static rotation to hold");
         options.estimate_rotation = false;
         options.imu_to_camera_rotation = *bag.tf_imu_to_camera_rotation;
       }
@@ -156,10 +165,12 @@ int main(int argc, char** argv) {
       row.readout_sigma_ms = c.readout_time_sigma_s * 1e3;
       row.true_mount = deep_ois::nearestSignedAxisPermutation(truth.imu.imu_to_camera_rotation);
       row.found_mount = deep_ois::nearestSignedAxisPermutation(c.imu_to_camera_rotation);
-      row.rotation_error_deg =
-          deep_ois::rotationAngleBetween(c.imu_to_camera_rotation, truth.imu.imu_to_camera_rotation) * kRadToDeg;
+      row.rotation_error_deg = deep_ois::rotationAngleBetween(c.imu_to_camera_rotation,
+                                                              truth.imu.imu_to_camera_rotation) *
+                               kRadToDeg;
       row.rotation_sigma_deg = c.rotation_sigma_rad.maxCoeff() * kRadToDeg;
-      const Eigen::Vector3d true_bias = truth.imu.gyro_initial_bias_vector_rad_s.value_or(Eigen::Vector3d::Zero());
+      const Eigen::Vector3d true_bias =
+          truth.imu.gyro_initial_bias_vector_rad_s.value_or(Eigen::Vector3d::Zero());
       row.bias_error_mrad_s = (c.gyro_bias_rad_s - true_bias).norm() * 1e3;
       row.median_residual_px = result.median_residual_px;
       row.tracking_s = bag.tracking_seconds;
@@ -167,37 +178,46 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
       row.reason = e.what();
     }
-    std::printf("| %s | %s | %+.2f | %+.3f (%.3f) | %.2f | %+.3f (%.3f) | %d%s | %.3f (%.3f) | %.3f | %.3f | %s |\n",
-                row.bag.c_str(), row.ois ? "on" : "off", row.true_offset_ms, row.offset_error_ms, row.offset_sigma_ms,
-                row.true_readout_ms, row.readout_error_ms, row.readout_sigma_ms, row.true_mount,
-                row.found_mount == row.true_mount ? "" : " (wrong)", row.rotation_error_deg, row.rotation_sigma_deg,
-                row.bias_error_mrad_s,
-                row.median_residual_px, row.ok ? "ok" : ("refused: " + row.reason).c_str());
+    std::printf(
+        "| %s | %s | %+.2f | %+.3f (%.3f) | %.2f | %+.3f (%.3f) | %d%s | %.3f (%.3f) | %.3f | %.3f "
+        "| %s |\n",
+        row.bag.c_str(), row.ois ? "on" : "off", row.true_offset_ms, row.offset_error_ms,
+        row.offset_sigma_ms, row.true_readout_ms, row.readout_error_ms, row.readout_sigma_ms,
+        row.true_mount, row.found_mount == row.true_mount ? "" : " (wrong)", row.rotation_error_deg,
+        row.rotation_sigma_deg, row.bias_error_mrad_s, row.median_residual_px,
+        row.ok ? "ok" : ("refused: " + row.reason).c_str());
     std::fflush(stdout);
     rows.push_back(row);
   }
 
   std::vector<Row> fixed_lens, ois;
   for (const Row& row : rows) (row.ois ? ois : fixed_lens).push_back(row);
-  std::printf("\n| bags | n | accepted | offset RMS ms | offset max ms | readout RMS ms | readout max ms | rotation RMS deg | rotation max deg | bias max mrad/s | mount right | within 0.5 ms / 0.5 ms / 0.5 deg | accepted and within | s per bag (KLT + estimation) |\n"
-              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf(
+      "\n| bags | n | accepted | offset RMS ms | offset max ms | readout RMS ms | readout max ms | "
+      "rotation RMS deg | rotation max deg | bias max mrad/s | mount right | within 0.5 ms / 0.5 "
+      "ms / 0.5 deg | accepted and within | s per bag (KLT + estimation) |\n"
+      "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   printSummary("non-OIS", fixed_lens);
   printSummary("OIS", ois);
 
   if (!csv_path.empty()) {
     std::ofstream csv(csv_path);
-    csv << "bag,ois,ok,true_offset_ms,offset_error_ms,offset_sigma_ms,true_readout_ms,readout_error_ms,"
-           "readout_sigma_ms,true_mount,found_mount,rotation_error_deg,rotation_sigma_deg,bias_error_mrad_s,"
+    csv << "bag,ois,ok,true_offset_ms,offset_error_ms,offset_sigma_ms,true_readout_ms,readout_"
+           "error_ms,"
+           "readout_sigma_ms,true_mount,found_mount,rotation_error_deg,rotation_sigma_deg,bias_"
+           "error_mrad_s,"
            "median_residual_px,tracking_s,estimation_s\n";
     for (const Row& r : rows) {
-      csv << r.bag << "," << r.ois << "," << r.ok << "," << r.true_offset_ms << "," << r.offset_error_ms << ","
-          << r.offset_sigma_ms << "," << r.true_readout_ms << "," << r.readout_error_ms << "," << r.readout_sigma_ms
-          << "," << r.true_mount << "," << r.found_mount << "," << r.rotation_error_deg << "," << r.rotation_sigma_deg
-          << "," << r.bias_error_mrad_s << "," << r.median_residual_px << "," << r.tracking_s << ","
+      csv << r.bag << "," << r.ois << "," << r.ok << "," << r.true_offset_ms << ","
+          << r.offset_error_ms << "," << r.offset_sigma_ms << "," << r.true_readout_ms << ","
+          << r.readout_error_ms << "," << r.readout_sigma_ms << "," << r.true_mount << ","
+          << r.found_mount << "," << r.rotation_error_deg << "," << r.rotation_sigma_deg << ","
+          << r.bias_error_mrad_s << "," << r.median_residual_px << "," << r.tracking_s << ","
           << r.estimation_s << "\n";
     }
     if (!csv) std::fprintf(stderr, "calibration_benchmark: cannot write %s\n", csv_path.c_str());
   }
-  const bool all_estimated = std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.estimated; });
+  const bool all_estimated =
+      std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.estimated; });
   return all_estimated ? 0 : 1;
 }

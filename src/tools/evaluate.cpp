@@ -15,10 +15,10 @@
 // (tools/support/evaluation_runner.h); this file parses flags and writes the outputs.
 #include <ros/package.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
-#include <algorithm>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -39,7 +39,8 @@ constexpr char kDescription[] =
     "identity error, a method without an estimate scored as identity, Avg = mean of the category "
     "means. Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC; the gyro on the non-OIS and the "
     "OIS camera, uncompensated; the global F and Fundamental Mixtures ground truths; the shipped "
-    "model. With --recorded, the flows the live nodelets published during a replay of the same bags "
+    "model. With --recorded, the flows the live nodelets published during a replay of the same "
+    "bags "
     "are scored too and must equal the offline rows. --out writes evaluation.csv, evaluation.json, "
     "evaluation_pairs.csv, bar charts and ghost images.";
 constexpr char kFooter[] =
@@ -58,39 +59,48 @@ int main(int argc, char** argv) {
   bool no_image_baselines = false, no_ground_truth = false, no_model = false, no_progress = false;
   deep_ois::ToolCommandLine command_line("evaluate", kDescription, kFooter);
   CLI::App& app = command_line.app();
-  app.add_option("--bags", options.bags, "the recordings (simulator bags, or recordings with --annotations)")
+  app.add_option("--bags", options.bags,
+                 "the recordings (simulator bags, or recordings with --annotations)")
       ->required()
       ->type_name("FILE.bag");
-  app.add_option("--out", out_dir, "write the table, the pairs, plots and ghost images here")->type_name("DIR");
-  app.add_option("--gyro-config", gyro_config,
-                 "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
+  app.add_option("--out", out_dir, "write the table, the pairs, plots and ghost images here")
+      ->type_name("DIR");
+  app.add_option(
+         "--gyro-config", gyro_config,
+         "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
       ->check(deep_ois::existingFile())
       ->type_name("FILE.yaml");
-  app.add_option("--annotations", annotations, "point correspondences of recordings without simulator truth")
+  app.add_option("--annotations", annotations,
+                 "point correspondences of recordings without simulator truth")
       ->check(deep_ois::existingFile())
       ->type_name("FILE.csv");
   app.add_option("--camera", camera, "which gyro row the --annotations recordings belong to")
       ->check(deep_ois::oneOf({"ois", "non-ois"}))
       ->type_name("ois|non-ois");
-  command_line.addNumber("--ghost-pairs", options.ghost_pairs_per_category,
-                         "ghost images per category (0: none)")
+  command_line
+      .addNumber("--ghost-pairs", options.ghost_pairs_per_category,
+                 "ghost images per category (0: none)")
       ->check(deep_ois::atLeast(0));
-  command_line.addNumber("--ghost-zoom", options.ghost_zoom,
-                         "ghost panels show the centre 1/N of the frame magnified N times (1: whole frame)")
+  command_line
+      .addNumber("--ghost-zoom", options.ghost_zoom,
+                 "ghost panels show the centre 1/N of the frame magnified N times (1: whole frame)")
       ->check(deep_ois::atLeast(0));
   command_line.addNumber("--max-pairs", options.max_pairs_per_bag,
                          "score only the first pairs of each bag (0: all)");
   app.add_flag("--no-image-baselines", no_image_baselines, "leave out the SIFT / ORB / AKAZE rows");
-  app.add_flag("--no-ground-truth", no_ground_truth, "leave out the global F and Fundamental Mixtures rows");
+  app.add_flag("--no-ground-truth", no_ground_truth,
+               "leave out the global F and Fundamental Mixtures rows");
   app.add_flag("--no-progress", no_progress, "no progress bar");
   CLI::Option* model_option =
-      app.add_option("--model", model_path, "the model row's network (default: the package's models/fast.pt)")
+      app.add_option("--model", model_path,
+                     "the model row's network (default: the package's models/fast.pt)")
           ->check(deep_ois::existingFile())
           ->type_name("FILE.pt");
   app.add_flag("--no-model", no_model, "leave out the model row")->excludes(model_option);
   command_line.addNumber("--torch-threads", torch_threads, "torch threads of the model row")
       ->check(deep_ois::atLeast(1));
-  app.add_option("--recorded", recorded, "rosbag record of the live nodelets' gyro_flow and compensated_flow")
+  app.add_option("--recorded", recorded,
+                 "rosbag record of the live nodelets' gyro_flow and compensated_flow")
       ->check(deep_ois::existingFile())
       ->type_name("LIVE.bag");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
@@ -99,7 +109,8 @@ int main(int argc, char** argv) {
   options.show_progress = !no_progress;
   if (no_model) model_path.clear();
   if (gyro_config.empty()) {
-    return command_line.usageError("package deep_ois not found (source its setup.bash), so pass --gyro-config");
+    return command_line.usageError(
+        "package deep_ois not found (source its setup.bash), so pass --gyro-config");
   }
   if (!camera.empty() && annotations.empty()) {
     return command_line.usageError("--camera applies to --annotations recordings only");
@@ -117,7 +128,8 @@ int main(int argc, char** argv) {
 #else
   // Built without libtorch: only an explicit --model is an error, the default row is left out.
   if (model_option->count() > 0) {
-    return command_line.usageError("--model: this build has no compensation network (built without libtorch)");
+    return command_line.usageError(
+        "--model: this build has no compensation network (built without libtorch)");
   }
   model_path.clear();
   const std::unique_ptr<int> model;  // no model row
@@ -134,15 +146,17 @@ int main(int argc, char** argv) {
 #ifdef DEEP_OIS_WITH_TORCH
     if (!model_path.empty()) {
       deep_ois::setTorchThreads(torch_threads);
-      model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(model_path));
+      model = std::make_unique<deep_ois::CompensationModel>(
+          deep_ois::CompensationModel::load(model_path));
       auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
       auto recording = std::make_shared<std::uint64_t>(0);
-      runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")", deep_ois::kOisCameraPairs,
+      runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")",
+                        deep_ois::kOisCameraPairs,
                         [stream, recording](const deep_ois::FramePairContext& pair) {
                           if (pair.recording_id != *recording) stream->reset();
                           *recording = pair.recording_id;
-                          return deep_ois::AlignmentEstimate::gridFlow(
-                              stream->compensate(pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
+                          return deep_ois::AlignmentEstimate::gridFlow(stream->compensate(
+                              pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
                         }});
     }
 #else
@@ -155,15 +169,19 @@ int main(int argc, char** argv) {
       live_compensated = deep_ois::readRecordedFlows(recorded, "/deep_ois/compensated_flow");
       // The gyro row is scored on the recorded homographies (as the offline gyro row), the model's
       // on the recorded grid flow (as the offline model row): like with like, so they must agree.
-      auto recordedMethod = [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
-                               bool use_homographies) {
-        return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
-          const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
-          if (found == flows.end()) return deep_ois::AlignmentEstimate::failed("not in the recording");
-          return use_homographies ? deep_ois::AlignmentEstimate::patchHomographies(found->second.homographies)
-                                  : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
-        };
-      };
+      auto recordedMethod =
+          [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
+             bool use_homographies) {
+            return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
+              const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
+              if (found == flows.end())
+                return deep_ois::AlignmentEstimate::failed("not in the recording");
+              return use_homographies
+                         ? deep_ois::AlignmentEstimate::patchHomographies(
+                               found->second.homographies)
+                         : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
+            };
+          };
       runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs,
                         recordedMethod(live_gyro, true)});
       runner.addMethod({"DeepOIS (live nodelets, recorded)", deep_ois::kOisCameraPairs,
@@ -206,7 +224,8 @@ int main(int argc, char** argv) {
     // Replay parity: the live nodelets' flows against the same computation offline, pair by pair.
     constexpr double kParityTolerancePx = 1e-3;
 #ifdef DEEP_OIS_WITH_TORCH
-    const std::string model_row = model ? "DeepOIS, shipped model (" + model->metadata().preset + ")" : "";
+    const std::string model_row =
+        model ? "DeepOIS, shipped model (" + model->metadata().preset + ")" : "";
 #else
     const std::string model_row;
 #endif
@@ -216,10 +235,12 @@ int main(int argc, char** argv) {
     std::printf("\nreplay parity (live nodelets recorded in %s vs offline):\n", recorded.c_str());
     for (const auto& [offline, live] : comparisons) {
       const deep_ois::MethodAgreement agreement = deep_ois::compareMethods(report, offline, live);
-      const bool agrees = agreement.pairs_compared > 0 && agreement.max_abs_difference_px <= kParityTolerancePx;
-      std::printf("- %s: %zu pairs compared, largest difference %.6f px, %zu not in the recording: %s\n",
-                  live.c_str(), agreement.pairs_compared, agreement.max_abs_difference_px,
-                  agreement.missing_in_second, agrees ? "same numbers" : "DIFFERENT");
+      const bool agrees =
+          agreement.pairs_compared > 0 && agreement.max_abs_difference_px <= kParityTolerancePx;
+      std::printf(
+          "- %s: %zu pairs compared, largest difference %.6f px, %zu not in the recording: %s\n",
+          live.c_str(), agreement.pairs_compared, agreement.max_abs_difference_px,
+          agreement.missing_in_second, agrees ? "same numbers" : "DIFFERENT");
       if (!agrees) parity_failed = true;
     }
   }

@@ -29,11 +29,11 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/evaluation/results_table.h"
-#include "deep_ois/core/vision/feature_tracker.h"
-#include "deep_ois/core/ground_truth/fundamental_mixtures.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/evaluation/results_table.h"
+#include "deep_ois/core/ground_truth/fundamental_mixtures.h"
 #include "deep_ois/core/gyro/orientation_integrator.h"
+#include "deep_ois/core/vision/feature_tracker.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
 #include "deep_ois/ros/messages/conversions.h"
@@ -104,10 +104,13 @@ std::string twinLabel(bool ois) { return ois ? "OIS" : "non-OIS"; }
 
 constexpr char kDescription[] =
     "Scores the Fundamental Mixtures ground truth against the simulator's exact truth, next to the "
-    "paper's ablation (one global fundamental matrix), per category: the rotation error (median over "
+    "paper's ablation (one global fundamental matrix), per category: the rotation error (median "
+    "over "
     "pairs of the mean over row patches of the angle to the true patch rotation, degrees; non-OIS "
-    "bags only) and the geometry distance of the rotation-only homographies on the annotated points "
-    "(pixels, capped at identity; with the true rotation-only motion as the floor). Both methods are "
+    "bags only) and the geometry distance of the rotation-only homographies on the annotated "
+    "points "
+    "(pixels, capped at identity; with the true rotation-only motion as the floor). Both methods "
+    "are "
     "scored on the pairs that both accepted. The tracker and solver run with the offline job's "
     "defaults; the flags override solver options (for the study behind the defaults).";
 
@@ -120,25 +123,33 @@ int main(int argc, char** argv) {
                                          "Exit status: 0 done, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
   app.add_option("--bags", bags, "simulator bags")->required()->type_name("FILE.bag");
-  app.add_option("--out", out_dir, "write fundamental_mixtures_pairs.csv (one line per pair and method) here")
+  app.add_option("--out", out_dir,
+                 "write fundamental_mixtures_pairs.csv (one line per pair and method) here")
       ->type_name("DIR");
-  command_line.addNumber("--sigma", solver.weight_sigma_fraction,
-                         "Gaussian weight sigma of the patch mixture, fraction of the image height")
+  command_line
+      .addNumber("--sigma", solver.weight_sigma_fraction,
+                 "Gaussian weight sigma of the patch mixture, fraction of the image height")
       ->type_name("FRACTION");
-  command_line.addNumber("--lambda", solver.smoothness_lambda,
-                         "weight of a smoothness tie row relative to a data row")
+  command_line
+      .addNumber("--lambda", solver.smoothness_lambda,
+                 "weight of a smoothness tie row relative to a data row")
       ->type_name("L");
-  app.add_flag("--unit-norm", unit_norm, "the paper's literal ||f|| = 1 (well posed only with a sigma of several percent of the height)");
-  command_line.addNumber("--rotation-tie", solver.rotation_tie_lambda,
-                         "weight tying neighbouring patch rotations (0: none)")
+  app.add_flag("--unit-norm", unit_norm,
+               "the paper's literal ||f|| = 1 (well posed only with a sigma of several percent of "
+               "the height)");
+  command_line
+      .addNumber("--rotation-tie", solver.rotation_tie_lambda,
+                 "weight tying neighbouring patch rotations (0: none)")
       ->type_name("L");
   app.add_flag("--paper-selection", paper_selection,
                "keep the F rotations whenever F can be decomposed, as the paper does");
-  command_line.addNumber("--max-parallax-share", solver.max_parallax_share,
-                         "share of F inliers the rotation-only fit may reject before F is used")
+  command_line
+      .addNumber("--max-parallax-share", solver.max_parallax_share,
+                 "share of F inliers the rotation-only fit may reject before F is used")
       ->type_name("S");
-  command_line.addNumber("--inlier-threshold", solver.inlier_threshold_px,
-                         "inlier threshold of the refined per-patch models, pixels")
+  command_line
+      .addNumber("--inlier-threshold", solver.inlier_threshold_px,
+                 "inlier threshold of the refined per-patch models, pixels")
       ->type_name("PX");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   if (unit_norm) solver.scale_gauge = deep_ois::MixtureScaleGauge::kUnitNorm;

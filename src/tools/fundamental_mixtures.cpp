@@ -17,8 +17,8 @@
 
 #include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
 #include "deep_ois/ros/live/parameter_source.h"
-#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
 
@@ -34,7 +34,8 @@ void onStopSignal(int signal_number) {
 
 constexpr char kDescription[] =
     "Writes the Fundamental Mixtures training set of some recordings, without a roscore: one "
-    "deep_ois/TrainingPair per consecutive frame pair (gyro homographies in, rotation-only target). "
+    "deep_ois/TrainingPair per consecutive frame pair (gyro homographies in, rotation-only "
+    "target). "
     "Progress on stderr, the summary on stdout. Ctrl-C (or SIGTERM) closes the output after the "
     "current pair, with every pair done so far; a second Ctrl-C aborts at once (the output is then "
     "left unindexed: `rosbag reindex` recovers it).";
@@ -44,23 +45,34 @@ int main(int argc, char** argv) {
   // The nodelet's own parameter file, wherever the package is (source checkout or install).
   const std::string package = ros::package::getPath("deep_ois");
   std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
-  deep_ois::ToolCommandLine command_line(
-      "fundamental_mixtures", kDescription,
-      "Exit status: 0 all bags done, 1 nothing could be done, 2 usage, 3 some bags failed, 130 stopped.");
+  deep_ois::ToolCommandLine command_line("fundamental_mixtures", kDescription,
+                                         "Exit status: 0 all bags done, 1 nothing could be done, 2 "
+                                         "usage, 3 some bags failed, 130 stopped.");
   CLI::App& app = command_line.app();
   app.add_option("--bags", options.bags, "the recordings")->required()->type_name("FILE.bag");
-  app.add_option("--out", options.output_path, "the training set to write")->required()->type_name("TRAIN.bag");
-  app.add_option("--gyro-config", gyro_config,
-                 "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
+  app.add_option("--out", options.output_path, "the training set to write")
+      ->required()
+      ->type_name("TRAIN.bag");
+  app.add_option(
+         "--gyro-config", gyro_config,
+         "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
       ->check(deep_ois::existingFile())
       ->type_name("FILE.yaml");
-  app.add_option("--image-topic", options.topics.image, "image topic")->capture_default_str()->type_name("TOPIC");
-  app.add_option("--camera-info-topic", options.topics.camera_info, "camera_info topic")->capture_default_str()->type_name("TOPIC");
-  app.add_option("--imu-topic", options.topics.imu, "IMU topic (sensor_msgs/Imu)")->capture_default_str()->type_name("TOPIC");
-  app.add_flag("--global", options.global_fundamental, "one global fundamental matrix instead of the mixture");
+  app.add_option("--image-topic", options.topics.image, "image topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_option("--camera-info-topic", options.topics.camera_info, "camera_info topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_option("--imu-topic", options.topics.imu, "IMU topic (sensor_msgs/Imu)")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_flag("--global", options.global_fundamental,
+               "one global fundamental matrix instead of the mixture");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   if (gyro_config.empty()) {
-    return command_line.usageError("package deep_ois not found (source its setup.bash), so pass --gyro-config");
+    return command_line.usageError(
+        "package deep_ois not found (source its setup.bash), so pass --gyro-config");
   }
 
   try {

@@ -33,13 +33,15 @@ struct PairStats {
   double stamp_s;
   double mean_flow_px;     // mean |flow| over the grid, grid pixels
   double max_flow_px;      // max |flow|, grid pixels
-  double patch_spread_px;  // largest displacement difference between patches at the image centre, camera pixels
+  double patch_spread_px;  // largest displacement difference between patches at the image centre,
+                           // camera pixels
 };
 
 }  // namespace
 
 constexpr char kDescription[] =
-    "Listens to a gyro_flow topic (remap it: gyro_flow:=/deep_ois/gyro_flow) and prints a summary of "
+    "Listens to a gyro_flow topic (remap it: gyro_flow:=/deep_ois/gyro_flow) and prints a summary "
+    "of "
     "what was published: how many frame pairs of the bag got a flow, the flow magnitudes (grid "
     "pixels), and how much the rolling-shutter patches differ (camera pixels). Exits when every "
     "pair of the bag has arrived or the topic stays silent; the demo launch marks it required, so "
@@ -47,8 +49,9 @@ constexpr char kDescription[] =
 
 int main(int argc, char** argv) {
   Options options;
-  deep_ois::ToolCommandLine command_line("gyro_flow_summary", kDescription,
-                                         "Exit status: 0 every pair summarised, 1 failed, 2 usage.");
+  deep_ois::ToolCommandLine command_line(
+      "gyro_flow_summary", kDescription,
+      "Exit status: 0 every pair summarised, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
   app.add_option("--bag", options.bag, "the bag being played (its frames are counted)")
       ->required()
@@ -56,11 +59,13 @@ int main(int argc, char** argv) {
   app.add_option("--image-topic", options.image_topic, "image topic of the bag")
       ->capture_default_str()
       ->type_name("TOPIC");
-  command_line.addNumber("--idle-timeout", options.idle_timeout_s,
-                         "exit when the topic stays silent this long after a message, seconds")
+  command_line
+      .addNumber("--idle-timeout", options.idle_timeout_s,
+                 "exit when the topic stays silent this long after a message, seconds")
       ->type_name("SECONDS");
-  command_line.addNumber("--start-timeout", options.start_timeout_s,
-                         "exit when no message arrives this long after the start, seconds")
+  command_line
+      .addNumber("--start-timeout", options.start_timeout_s,
+                 "exit when no message arrives this long after the start, seconds")
       ->type_name("SECONDS");
   // Remappings and special names (gyro_flow:=/x, __name:=y, as roslaunch passes) are ros::init's;
   // CLI11 sees the rest.
@@ -148,20 +153,24 @@ int main(int argc, char** argv) {
     return 1;
   }
   const auto& m = first_message;
-  std::printf("camera:              %ux%u, fx %.2f fy %.2f cx %.2f cy %.2f px, frame %s\n", m.image_width,
-              m.image_height, m.K[0], m.K[4], m.K[2], m.K[5], m.header.frame_id.c_str());
-  std::printf("model:               %u patches, readout %.4f s, time offset %.4f s\n", m.patch_count,
-              m.readout_time, m.time_offset);
-  std::printf("flow grid:           %ux%u (%s)\n", m.flow.width, m.flow.height, m.flow.encoding.c_str());
+  std::printf("camera:              %ux%u, fx %.2f fy %.2f cx %.2f cy %.2f px, frame %s\n",
+              m.image_width, m.image_height, m.K[0], m.K[4], m.K[2], m.K[5],
+              m.header.frame_id.c_str());
+  std::printf("model:               %u patches, readout %.4f s, time offset %.4f s\n",
+              m.patch_count, m.readout_time, m.time_offset);
+  std::printf("flow grid:           %ux%u (%s)\n", m.flow.width, m.flow.height,
+              m.flow.encoding.c_str());
   double mean = 0.0, max = 0.0, spread = 0.0;
   for (const auto& p : pairs) {
     mean += p.mean_flow_px;
     max = std::max(max, p.max_flow_px);
     spread += p.patch_spread_px;
   }
-  std::printf("mean |flow|:         %.3f grid px (largest %.3f grid px)\n", mean / pairs.size(), max);
-  std::printf("rolling shutter:     patches disagree by %.3f camera px at the image centre on average\n",
-              spread / pairs.size());
+  std::printf("mean |flow|:         %.3f grid px (largest %.3f grid px)\n", mean / pairs.size(),
+              max);
+  std::printf(
+      "rolling shutter:     patches disagree by %.3f camera px at the image centre on average\n",
+      spread / pairs.size());
   std::printf("first/last pair:     %.6f .. %.6f s\n", pairs.front().stamp_s, pairs.back().stamp_s);
   std::printf("===========================\n");
   std::fflush(stdout);

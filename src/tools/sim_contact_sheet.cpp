@@ -17,15 +17,18 @@ namespace {
 cv::Mat captioned(const cv::Mat& rgb, const std::string& caption) {
   cv::Mat panel(rgb.rows + 22, rgb.cols, CV_8UC3, cv::Scalar(255, 255, 255));
   rgb.copyTo(panel(cv::Rect(0, 22, rgb.cols, rgb.rows)));
-  cv::putText(panel, caption, cv::Point(4, 16), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(panel, caption, cv::Point(4, 16), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0),
+              1, cv::LINE_AA);
   return panel;
 }
 
 }  // namespace
 
 constexpr char kDescription[] =
-    "Draws a PNG contact sheet of the simulator: one row per category (RE, LT, LL, MF) with frame a, "
-    "frame b and the ghost overlay (red channel of b over a: misalignment shows as colour fringes).";
+    "Draws a PNG contact sheet of the simulator: one row per category (RE, LT, LL, MF) with frame "
+    "a, "
+    "frame b and the ghost overlay (red channel of b over a: misalignment shows as colour "
+    "fringes).";
 
 int main(int argc, char** argv) {
   std::string out, config_dir = std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator";
@@ -33,7 +36,9 @@ int main(int argc, char** argv) {
   deep_ois::ToolCommandLine command_line("sim_contact_sheet", kDescription,
                                          "Exit status: 0 written, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
-  app.add_option("--out", out, "the sheet, e.g. docs/simulator_contact_sheet.png")->required()->type_name("FILE.png");
+  app.add_option("--out", out, "the sheet, e.g. docs/simulator_contact_sheet.png")
+      ->required()
+      ->type_name("FILE.png");
   command_line.addNumber("--seed", seed, "the simulator's seed");
   app.add_option("--config-dir", config_dir, "folder with RE.yaml, LT.yaml, LL.yaml and MF.yaml")
       ->check(deep_ois::existingDirectory())
@@ -48,8 +53,9 @@ int main(int argc, char** argv) {
       const int k = 10;  // a pair well inside the sequence
       const cv::Mat a = simulator.renderFrame(k - 1), b = simulator.renderFrame(k);
       const std::string label = std::string(name) + (config.ois.enabled ? " (OIS on)" : "");
-      std::vector<cv::Mat> panels = {captioned(a, label + ": frame a"), captioned(b, "frame b"),
-                                     captioned(deep_ois::ghostOverlay(a, b), "ghost: red of b over a")};
+      std::vector<cv::Mat> panels = {
+          captioned(a, label + ": frame a"), captioned(b, "frame b"),
+          captioned(deep_ois::ghostOverlay(a, b), "ghost: red of b over a")};
       cv::Mat row;
       cv::hconcat(panels, row);
       rows.push_back(row);

@@ -11,10 +11,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/core/sim/simulator.h"
-#include "deep_ois/tools/support/simulation_bag_writer.h"
 #include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace {
 
@@ -25,7 +25,8 @@ void onSignal(int) { g_stop = true; }
 
 constexpr char kDescription[] =
     "Writes a simulated OIS (or non-OIS twin) camera sequence with exact ground truth to a rosbag: "
-    "the camera, IMU, tf and camera_info topics a real robot would record, plus ground-truth topics "
+    "the camera, IMU, tf and camera_info topics a real robot would record, plus ground-truth "
+    "topics "
     "(true per-row motion, OIS lens shift, annotated point correspondences, category). Same config "
     "and seed -> identical bag content. Ctrl-C closes the bag after the current frame.";
 
@@ -41,7 +42,9 @@ int main(int argc, char** argv) {
       ->required()
       ->check(deep_ois::existingFile())
       ->type_name("FILE.yaml");
-  command_line.addNumber("--seed", seed, "the simulator's seed, 0..4294967295")->required()->default_str("");
+  command_line.addNumber("--seed", seed, "the simulator's seed, 0..4294967295")
+      ->required()
+      ->default_str("");
   command_line.addNumber("--duration", duration_s, "length of the sequence, seconds (> 0)")
       ->required()
       ->default_str("")
@@ -77,12 +80,14 @@ int main(int argc, char** argv) {
         simulator, out_path, compression, deep_ois::SimulationBagTopics{}, progress, &g_stop);
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    std::printf("simulate: %s: %s, OIS %s, seed %u, %d frames %dx%d, %d frame pairs with %d "
-                "correspondences, %d IMU samples, %d lens-shift samples, %.1f s%s\n",
-                out_path.c_str(), deep_ois::sim::toString(config.category), config.ois.enabled ? "on" : "off",
-                seed, stats.frames, config.sensor.width_px, config.sensor.height_px, stats.frame_pairs,
-                stats.correspondences, stats.imu_messages, stats.lens_shift_messages, elapsed,
-                stats.interrupted ? " (interrupted: the bag holds the frames written so far)" : "");
+    std::printf(
+        "simulate: %s: %s, OIS %s, seed %u, %d frames %dx%d, %d frame pairs with %d "
+        "correspondences, %d IMU samples, %d lens-shift samples, %.1f s%s\n",
+        out_path.c_str(), deep_ois::sim::toString(config.category),
+        config.ois.enabled ? "on" : "off", seed, stats.frames, config.sensor.width_px,
+        config.sensor.height_px, stats.frame_pairs, stats.correspondences, stats.imu_messages,
+        stats.lens_shift_messages, elapsed,
+        stats.interrupted ? " (interrupted: the bag holds the frames written so far)" : "");
     return stats.interrupted ? 130 : 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "simulate: %s\n", e.what());

@@ -1,28 +1,27 @@
 // Trains the compensation network on training-set bags of the Fundamental Mixtures job (flags:
 // `train --help`, docs/command_line_tools.md).
-#include <opencv2/imgcodecs.hpp>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <memory>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <set>
 #include <string>
 #include <vector>
 
-#include "deep_ois/tools/support/command_line.h"
-#include "deep_ois/tools/support/dataset_hash.h"
-#include "deep_ois/tools/support/line_plot.h"
 #include "deep_ois/core/common/portable_random.h"
-#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/flow_trainer.h"
 #include "deep_ois/ros/bag/training_set_reader.h"
+#include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/dataset_hash.h"
+#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
 
@@ -31,11 +30,13 @@ void onSignal(int) { g_stop_requested = true; }
 
 // Whole recordings go to validation (pairs of one recording are correlated): a seeded choice of
 // ceil(fraction * recordings) of them; with a single recording, its last pairs.
-void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double fraction, unsigned seed,
-                      std::vector<deep_ois::TrainingSample>& train, std::vector<deep_ois::TrainingSample>& validation) {
+void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double fraction,
+                      unsigned seed, std::vector<deep_ois::TrainingSample>& train,
+                      std::vector<deep_ois::TrainingSample>& validation) {
   std::vector<std::string> sources;
   for (const auto& sample : all) {
-    if (std::find(sources.begin(), sources.end(), sample.source) == sources.end()) sources.push_back(sample.source);
+    if (std::find(sources.begin(), sources.end(), sample.source) == sources.end())
+      sources.push_back(sample.source);
   }
   if (fraction <= 0.0) {
     train = all;
@@ -53,13 +54,17 @@ void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double f
     const auto j = static_cast<std::size_t>(deep_ois::uniform01(rng) * static_cast<double>(i));
     std::swap(sources[i - 1], sources[std::min(j, i - 1)]);
   }
-  const auto held_out = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(fraction * sources.size())));
-  const std::set<std::string> validation_sources(sources.begin(), sources.begin() + static_cast<std::ptrdiff_t>(held_out));
-  for (const auto& sample : all) (validation_sources.count(sample.source) ? validation : train).push_back(sample);
+  const auto held_out =
+      std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(fraction * sources.size())));
+  const std::set<std::string> validation_sources(
+      sources.begin(), sources.begin() + static_cast<std::ptrdiff_t>(held_out));
+  for (const auto& sample : all)
+    (validation_sources.count(sample.source) ? validation : train).push_back(sample);
 }
 
 std::string stripSuffix(const std::string& path, const std::string& suffix) {
-  if (path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
+  if (path.size() > suffix.size() &&
+      path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
     return path.substr(0, path.size() - suffix.size());
   }
   return path;
@@ -70,9 +75,11 @@ std::string stripSuffix(const std::string& path, const std::string& suffix) {
 constexpr char kDescription[] =
     "Trains the compensation network on training-set bags of the Fundamental Mixtures job. Writes "
     "NAME.pt (weights + metadata, with the SHA-256 of the training bags), NAME.yaml (the metadata, "
-    "for people), NAME_loss.png and, during training, NAME.checkpoint.pt (after every epoch; Ctrl-C "
+    "for people), NAME_loss.png and, during training, NAME.checkpoint.pt (after every epoch; "
+    "Ctrl-C "
     "writes it too; --resume goes on from it). Losses and errors are in working-grid pixels.";
-constexpr char kFooter[] = "Exit status: 0 trained, 1 failed, 2 usage, 130 stopped (checkpoint written).";
+constexpr char kFooter[] =
+    "Exit status: 0 trained, 1 failed, 2 usage, 130 stopped (checkpoint written).";
 
 int main(int argc, char** argv) {
   std::vector<std::string> data;
@@ -88,7 +95,9 @@ int main(int argc, char** argv) {
   app.add_option("--data", data, "training-set bags (fundamental_mixtures output)")
       ->required()
       ->type_name("FILE.bag");
-  app.add_option("--out", out, "the model file, e.g. models/NAME.pt")->required()->type_name("FILE.pt");
+  app.add_option("--out", out, "the model file, e.g. models/NAME.pt")
+      ->required()
+      ->type_name("FILE.pt");
   app.add_option("--preset", preset, "architecture and working grid")
       ->check(deep_ois::oneOf({"fast", "paper"}))
       ->capture_default_str()
@@ -100,7 +109,8 @@ int main(int argc, char** argv) {
   command_line.addNumber("--beta2", options.beta2, "Adam beta2");
   command_line.addNumber("--lr-decay-epochs", options.lr_decay_every_epochs,
                          "multiply the learning rate by --lr-decay-factor every this many epochs");
-  command_line.addNumber("--lr-decay-factor", options.lr_decay_factor, "learning-rate decay factor");
+  command_line.addNumber("--lr-decay-factor", options.lr_decay_factor,
+                         "learning-rate decay factor");
   app.add_option("--loss", options.loss, "per flow component, working-grid pixels")
       ->check(deep_ois::oneOf({"l1", "l2"}))
       ->capture_default_str()
@@ -128,7 +138,8 @@ int main(int argc, char** argv) {
           ""))
       ->type_name("none|S,S,...");
   // The UNet's level widths instead of the preset's (the preset becomes "custom").
-  app.add_option("--widths", widths, "UNet level widths instead of the preset's (preset becomes custom)")
+  app.add_option("--widths", widths,
+                 "UNet level widths instead of the preset's (preset becomes custom)")
       ->delimiter(',')
       ->check(deep_ois::strictNumber<int>())
       ->type_name("W,W,...");
@@ -147,24 +158,30 @@ int main(int argc, char** argv) {
       metadata.preset = "custom";
     }
     if (history != "preset") {
-      metadata.setHistoryTimeConstants(history == "none" ? std::vector<double>{}
-                                                         : deep_ois::splitCommaSeparatedNumbers(history));
+      metadata.setHistoryTimeConstants(history == "none"
+                                           ? std::vector<double>{}
+                                           : deep_ois::splitCommaSeparatedNumbers(history));
     }
     deep_ois::CompensationModel model(metadata, options.seed);
 
     const deep_ois::TrainingSet set = deep_ois::readTrainingSet(data);
-    std::fprintf(stderr, "train: %zu records in %zu bag(s), %zu with a target, %zu more for the motion history only\n",
+    std::fprintf(stderr,
+                 "train: %zu records in %zu bag(s), %zu with a target, %zu more for the motion "
+                 "history only\n",
                  set.records, data.size(), set.with_target, set.samples.size() - set.with_target);
-    for (const auto& [reason, count] : set.skipped_by_reason) std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
+    for (const auto& [reason, count] : set.skipped_by_reason)
+      std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
     std::vector<deep_ois::TrainingSample> samples = set.samples;
     if (max_pairs > 0 && samples.size() > max_pairs) samples.resize(max_pairs);
     std::vector<deep_ois::TrainingSample> train, validation;
     splitByRecording(samples, validation_fraction, options.seed, train, validation);
     std::fprintf(stderr,
-                 "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d, %zu motion-history "
+                 "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d, "
+                 "%zu motion-history "
                  "sums), %d threads\n",
-                 train.size(), validation.size(), model.metadata().preset.c_str(), model.metadata().working_grid.width,
-                 model.metadata().working_grid.height, model.metadata().history_time_constants_s.size(), threads);
+                 train.size(), validation.size(), model.metadata().preset.c_str(),
+                 model.metadata().working_grid.width, model.metadata().working_grid.height,
+                 model.metadata().history_time_constants_s.size(), threads);
 
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
@@ -178,21 +195,26 @@ int main(int argc, char** argv) {
             static_cast<std::size_t>(p.epochs - p.epoch + 1) * p.steps_per_epoch, "steps");
       }
       char note[96];
-      std::snprintf(note, sizeof(note), "epoch %d/%d, loss %.4f", p.epoch, p.epochs, p.running_loss);
-      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * p.steps_per_epoch + p.step, note);
+      std::snprintf(note, sizeof(note), "epoch %d/%d, loss %.4f", p.epoch, p.epochs,
+                    p.running_loss);
+      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * p.steps_per_epoch + p.step,
+                  note);
     };
     auto on_epoch = [&](int epoch, const deep_ois::TrainingRecord& record) {
-      std::fprintf(stderr,
-                   "\ntrain: epoch %d: train loss %.4f, validation loss %.4f, validation EPE %.4f px "
-                   "(gyro input %.4f px), working-grid pixels\n",
-                   epoch, record.train_loss.back(), record.validation_loss.back(), record.validation_epe_px.back(),
-                   record.validation_gyro_epe_px.back());
+      std::fprintf(
+          stderr,
+          "\ntrain: epoch %d: train loss %.4f, validation loss %.4f, validation EPE %.4f px "
+          "(gyro input %.4f px), working-grid pixels\n",
+          epoch, record.train_loss.back(), record.validation_loss.back(),
+          record.validation_epe_px.back(), record.validation_gyro_epe_px.back());
     };
     const deep_ois::TrainingOutcome outcome =
         deep_ois::trainCompensationModel(model, train, validation, options, on_step, on_epoch);
-    if (outcome.resumed) std::fprintf(stderr, "train: resumed after epoch %d\n", outcome.resumed_from_epoch);
+    if (outcome.resumed)
+      std::fprintf(stderr, "train: resumed after epoch %d\n", outcome.resumed_from_epoch);
     if (outcome.stopped_early) {
-      std::fprintf(stderr, "\ntrain: stopped after %d epochs; checkpoint %s (continue with --resume)\n",
+      std::fprintf(stderr,
+                   "\ntrain: stopped after %d epochs; checkpoint %s (continue with --resume)\n",
                    outcome.epochs_done, options.checkpoint_path.c_str());
       return 130;
     }
@@ -207,10 +229,12 @@ int main(int argc, char** argv) {
     const cv::Mat plot = deep_ois::drawLinePlot(
         {{"training loss", record.train_loss, cv::Scalar(200, 80, 0)},
          {"validation loss", record.validation_loss, cv::Scalar(0, 120, 230)}},
-        "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch", "epoch", "loss (px)", true);
-    if (!cv::imwrite(stem + "_loss.png", plot)) throw std::runtime_error("cannot write " + stem + "_loss.png");
-    std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n", out.c_str(),
-                stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);
+        "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch", "epoch",
+        "loss (px)", true);
+    if (!cv::imwrite(stem + "_loss.png", plot))
+      throw std::runtime_error("cannot write " + stem + "_loss.png");
+    std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n",
+                out.c_str(), stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);
     if (!record.validation_epe_px.empty()) {
       std::printf("train: validation EPE %.4f px vs gyro input %.4f px (working grid %dx%d)\n",
                   record.validation_epe_px.back(), record.validation_gyro_epe_px.back(),

@@ -213,7 +213,8 @@ TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
   const ModelMetadata old_model = ModelMetadata::fromYaml(fnv_yaml);
   EXPECT_EQ(old_model.training.data_sha256, "");
   EXPECT_EQ(old_model.training.legacy_data_fnv1a64, "25df48db6eac2a9b");
-  EXPECT_EQ(ModelMetadata::fromYaml(old_model.toYaml()).training.legacy_data_fnv1a64, "25df48db6eac2a9b");
+  EXPECT_EQ(ModelMetadata::fromYaml(old_model.toYaml()).training.legacy_data_fnv1a64,
+            "25df48db6eac2a9b");
 
   std::string yaml = m.toYaml();
   const std::string without_grid = yaml.substr(0, yaml.find("working_grid")) + yaml.substr(yaml.find("input_mean_px"));

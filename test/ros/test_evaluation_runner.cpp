@@ -4,11 +4,10 @@
 // without simulator truth. No roscore needed.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"

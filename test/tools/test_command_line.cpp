@@ -65,7 +65,8 @@ struct ExampleTool {
   }
 
   // The exit status parse() asks for (-1: go on) and what it printed on stdout and stderr.
-  int run(std::vector<std::string> arguments, std::string* out = nullptr, std::string* err = nullptr) {
+  int run(std::vector<std::string> arguments, std::string* out = nullptr,
+          std::string* err = nullptr) {
     arguments.insert(arguments.begin(), "example");
     ::testing::internal::CaptureStdout();
     ::testing::internal::CaptureStderr();
@@ -80,7 +81,8 @@ struct ExampleTool {
 
 TEST(ToolCommandLine, ParsesValuesListsAndFlags) {
   ExampleTool tool;
-  ASSERT_EQ(tool.run({"--bags", "a.bag", "b.bag", "--epochs", "10", "--lr", "1e-3", "--ois", "on", "--quiet"}),
+  ASSERT_EQ(tool.run({"--bags", "a.bag", "b.bag", "--epochs", "10", "--lr", "1e-3", "--ois", "on",
+                      "--quiet"}),
             -1);
   EXPECT_EQ(tool.bags, (std::vector<std::string>{"a.bag", "b.bag"}));
   EXPECT_EQ(tool.epochs, 10);
@@ -93,9 +95,10 @@ TEST(ToolCommandLine, HelpPrintsTheDescriptionAndEveryFlagWithItsDefaultAndExits
   ExampleTool tool;
   std::string out;
   EXPECT_EQ(tool.run({"--help"}, &out), 0);
-  for (const char* expected : {"Does an example thing, in one paragraph.", "Usage: example", "--bags FILE.bag",
-                               "REQUIRED", "--epochs INT=40", "--lr FLOAT=0.0001", "--ois TEXT=off", "--quiet",
-                               "Exit status: 0 done, 2 usage."}) {
+  for (const char* expected :
+       {"Does an example thing, in one paragraph.", "Usage: example", "--bags FILE.bag", "REQUIRED",
+        "--epochs INT=40", "--lr FLOAT=0.0001", "--ois TEXT=off", "--quiet",
+        "Exit status: 0 done, 2 usage."}) {
     EXPECT_NE(out.find(expected), std::string::npos) << expected << " not in:\n" << out;
   }
 }
@@ -115,15 +118,18 @@ TEST(ToolCommandLine, AMalformedNumberIsAnErrorNamingTheFlag) {
 
 TEST(ToolCommandLine, UnknownFlagsMissingValuesAndLeftoversAreErrors) {
   std::string err;
-  EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--epoch", "10"}, nullptr, &err), kUsageExitStatus);
+  EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--epoch", "10"}, nullptr, &err),
+            kUsageExitStatus);
   EXPECT_EQ(err.rfind("example: --epoch: unknown flag", 0), 0u) << err;
   // A trailing flag without its value is not ignored.
   EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--epochs"}, nullptr, &err), kUsageExitStatus);
   EXPECT_EQ(err.rfind("example: --epochs:", 0), 0u) << err;
   // Nor is a value after a flag that takes none.
-  EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--quiet", "yes"}, nullptr, &err), kUsageExitStatus);
+  EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--quiet", "yes"}, nullptr, &err),
+            kUsageExitStatus);
   EXPECT_NE(err.find("yes"), std::string::npos) << err;
-  EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--ois", "maybe"}, nullptr, &err), kUsageExitStatus);
+  EXPECT_EQ(ExampleTool().run({"--bags", "a.bag", "--ois", "maybe"}, nullptr, &err),
+            kUsageExitStatus);
   EXPECT_EQ(err.rfind("example: --ois: must be on or off, got 'maybe'", 0), 0u) << err;
   EXPECT_EQ(ExampleTool().run({"--epochs", "3"}, nullptr, &err), kUsageExitStatus);
   EXPECT_EQ(err.rfind("example: --bags is required", 0), 0u) << err;
@@ -139,7 +145,8 @@ TEST(ToolCommandLine, WithoutArgumentsAToolWithRequiredFlagsPrintsItsHelpOnStder
 TEST(ToolCommandLine, UsageErrorNamesTheToolAndReturnsTwo) {
   ExampleTool tool;
   ::testing::internal::CaptureStderr();
-  EXPECT_EQ(tool.command_line.usageError("--camera applies to --annotations only"), kUsageExitStatus);
+  EXPECT_EQ(tool.command_line.usageError("--camera applies to --annotations only"),
+            kUsageExitStatus);
   const std::string err = ::testing::internal::GetCapturedStderr();
   EXPECT_EQ(err.rfind("example: --camera applies to --annotations only\n", 0), 0u) << err;
 }

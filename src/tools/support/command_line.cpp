@@ -24,7 +24,8 @@ std::vector<double> splitCommaSeparatedNumbers(const std::string& text) {
     numbers.push_back(*number);
   }
   // getline drops an empty last item ("1,2,"): count the commas instead of trusting it.
-  if (!text.empty() && text.back() == ',') throw std::invalid_argument("a number after the last comma");
+  if (!text.empty() && text.back() == ',')
+    throw std::invalid_argument("a number after the last comma");
   return numbers;
 }
 
@@ -69,7 +70,8 @@ CLI::Validator boundCheck(double bound, bool inclusive) {
       [bound, inclusive](std::string& text) -> std::string {
         const std::optional<double> value = parseStrictNumber<double>(text);
         if (value && (inclusive ? *value >= bound : *value > bound)) return {};
-        return std::string("must be ") + (inclusive ? ">= " : "> ") + shortNumber(bound) + ", got " + text;
+        return std::string("must be ") + (inclusive ? ">= " : "> ") + shortNumber(bound) +
+               ", got " + text;
       },
       "");
 }

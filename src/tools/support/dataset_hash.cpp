@@ -23,7 +23,8 @@ std::string sha256OfFiles(const std::vector<std::string>& paths) {
     while (in) {
       in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
       const std::streamsize n = in.gcount();
-      if (n > 0 && EVP_DigestUpdate(context.get(), buffer.data(), static_cast<std::size_t>(n)) != 1) {
+      if (n > 0 &&
+          EVP_DigestUpdate(context.get(), buffer.data(), static_cast<std::size_t>(n)) != 1) {
         throw std::runtime_error("SHA-256: OpenSSL failed while hashing " + path);
       }
     }

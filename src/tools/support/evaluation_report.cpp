@@ -23,9 +23,7 @@ namespace {
 using Json = nlohmann::ordered_json;
 
 // A number, or null where there is none (a method with no pair in any category has no average).
-Json jsonNumber(double value) {
-  return std::isfinite(value) ? Json(value) : Json(nullptr);
-}
+Json jsonNumber(double value) { return std::isfinite(value) ? Json(value) : Json(nullptr); }
 
 std::string csvField(const std::string& text) {
   if (text.find_first_of(",\"\n") == std::string::npos) return text;
@@ -136,12 +134,12 @@ std::string EvaluationReport::json() const {
                               {"capped", table.capped(method, category)}};
     }
     const auto reasons = failure_reasons.find(method);
-    methods.push_back({{"name", method},
-                       {"avg_px", jsonNumber(table.average(method))},
-                       {"categories", categories},
-                       {"failure_reasons", reasons == failure_reasons.end()
-                                               ? Json::object()
-                                               : Json(reasons->second)}});
+    methods.push_back(
+        {{"name", method},
+         {"avg_px", jsonNumber(table.average(method))},
+         {"categories", categories},
+         {"failure_reasons",
+          reasons == failure_reasons.end() ? Json::object() : Json(reasons->second)}});
   }
   root["methods"] = methods;
   Json recordings_json = Json::array();

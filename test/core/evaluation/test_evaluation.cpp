@@ -2,20 +2,20 @@
 // flows (with the grid <-> camera scaling), the capping rule, the table and report.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
+#include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
-#include "deep_ois/core/evaluation/table_row_method.h"
-#include "deep_ois/tools/support/evaluation_plots.h"
-#include "deep_ois/tools/support/evaluation_report.h"
-#include "deep_ois/core/evaluation/results_table.h"
-#include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/evaluation/results_table.h"
+#include "deep_ois/core/evaluation/table_row_method.h"
+#include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/flow/grid_flow_sampling.h"
 #include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/tools/support/evaluation_plots.h"
+#include "deep_ois/tools/support/evaluation_report.h"
 #include "test_helpers.h"
 
 namespace deep_ois {
@@ -234,8 +234,9 @@ TEST(EvaluationReport, NotesFailuresCappingAndErrorsUnderTheTable) {
   const std::string text = report.json();
   const nlohmann::json json = nlohmann::json::parse(text);
   const nlohmann::json& methods = json.at("methods");
-  const auto orb = std::find_if(methods.begin(), methods.end(),
-                                [](const nlohmann::json& m) { return m.at("name") == "ORB + RANSAC"; });
+  const auto orb = std::find_if(methods.begin(), methods.end(), [](const nlohmann::json& m) {
+    return m.at("name") == "ORB + RANSAC";
+  });
   ASSERT_NE(orb, methods.end()) << text;
   EXPECT_DOUBLE_EQ(orb->at("avg_px").get<double>(), 2.0) << text;
   EXPECT_EQ(orb->at("failure_reasons").at("too few matches (< 8)").get<int>(), 1) << text;

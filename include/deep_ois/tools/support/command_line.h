@@ -6,7 +6,6 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
-
 #include <charconv>
 #include <cmath>
 #include <optional>
@@ -47,8 +46,9 @@ CLI::Validator strictNumber() {
       [](std::string& text) -> std::string {
         if (parseStrictNumber<T>(text)) return {};
         return "Value " + text + " could not be converted to " +
-               (std::is_integral_v<T> ? (std::is_unsigned_v<T> ? "a whole number >= 0" : "a whole number")
-                                      : "a finite number");
+               (std::is_integral_v<T>
+                    ? (std::is_unsigned_v<T> ? "a whole number >= 0" : "a whole number")
+                    : "a finite number");
       },
       "");
 }
@@ -83,7 +83,9 @@ class ToolCommandLine {
   // A numeric flag: strict (see parseStrictNumber), its default shown by --help.
   template <typename T>
   CLI::Option* addNumber(const std::string& flag, T& value, const std::string& description) {
-    return app_.add_option(flag, value, description)->check(strictNumber<T>())->capture_default_str();
+    return app_.add_option(flag, value, description)
+        ->check(strictNumber<T>())
+        ->capture_default_str();
   }
 
   // Parses argv[1..argc). Returns nothing when the tool should go on; otherwise the exit status
