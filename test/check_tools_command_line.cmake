@@ -64,6 +64,7 @@ foreach(tool_path ${TOOLS})
     endif()
     execute_process(COMMAND "${tool_path}" ${arguments} RESULT_VARIABLE status OUTPUT_VARIABLE out
                     ERROR_VARIABLE err TIMEOUT 60)
+    string(REPLACE ";" " " arguments "${arguments}")
     if(NOT status EQUAL 2)
       string(APPEND failures "${tool} ${arguments}: exit ${status} instead of 2: ${err}\n")
     elseif(NOT err MATCHES "${expected}")
