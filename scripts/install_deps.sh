@@ -30,6 +30,8 @@ packages=(
   python3-rostest librostest-dev python3-rosnode python3-rostopic
   # maths, vision, tests
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
+  # the tools: flag parsing, the evaluation JSON, the data-set SHA-256
+  libcli11-dev nlohmann-json3-dev libssl-dev
   # the compensation network (CPU libtorch 1.13)
   libtorch-dev
 )

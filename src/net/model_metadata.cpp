@@ -102,7 +102,11 @@ std::string ModelMetadata::toYaml() const {
   emitSequence(out, "history_std_px", history_std_px);
   out << YAML::Key << "training" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "data_files" << YAML::Value << training.data_files;
-  out << YAML::Key << "data_hash" << YAML::Value << training.data_hash;
+  out << YAML::Key << "data_sha256" << YAML::Value << training.data_sha256;
+  if (!training.legacy_data_fnv1a64.empty()) {
+    out << YAML::Key << "data_hash" << YAML::Value << training.legacy_data_fnv1a64
+        << YAML::Comment("FNV-1a 64, from before data_sha256");
+  }
   out << YAML::Key << "train_pairs" << YAML::Value << training.train_pairs;
   out << YAML::Key << "validation_pairs" << YAML::Value << training.validation_pairs;
   out << YAML::Key << "epochs" << YAML::Value << training.epochs;
@@ -158,7 +162,8 @@ ModelMetadata ModelMetadata::fromYaml(const std::string& yaml_text) {
   if (training && training.IsMap()) {
     TrainingRecord& t = m.training;
     t.data_files = optional<std::vector<std::string>>(training, "data_files", "training.", {});
-    t.data_hash = optional<std::string>(training, "data_hash", "training.", "");
+    t.data_sha256 = optional<std::string>(training, "data_sha256", "training.", "");
+    t.legacy_data_fnv1a64 = optional<std::string>(training, "data_hash", "training.", "");
     t.train_pairs = optional<std::size_t>(training, "train_pairs", "training.", 0);
     t.validation_pairs = optional<std::size_t>(training, "validation_pairs", "training.", 0);
     t.epochs = optional<int>(training, "epochs", "training.", 0);

@@ -26,6 +26,7 @@
 #include <cstdio>
 #include <cstring>
 #include <numeric>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -33,6 +34,7 @@
 
 #include <boost/make_shared.hpp>
 
+#include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/flow_warp.h"
@@ -122,18 +124,27 @@ int main(int argc, char** argv) {
   std::string model_path = package + "/models/fast.pt";
   std::string sizes_text = "256x192,640x480,1280x720,1920x1080";
   int torch_threads = 1, warp_threads = 1, frames = 200;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string flag = argv[i];
-    if (flag == "--model") model_path = argv[i + 1];
-    else if (flag == "--frames") frames = std::stoi(argv[i + 1]);
-    else if (flag == "--threads") torch_threads = std::stoi(argv[i + 1]);
-    else if (flag == "--warp-threads") warp_threads = std::stoi(argv[i + 1]);
-    else if (flag == "--sizes") sizes_text = argv[i + 1];
-    else {
-      std::fprintf(stderr, "benchmark_compensation: unknown flag %s\n", flag.c_str());
-      return 2;
-    }
-  }
+  deep_ois::ToolCommandLine command_line(
+      "benchmark_compensation",
+      "Times both live nodelets' per-frame work at robot camera resolutions, per stage, on "
+      "synthetic frames and a synthetic hand-held gyro, with a bare cv::remap of the same frame as "
+      "the yardstick (docs/benchmarks.md). One core by default.",
+      "Exit status: 0 done, 1 failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--model", model_path, "the compensation model")
+      ->check(deep_ois::existingFile())
+      ->capture_default_str()
+      ->type_name("FILE.pt");
+  command_line.addNumber("--frames", frames, "frame pairs timed per camera size (>= 10)")
+      ->check(CLI::Range(10, 1000000));
+  command_line.addNumber("--threads", torch_threads, "torch intra-op threads (>= 1)")
+      ->check(CLI::Range(1, 256));
+  command_line.addNumber("--warp-threads", warp_threads, "OpenCV threads of the warp (>= 1)")
+      ->check(CLI::Range(1, 256));
+  app.add_option("--sizes", sizes_text, "camera sizes, comma-separated WIDTHxHEIGHT")
+      ->capture_default_str()
+      ->type_name("WxH,...");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   try {
     if (frames < 10 || torch_threads < 1 || warp_threads < 1) throw std::invalid_argument("--frames >= 10, threads >= 1");
     std::vector<cv::Size> sizes;

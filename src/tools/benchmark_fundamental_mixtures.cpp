@@ -1,9 +1,7 @@
 // Times the per-pair Fundamental Mixtures path of the offline ground-truth nodelet at the paper's
 // 360x270, single-threaded: gray conversion, uniform FAST corners, KLT tracking and
 // estimateFundamentalMixtures. Frames come from the simulator (RE category); rendering is not
-// timed. Exit code 3 when the throughput target is missed.
-//
-// Usage: benchmark_fundamental_mixtures [pairs]   (default 60)
+// timed. Exit code 3 when the throughput target is missed. Flags: --help.
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -19,9 +17,10 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/vision/feature_tracker.h"
 #include "deep_ois/core/ground_truth/fundamental_mixtures.h"
 #include "deep_ois/core/sim/simulator.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace deep_ois {
 namespace {
@@ -171,15 +170,20 @@ int run(int pairs) {
 }  // namespace
 }  // namespace deep_ois
 
+constexpr char kDescription[] =
+    "Times the per-pair Fundamental Mixtures path of the offline ground-truth nodelet at the "
+    "paper's "
+    "360x270, single-threaded: gray conversion, uniform FAST corners, KLT tracking and "
+    "estimateFundamentalMixtures. Frames come from the simulator (RE category); rendering is not "
+    "timed. Prints milliseconds per pair and pairs per second.";
+
 int main(int argc, char** argv) {
   int pairs = 60;
-  if (argc > 1) {
-    pairs = std::atoi(argv[1]);
-    if (pairs < 1) {
-      std::fprintf(stderr, "usage: benchmark_fundamental_mixtures [pairs >= 1]\n");
-      return 1;
-    }
-  }
+  deep_ois::ToolCommandLine command_line(
+      "benchmark_fundamental_mixtures", kDescription,
+      "Exit status: 0 target met, 1 failed, 2 usage, 3 throughput target missed.");
+  command_line.addNumber("pairs", pairs, "frame pairs to time")->check(deep_ois::atLeast(1));
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   try {
     return deep_ois::run(pairs);
   } catch (const std::exception& e) {

@@ -1,11 +1,7 @@
 // Calibrates a camera-IMU pair from a recording: time offset, rolling-shutter readout time, gyro
 // bias and IMU-to-camera rotation, from the KLT tracks and the gyro of any hand-held sequence (no
 // target). Writes the gyro flow nodelet's parameters and prints the equivalent static transform.
-//
-//   calibrate --bag in.bag --out config/camera_imu.yaml [--ois on|off] [--readout SECONDS]
-//             [--time-offset SECONDS] [--rotation tf|r00,r01,...,r22] [--no-bias]
-//             [--max-offset SECONDS] [--image-topic T] [--camera-info-topic T] [--imu-topic T]
-//             [--quiet]
+// Flags: --help.
 //
 // --readout / --time-offset / --rotation hold that quantity at the given value instead of
 // estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. --ois on removes a
@@ -14,61 +10,26 @@
 // axes, roll included, facing a scene 4 m away or more).
 // Exit status: 0 written, 1 refused (motion too weak; nothing written) or failed, 2 usage.
 #include <Eigen/Geometry>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
-#include <memory>
 #include <iomanip>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/core/calibration/calibration_yaml.h"
 #include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
 #include "deep_ois/ros/bag/calibration_bag_reader.h"
-#include "deep_ois/core/calibration/calibration_yaml.h"
+#include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "calibrate: %s\n"
-               "usage: calibrate --bag IN.bag --out CAMERA_IMU.yaml [--ois on|off] [--readout S]\n"
-               "                 [--time-offset S] [--rotation tf|r00,r01,...,r22] [--no-bias]\n"
-               "                 [--max-offset S] [--image-topic T] [--camera-info-topic T]\n"
-               "                 [--imu-topic T] [--quiet]\n",
-               problem.c_str());
-  return 2;
-}
-
-double parseSeconds(const std::string& flag, const std::string& text) {
-  std::size_t used = 0;
-  const double value = std::stod(text, &used);
-  if (used != text.size() || !std::isfinite(value)) throw std::invalid_argument(flag + " needs a number, got '" + text + "'");
-  return value;
-}
-
-bool parseMatrix(const std::string& text, Eigen::Matrix3d* R) {
-  std::stringstream in(text);
-  std::string item;
-  std::vector<double> values;
-  while (std::getline(in, item, ',')) {
-    try {
-      std::size_t used = 0;
-      values.push_back(std::stod(item, &used));
-      if (used != item.size()) return false;
-    } catch (const std::logic_error&) {
-      return false;
-    }
-  }
-  if (values.size() != 9) return false;
-  for (int i = 0; i < 9; ++i) (*R)(i / 3, i % 3) = values[i];
-  return true;
-}
 
 void printMatrix(const Eigen::Matrix3d& R) {
   for (int r = 0; r < 3; ++r) {
@@ -78,65 +39,91 @@ void printMatrix(const Eigen::Matrix3d& R) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Calibrates a camera-IMU pair from a recording: time offset, rolling-shutter readout time, "
+    "gyro "
+    "bias and IMU-to-camera rotation, from the KLT tracks and the gyro of any hand-held sequence "
+    "(no "
+    "target). Writes the gyro flow nodelet's parameters and prints the equivalent static "
+    "transform. "
+    "--readout / --time-offset / --rotation hold that quantity at the given value instead of "
+    "estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. --ois on removes "
+    "a "
+    "per-frame lens shift (for cameras with an optical image stabilizer); such a camera needs the "
+    "calibration protocol recording (README \"Calibration\": 10 s or more of brisk turns about all "
+    "three axes, roll included, facing a scene 4 m away or more).";
+
 int main(int argc, char** argv) {
-  std::string bag_path, out_path, rotation_text;
-  bool quiet = false;
+  std::string bag_path, out_path, rotation_text, ois = "off";
+  bool quiet = false, no_bias = false;
   deep_ois::CalibrationBagOptions bag_options;
   deep_ois::CalibrationOptions options;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string flag = argv[i];
-      if (flag == "--quiet") {
-        quiet = true;
-        continue;
-      }
-      if (flag == "--no-bias") {
-        options.estimate_gyro_bias = false;
-        continue;
-      }
-      if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-      const std::string value = argv[++i];
-      if (flag == "--bag") {
-        bag_path = value;
-      } else if (flag == "--out") {
-        out_path = value;
-      } else if (flag == "--ois") {
-        if (value != "on" && value != "off") return usage("--ois must be 'on' or 'off', got '" + value + "'");
-        options.lens_shift = value == "on" ? deep_ois::LensShiftHandling::kPerFrameShift
-                                           : deep_ois::LensShiftHandling::kNone;
-      } else if (flag == "--readout") {
-        options.estimate_readout_time = false;
-        options.readout_time_s = parseSeconds(flag, value);
-      } else if (flag == "--time-offset") {
-        options.estimate_time_offset = false;
-        options.time_offset_s = parseSeconds(flag, value);
-      } else if (flag == "--rotation") {
-        options.estimate_rotation = false;
-        rotation_text = value;
-      } else if (flag == "--max-offset") {
-        options.max_abs_time_offset_s = parseSeconds(flag, value);
-      } else if (flag == "--image-topic") {
-        bag_options.topics.image = value;
-      } else if (flag == "--camera-info-topic") {
-        bag_options.topics.camera_info = value;
-      } else if (flag == "--imu-topic") {
-        bag_options.topics.imu = value;
-      } else {
-        return usage("unknown flag " + flag);
-      }
+  deep_ois::ToolCommandLine command_line(
+      "calibrate", kDescription,
+      "Exit status: 0 written, 1 refused (motion too weak; nothing written) or failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--bag", bag_path, "the recording")
+      ->required()
+      ->check(deep_ois::existingFile())
+      ->type_name("IN.bag");
+  app.add_option("--out", out_path,
+                 "the gyro flow nodelet's parameters to write, e.g. config/camera_imu.yaml")
+      ->required()
+      ->type_name("FILE.yaml");
+  app.add_option("--ois", ois, "on: remove a per-frame lens shift (OIS cameras)")
+      ->check(deep_ois::oneOf({"on", "off"}))
+      ->capture_default_str()
+      ->type_name("on|off");
+  CLI::Option* readout = command_line
+                             .addNumber("--readout", options.readout_time_s,
+                                        "hold the rolling-shutter readout time at this, seconds")
+                             ->type_name("SECONDS");
+  readout->default_str("estimated");
+  CLI::Option* time_offset =
+      command_line
+          .addNumber("--time-offset", options.time_offset_s,
+                     "hold the time offset at this, seconds (IMU time = camera stamp + offset)")
+          ->type_name("SECONDS");
+  time_offset->default_str("estimated");
+  app.add_option("--rotation", rotation_text,
+                 "hold R_cam_imu at the bag's /tf_static (tf) or at these 9 row-major numbers "
+                 "(default: estimated)")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            return text == "tf" ? std::string() : deep_ois::commaSeparatedNumbers(9)(text);
+          },
+          ""))
+      ->type_name("tf|r00,r01,...,r22");
+  app.add_flag("--no-bias", no_bias, "hold the gyro bias at zero");
+  command_line
+      .addNumber("--max-offset", options.max_abs_time_offset_s,
+                 "the time offset is searched in [-this, +this], seconds")
+      ->type_name("SECONDS");
+  app.add_option("--image-topic", bag_options.topics.image, "image topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_option("--camera-info-topic", bag_options.topics.camera_info, "camera_info topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_option("--imu-topic", bag_options.topics.imu, "IMU topic (sensor_msgs/Imu)")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_flag("--quiet", quiet, "no progress bar");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  options.lens_shift = ois == "on" ? deep_ois::LensShiftHandling::kPerFrameShift
+                                   : deep_ois::LensShiftHandling::kNone;
+  options.estimate_readout_time = readout->count() == 0;
+  options.estimate_time_offset = time_offset->count() == 0;
+  options.estimate_gyro_bias = !no_bias;
+  if (!rotation_text.empty()) {
+    options.estimate_rotation = false;
+    if (rotation_text != "tf") {
+      const std::vector<double> r = deep_ois::splitCommaSeparatedNumbers(rotation_text);
+      for (int i = 0; i < 9; ++i) options.imu_to_camera_rotation(i / 3, i % 3) = r[i];
     }
-  } catch (const std::logic_error& e) {
-    return usage(e.what());
-  }
-  if (bag_path.empty()) return usage("--bag is required");
-  if (out_path.empty()) return usage("--out is required");
-  if (!rotation_text.empty() && rotation_text != "tf" &&
-      !parseMatrix(rotation_text, &options.imu_to_camera_rotation)) {
-    return usage("--rotation must be 'tf' or 9 comma-separated numbers (row-major R_cam_imu), got '" +
-                 rotation_text + "'");
   }
   const std::string problem = options.validate();
-  if (!problem.empty()) return usage(problem);
+  if (!problem.empty()) return command_line.usageError(problem);
 
   try {
     const auto reading_started = std::chrono::steady_clock::now();
@@ -148,7 +135,8 @@ int main(int argc, char** argv) {
         bar->update(done);
       };
     }
-    const deep_ois::CalibrationBag bag = deep_ois::readCalibrationBag(bag_path, bag_options, on_progress);
+    const deep_ois::CalibrationBag bag =
+        deep_ois::readCalibrationBag(bag_path, bag_options, on_progress);
     if (!quiet) std::fprintf(stderr, "\n");
     const double reading_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - reading_started).count();
@@ -162,21 +150,24 @@ int main(int argc, char** argv) {
     const deep_ois::CalibrationResult result = deep_ois::calibrateCameraImu(bag.data, options);
     const deep_ois::CameraImuCalibration& c = result.calibration;
 
-    std::printf("calibrate: %s: %zu frames, %d of %zu pairs used, %d tracks; lens shift handling %s\n",
-                bag_path.c_str(), bag.frames, result.pairs_used, bag.data.pairs.size(), result.tracks_used,
-                deep_ois::toString(options.lens_shift));
-    std::printf("  gyro RMS about its principal axes: %.3f %.3f %.3f rad/s\n", result.rate_rms_rad_s(0),
-                result.rate_rms_rad_s(1), result.rate_rms_rad_s(2));
+    std::printf(
+        "calibrate: %s: %zu frames, %d of %zu pairs used, %d tracks; lens shift handling %s\n",
+        bag_path.c_str(), bag.frames, result.pairs_used, bag.data.pairs.size(), result.tracks_used,
+        deep_ois::toString(options.lens_shift));
+    std::printf("  gyro RMS about its principal axes: %.3f %.3f %.3f rad/s\n",
+                result.rate_rms_rad_s(0), result.rate_rms_rad_s(1), result.rate_rms_rad_s(2));
     std::printf("  coarse stage: time offset %.1f ms, mount %s; median residual %.3f px\n",
                 result.coarse_time_offset_s * 1e3,
-                result.coarse_permutation_index < 0 ? "held" : ("#" + std::to_string(result.coarse_permutation_index)).c_str(),
+                result.coarse_permutation_index < 0
+                    ? "held"
+                    : ("#" + std::to_string(result.coarse_permutation_index)).c_str(),
                 result.initial_median_residual_px);
-    std::printf("  refined in %d iterations: median residual %.3f px, %.1f %% inliers\n", result.iterations,
-                result.median_residual_px, 100.0 * result.inlier_fraction);
-    std::printf("  time offset     %+9.3f ms  +- %.3f ms%s\n", c.time_offset_s * 1e3, c.time_offset_sigma_s * 1e3,
-                options.estimate_time_offset ? "" : " (held)");
-    std::printf("  readout time    %9.3f ms  +- %.3f ms%s\n", c.readout_time_s * 1e3, c.readout_time_sigma_s * 1e3,
-                options.estimate_readout_time ? "" : " (held)");
+    std::printf("  refined in %d iterations: median residual %.3f px, %.1f %% inliers\n",
+                result.iterations, result.median_residual_px, 100.0 * result.inlier_fraction);
+    std::printf("  time offset     %+9.3f ms  +- %.3f ms%s\n", c.time_offset_s * 1e3,
+                c.time_offset_sigma_s * 1e3, options.estimate_time_offset ? "" : " (held)");
+    std::printf("  readout time    %9.3f ms  +- %.3f ms%s\n", c.readout_time_s * 1e3,
+                c.readout_time_sigma_s * 1e3, options.estimate_readout_time ? "" : " (held)");
     std::printf("  gyro bias       [%+.5f %+.5f %+.5f] rad/s  +- %.5f%s\n", c.gyro_bias_rad_s(0),
                 c.gyro_bias_rad_s(1), c.gyro_bias_rad_s(2), c.gyro_bias_sigma_rad_s.maxCoeff(),
                 options.estimate_gyro_bias ? "" : " (held)");
@@ -185,15 +176,17 @@ int main(int argc, char** argv) {
                 c.rotation_sigma_rad(2) * kRadToDeg, options.estimate_rotation ? "" : " (held)");
     printMatrix(c.imu_to_camera_rotation);
     if (bag.tf_imu_to_camera_rotation) {
-      std::printf("  the bag's /tf_static differs by %.3f deg\n",
-                  deep_ois::rotationAngleBetween(*bag.tf_imu_to_camera_rotation, c.imu_to_camera_rotation) *
-                      kRadToDeg);
+      std::printf(
+          "  the bag's /tf_static differs by %.3f deg\n",
+          deep_ois::rotationAngleBetween(*bag.tf_imu_to_camera_rotation, c.imu_to_camera_rotation) *
+              kRadToDeg);
     }
     std::printf("  time: %.2f s reading and tracking (%.2f s KLT), %.2f s estimating\n", reading_s,
                 bag.tracking_seconds, result.seconds);
     if (!result.ok()) {
       std::fprintf(stderr, "calibrate: refused, %s not written:\n", out_path.c_str());
-      for (const std::string& refusal : result.refusals) std::fprintf(stderr, "  - %s\n", refusal.c_str());
+      for (const std::string& refusal : result.refusals)
+        std::fprintf(stderr, "  - %s\n", refusal.c_str());
       return 1;
     }
     deep_ois::CalibrationProvenance provenance;
@@ -203,7 +196,8 @@ int main(int argc, char** argv) {
     provenance.lens_shift = options.lens_shift;
     deep_ois::writeTextFile(out_path, deep_ois::calibrationYaml(result, provenance));
     std::printf("wrote %s\nequivalent static transform:\n  %s\n", out_path.c_str(),
-                deep_ois::staticTransformCommand(c.imu_to_camera_rotation, bag.imu_frame_id, bag.camera_frame_id)
+                deep_ois::staticTransformCommand(c.imu_to_camera_rotation, bag.imu_frame_id,
+                                                 bag.camera_frame_id)
                     .c_str());
     return 0;
   } catch (const std::invalid_argument& e) {

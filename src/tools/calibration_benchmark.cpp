@@ -1,12 +1,11 @@
 // Runs the camera-IMU calibration over simulator bags whose truth is in their simulator config
 // and prints the error table, bags with a fixed lens (non-OIS) and with OIS reported apart.
-//
-//   calibration_benchmark --manifest DIR/manifest.txt [--csv out.csv] [--ois-rotation tf]
+// Flags: --help.
 //
 // The manifest (scripts/make_calibration_bags.sh writes it) has one line per bag,
 // "<bag> <config.yaml>", paths relative to the manifest's folder. Whether a bag has OIS is read
-// from its ground truth; OIS bags are calibrated with the per-frame lens shift (calibrate --ois on),
-// the others without. The bias truth is the config's gyro_initial_bias_vector_rad_s (the bias
+// from its ground truth; OIS bags are calibrated with the per-frame lens shift (calibrate --ois
+// on), the others without. The bias truth is the config's gyro_initial_bias_vector_rad_s (the bias
 // random walk moves it by ~1e-5 rad/s over a few seconds). --ois-rotation tf holds the rotation of
 // OIS bags at their /tf_static (calibrate --ois on --rotation tf: the mount known from a
 // recording with OIS off or from CAD), to show the timing alone.
@@ -23,18 +22,11 @@
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/sim/simulator_config.h"
 #include "deep_ois/ros/bag/calibration_bag_reader.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "calibration_benchmark: %s\n"
-               "usage: calibration_benchmark --manifest DIR/manifest.txt [--csv OUT.csv] [--ois-rotation tf]\n",
-               problem.c_str());
-  return 2;
-}
 
 struct Row {
   std::string bag;
@@ -78,20 +70,22 @@ void printSummary(const std::string& label, const std::vector<Row>& all) {
     estimation += row.estimation_s;
     if (!row.estimated) continue;
     rows.push_back(row);
-    const bool in_target = std::abs(row.offset_error_ms) <= 0.5 && std::abs(row.readout_error_ms) <= 0.5 &&
-                           row.rotation_error_deg <= 0.5;
+    const bool in_target = std::abs(row.offset_error_ms) <= 0.5 &&
+                           std::abs(row.readout_error_ms) <= 0.5 && row.rotation_error_deg <= 0.5;
     within += in_target;
     accepted += row.ok;
     accepted_within += row.ok && in_target;
     mounts += row.found_mount == row.true_mount;
   }
-  std::printf("| %s | %zu | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %d/%zu | %d/%zu | %d/%d | %.1f + %.1f |\n",
-              label.c_str(), all.size(), accepted, rms(rows, &Row::offset_error_ms),
-              maxAbs(rows, &Row::offset_error_ms), rms(rows, &Row::readout_error_ms),
-              maxAbs(rows, &Row::readout_error_ms), rms(rows, &Row::rotation_error_deg),
-              maxAbs(rows, &Row::rotation_error_deg), maxAbs(rows, &Row::bias_error_mrad_s), mounts, rows.size(),
-              within, rows.size(), accepted_within, accepted, all.empty() ? 0.0 : tracking / all.size(),
-              all.empty() ? 0.0 : estimation / all.size());
+  std::printf(
+      "| %s | %zu | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %d/%zu | %d/%zu | %d/%d "
+      "| %.1f + %.1f |\n",
+      label.c_str(), all.size(), accepted, rms(rows, &Row::offset_error_ms),
+      maxAbs(rows, &Row::offset_error_ms), rms(rows, &Row::readout_error_ms),
+      maxAbs(rows, &Row::readout_error_ms), rms(rows, &Row::rotation_error_deg),
+      maxAbs(rows, &Row::rotation_error_deg), maxAbs(rows, &Row::bias_error_mrad_s), mounts,
+      rows.size(), within, rows.size(), accepted_within, accepted,
+      all.empty() ? 0.0 : tracking / all.size(), all.empty() ? 0.0 : estimation / all.size());
 }
 
 // How often the reported 1-sigma (and 2-sigma) covers the actual error, per quantity, over every
@@ -119,27 +113,37 @@ void printCoverage(const std::vector<Row>& rows) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Runs the camera-IMU calibration over simulator bags whose truth is in their simulator config "
+    "and prints the error table (time offset and readout in ms, rotation in degrees, bias in "
+    "mrad/s), bags with a fixed lens (non-OIS) and with OIS reported apart. OIS bags are "
+    "calibrated "
+    "with the per-frame lens shift (calibrate --ois on), the others without. --ois-rotation tf "
+    "holds the rotation of OIS bags at their /tf_static (the mount known from a recording with OIS "
+    "off or from CAD), to show the timing alone.";
+constexpr char kFooter[] =
+    "The manifest (scripts/make_calibration_bags.sh writes it) has one line per bag,\n"
+    "\"<bag> <config.yaml>\", paths relative to the manifest's folder.\n"
+    "Exit status: 0 done, 1 failed, 2 usage.";
+
 int main(int argc, char** argv) {
-  std::string manifest_path, csv_path;
-  bool hold_ois_rotation = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-    if (flag == "--manifest") {
-      manifest_path = argv[++i];
-    } else if (flag == "--csv") {
-      csv_path = argv[++i];
-    } else if (flag == "--ois-rotation") {
-      const std::string value = argv[++i];
-      if (value != "tf" && value != "estimate") return usage("--ois-rotation must be 'tf' or 'estimate'");
-      hold_ois_rotation = value == "tf";
-    } else {
-      return usage("unknown flag " + flag);
-    }
-  }
-  if (manifest_path.empty()) return usage("--manifest is required");
+  std::string manifest_path, csv_path, ois_rotation = "estimate";
+  deep_ois::ToolCommandLine command_line("calibration_benchmark", kDescription, kFooter);
+  CLI::App& app = command_line.app();
+  app.add_option("--manifest", manifest_path, "the bags and their configs")
+      ->required()
+      ->check(deep_ois::existingFile())
+      ->type_name("DIR/manifest.txt");
+  app.add_option("--csv", csv_path, "also write one line per bag")->type_name("OUT.csv");
+  app.add_option("--ois-rotation", ois_rotation,
+                 "the rotation of OIS bags: estimated or held at /tf_static")
+      ->check(deep_ois::oneOf({"tf", "estimate"}))
+      ->capture_default_str()
+      ->type_name("tf|estimate");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  const bool hold_ois_rotation = ois_rotation == "tf";
   std::ifstream manifest(manifest_path);
-  if (!manifest) return usage("cannot read " + manifest_path);
+  if (!manifest) return command_line.usageError("cannot read " + manifest_path);
   const std::string folder = manifest_path.find('/') == std::string::npos
                                  ? "."
                                  : manifest_path.substr(0, manifest_path.find_last_of('/'));
@@ -151,22 +155,27 @@ int main(int argc, char** argv) {
     if (!(words >> bag >> config) || bag[0] == '#') continue;
     entries.emplace_back(folder + "/" + bag, folder + "/" + config);
   }
-  if (entries.empty()) return usage(manifest_path + " lists no bags");
+  if (entries.empty()) return command_line.usageError(manifest_path + " lists no bags");
 
   std::vector<Row> rows;
-  std::printf("| bag | OIS | offset ms | error ms (1-sigma) | readout ms | error ms (1-sigma) | mount | rotation error deg (1-sigma) | bias error mrad/s | residual px | result |\n"
-              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  std::printf(
+      "| bag | OIS | offset ms | error ms (1-sigma) | readout ms | error ms (1-sigma) | mount | "
+      "rotation error deg (1-sigma) | bias error mrad/s | residual px | result |\n"
+      "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (const auto& [bag_path, config_path] : entries) {
     Row row;
     row.bag = bag_path.substr(bag_path.find_last_of('/') + 1);
     try {
       const deep_ois::sim::SimulatorConfig truth = deep_ois::sim::loadSimulatorConfig(config_path);
-      const deep_ois::CalibrationBag bag = deep_ois::readCalibrationBag(bag_path, deep_ois::CalibrationBagOptions());
+      const deep_ois::CalibrationBag bag =
+          deep_ois::readCalibrationBag(bag_path, deep_ois::CalibrationBagOptions());
       row.ois = bag.simulated_ois_enabled.value_or(false);
       deep_ois::CalibrationOptions options;
-      options.lens_shift = row.ois ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
+      options.lens_shift = row.ois ? deep_ois::LensShiftHandling::kPerFrameShift
+                                   : deep_ois::LensShiftHandling::kNone;
       if (row.ois && hold_ois_rotation) {
-        if (!bag.tf_imu_to_camera_rotation) throw std::runtime_error(bag_path + ": no /tf_static rotation to hold");
+        if (!bag.tf_imu_to_camera_rotation)
+          throw std::runtime_error(bag_path + ": no /tf_static rotation to hold");
         options.estimate_rotation = false;
         options.imu_to_camera_rotation = *bag.tf_imu_to_camera_rotation;
       }
@@ -183,8 +192,9 @@ int main(int argc, char** argv) {
       row.readout_sigma_ms = c.readout_time_sigma_s * 1e3;
       row.true_mount = deep_ois::nearestSignedAxisPermutation(truth.imu.imu_to_camera_rotation);
       row.found_mount = deep_ois::nearestSignedAxisPermutation(c.imu_to_camera_rotation);
-      row.rotation_error_deg =
-          deep_ois::rotationAngleBetween(c.imu_to_camera_rotation, truth.imu.imu_to_camera_rotation) * kRadToDeg;
+      row.rotation_error_deg = deep_ois::rotationAngleBetween(c.imu_to_camera_rotation,
+                                                              truth.imu.imu_to_camera_rotation) *
+                               kRadToDeg;
       row.rotation_sigma_deg = c.rotation_sigma_rad.maxCoeff() * kRadToDeg;
       row.rotation_error_axes_deg =
           deep_ois::logSO3(c.imu_to_camera_rotation * truth.imu.imu_to_camera_rotation.transpose()) * kRadToDeg;
@@ -197,38 +207,47 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
       row.reason = e.what();
     }
-    std::printf("| %s | %s | %+.2f | %+.3f (%.3f) | %.2f | %+.3f (%.3f) | %d%s | %.3f (%.3f) | %.3f | %.3f | %s |\n",
-                row.bag.c_str(), row.ois ? "on" : "off", row.true_offset_ms, row.offset_error_ms, row.offset_sigma_ms,
-                row.true_readout_ms, row.readout_error_ms, row.readout_sigma_ms, row.true_mount,
-                row.found_mount == row.true_mount ? "" : " (wrong)", row.rotation_error_deg, row.rotation_sigma_deg,
-                row.bias_error_mrad_s,
-                row.median_residual_px, row.ok ? "ok" : ("refused: " + row.reason).c_str());
+    std::printf(
+        "| %s | %s | %+.2f | %+.3f (%.3f) | %.2f | %+.3f (%.3f) | %d%s | %.3f (%.3f) | %.3f | %.3f "
+        "| %s |\n",
+        row.bag.c_str(), row.ois ? "on" : "off", row.true_offset_ms, row.offset_error_ms,
+        row.offset_sigma_ms, row.true_readout_ms, row.readout_error_ms, row.readout_sigma_ms,
+        row.true_mount, row.found_mount == row.true_mount ? "" : " (wrong)", row.rotation_error_deg,
+        row.rotation_sigma_deg, row.bias_error_mrad_s, row.median_residual_px,
+        row.ok ? "ok" : ("refused: " + row.reason).c_str());
     std::fflush(stdout);
     rows.push_back(row);
   }
 
   std::vector<Row> fixed_lens, ois;
   for (const Row& row : rows) (row.ois ? ois : fixed_lens).push_back(row);
-  std::printf("\n| bags | n | accepted | offset RMS ms | offset max ms | readout RMS ms | readout max ms | rotation RMS deg | rotation max deg | bias max mrad/s | mount right | within 0.5 ms / 0.5 ms / 0.5 deg | accepted and within | s per bag (KLT + estimation) |\n"
-              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf(
+      "\n| bags | n | accepted | offset RMS ms | offset max ms | readout RMS ms | readout max ms | "
+      "rotation RMS deg | rotation max deg | bias max mrad/s | mount right | within 0.5 ms / 0.5 "
+      "ms / 0.5 deg | accepted and within | s per bag (KLT + estimation) |\n"
+      "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   printSummary("non-OIS", fixed_lens);
   printSummary("OIS", ois);
   printCoverage(rows);
 
   if (!csv_path.empty()) {
     std::ofstream csv(csv_path);
-    csv << "bag,ois,ok,true_offset_ms,offset_error_ms,offset_sigma_ms,true_readout_ms,readout_error_ms,"
-           "readout_sigma_ms,true_mount,found_mount,rotation_error_deg,rotation_sigma_deg,bias_error_mrad_s,"
+    csv << "bag,ois,ok,true_offset_ms,offset_error_ms,offset_sigma_ms,true_readout_ms,readout_"
+           "error_ms,"
+           "readout_sigma_ms,true_mount,found_mount,rotation_error_deg,rotation_sigma_deg,bias_"
+           "error_mrad_s,"
            "median_residual_px,tracking_s,estimation_s\n";
     for (const Row& r : rows) {
-      csv << r.bag << "," << r.ois << "," << r.ok << "," << r.true_offset_ms << "," << r.offset_error_ms << ","
-          << r.offset_sigma_ms << "," << r.true_readout_ms << "," << r.readout_error_ms << "," << r.readout_sigma_ms
-          << "," << r.true_mount << "," << r.found_mount << "," << r.rotation_error_deg << "," << r.rotation_sigma_deg
-          << "," << r.bias_error_mrad_s << "," << r.median_residual_px << "," << r.tracking_s << ","
+      csv << r.bag << "," << r.ois << "," << r.ok << "," << r.true_offset_ms << ","
+          << r.offset_error_ms << "," << r.offset_sigma_ms << "," << r.true_readout_ms << ","
+          << r.readout_error_ms << "," << r.readout_sigma_ms << "," << r.true_mount << ","
+          << r.found_mount << "," << r.rotation_error_deg << "," << r.rotation_sigma_deg << ","
+          << r.bias_error_mrad_s << "," << r.median_residual_px << "," << r.tracking_s << ","
           << r.estimation_s << "\n";
     }
     if (!csv) std::fprintf(stderr, "calibration_benchmark: cannot write %s\n", csv_path.c_str());
   }
-  const bool all_estimated = std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.estimated; });
+  const bool all_estimated =
+      std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.estimated; });
   return all_estimated ? 0 : 1;
 }

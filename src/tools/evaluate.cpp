@@ -1,11 +1,7 @@
 // Scores recordings with annotated correspondences and prints the paper's table: mean geometry
 // distance |p_a + flow(p_a) - p_b| per category and method, each pair capped at its identity
 // error, a method without an estimate scored as identity, Avg = mean of the category means.
-//
-//   evaluate --bags a.bag [b.bag ...] [--out DIR] [--gyro-config config/gyro_flow.yaml]
-//            [--annotations FILE.csv [--camera ois|non-ois]] [--ghost-pairs N] [--ghost-zoom N]
-//            [--max-pairs N] [--no-image-baselines] [--no-ground-truth] [--no-progress]
-//            [--model models/fast.pt | --no-model] [--torch-threads 1] [--recorded LIVE.bag]
+// Flags: --help.
 //
 // Exit status: 0; 1 unusable input; 2 bad flags; 3 a recording could not be scored (the table
 // holds the others); 4 the recorded live flows disagree with the offline ones.
@@ -19,10 +15,10 @@
 // (tools/support/evaluation_runner.h); this file parses flags and writes the outputs.
 #include <ros/package.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
-#include <algorithm>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -33,30 +29,23 @@
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
 #endif
+#include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/evaluation_runner.h"
 #include "deep_ois/tools/support/recorded_flows.h"
 
-namespace {
-
-const char* const kUsage =
-    "usage: evaluate --bags FILE.bag [FILE.bag ...] [--out DIR] [--gyro-config FILE.yaml]\n"
-    "                [--annotations FILE.csv [--camera ois|non-ois]] [--ghost-pairs N] "
-    "[--ghost-zoom N]\n"
-    "                [--max-pairs N] [--no-image-baselines] [--no-ground-truth] [--no-progress]\n"
-    "                [--model FILE.pt | --no-model] [--torch-threads N] [--recorded LIVE.bag]\n";
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr, "evaluate: %s\n%s", problem.c_str(), kUsage);
-  return 2;
-}
-
-bool parseCount(const std::string& text, long& value) {
-  char* end = nullptr;
-  value = std::strtol(text.c_str(), &end, 10);
-  return !text.empty() && *end == '\0' && value >= 0;
-}
-
-}  // namespace
+constexpr char kDescription[] =
+    "Scores recordings with annotated correspondences and prints the paper's table: mean geometry "
+    "distance |p_a + flow(p_a) - p_b| in pixels per category and method, each pair capped at its "
+    "identity error, a method without an estimate scored as identity, Avg = mean of the category "
+    "means. Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC; the gyro on the non-OIS and the "
+    "OIS camera, uncompensated; the global F and Fundamental Mixtures ground truths; the shipped "
+    "model. With --recorded, the flows the live nodelets published during a replay of the same "
+    "bags "
+    "are scored too and must equal the offline rows. --out writes evaluation.csv, evaluation.json, "
+    "evaluation_pairs.csv, bar charts and ghost images.";
+constexpr char kFooter[] =
+    "Exit status: 0; 1 unusable input; 2 bad flags; 3 a recording could not be scored (the table\n"
+    "holds the others); 4 the recorded live flows disagree with the offline ones.";
 
 int main(int argc, char** argv) {
   deep_ois::EvaluationOptions options;
@@ -67,61 +56,69 @@ int main(int argc, char** argv) {
   std::string out_dir, annotations, camera, recorded;
   std::string model_path = package.empty() ? "" : package + "/models/fast.pt";
   int torch_threads = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    const bool has_value = i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0;
-    long count = 0;
-    if (flag == "--bags") {
-      while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0)
-        options.bags.push_back(argv[++i]);
-    } else if (flag == "--gyro-config" && has_value) {
-      gyro_config = argv[++i];
-    } else if (flag == "--out" && has_value) {
-      out_dir = argv[++i];
-    } else if (flag == "--annotations" && has_value) {
-      annotations = argv[++i];
-    } else if (flag == "--camera" && has_value) {
-      camera = argv[++i];
-    } else if ((flag == "--ghost-pairs" || flag == "--ghost-zoom" || flag == "--max-pairs") &&
-               has_value) {
-      if (!parseCount(argv[++i], count))
-        return usage(flag + " needs a whole number >= 0, got '" + argv[i] + "'");
-      if (flag == "--ghost-pairs") options.ghost_pairs_per_category = static_cast<int>(count);
-      if (flag == "--ghost-zoom") options.ghost_zoom = static_cast<int>(count);
-      if (flag == "--max-pairs") options.max_pairs_per_bag = static_cast<std::size_t>(count);
-    } else if (flag == "--no-image-baselines") {
-      standard.image_baselines = false;
-    } else if (flag == "--no-ground-truth") {
-      standard.ground_truth = false;
-    } else if (flag == "--model" && has_value) {
-      model_path = argv[++i];
-    } else if (flag == "--no-model") {
-      model_path.clear();
-    } else if (flag == "--recorded" && has_value) {
-      recorded = argv[++i];
-    } else if (flag == "--torch-threads" && has_value) {
-      if (!parseCount(argv[++i], count) || count < 1) return usage("--torch-threads needs a whole number >= 1");
-      torch_threads = static_cast<int>(count);
-    } else if (flag == "--no-progress") {
-      options.show_progress = false;
-    } else if (flag == "--help" || flag == "-h") {
-      std::printf("%s", kUsage);
-      return 0;
-    } else {
-      return usage("unknown flag or missing value: " + flag);
-    }
+  bool no_image_baselines = false, no_ground_truth = false, no_model = false, no_progress = false;
+  deep_ois::ToolCommandLine command_line("evaluate", kDescription, kFooter);
+  CLI::App& app = command_line.app();
+  app.add_option("--bags", options.bags,
+                 "the recordings (simulator bags, or recordings with --annotations)")
+      ->required()
+      ->type_name("FILE.bag");
+  app.add_option("--out", out_dir, "write the table, the pairs, plots and ghost images here")
+      ->type_name("DIR");
+  app.add_option(
+         "--gyro-config", gyro_config,
+         "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml");
+  app.add_option("--annotations", annotations,
+                 "point correspondences of recordings without simulator truth")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.csv");
+  app.add_option("--camera", camera, "which gyro row the --annotations recordings belong to")
+      ->check(deep_ois::oneOf({"ois", "non-ois"}))
+      ->type_name("ois|non-ois");
+  command_line
+      .addNumber("--ghost-pairs", options.ghost_pairs_per_category,
+                 "ghost images per category (0: none)")
+      ->check(deep_ois::atLeast(0));
+  command_line
+      .addNumber("--ghost-zoom", options.ghost_zoom,
+                 "ghost panels show the centre 1/N of the frame magnified N times (1: whole frame)")
+      ->check(deep_ois::atLeast(0));
+  command_line.addNumber("--max-pairs", options.max_pairs_per_bag,
+                         "score only the first pairs of each bag (0: all)");
+  app.add_flag("--no-image-baselines", no_image_baselines, "leave out the SIFT / ORB / AKAZE rows");
+  app.add_flag("--no-ground-truth", no_ground_truth,
+               "leave out the global F and Fundamental Mixtures rows");
+  app.add_flag("--no-progress", no_progress, "no progress bar");
+  CLI::Option* model_option =
+      app.add_option("--model", model_path,
+                     "the model row's network (default: the package's models/fast.pt)")
+          ->check(deep_ois::existingFile())
+          ->type_name("FILE.pt");
+  app.add_flag("--no-model", no_model, "leave out the model row")->excludes(model_option);
+  command_line.addNumber("--torch-threads", torch_threads, "torch threads of the model row")
+      ->check(deep_ois::atLeast(1));
+  app.add_option("--recorded", recorded,
+                 "rosbag record of the live nodelets' gyro_flow and compensated_flow")
+      ->check(deep_ois::existingFile())
+      ->type_name("LIVE.bag");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  standard.image_baselines = !no_image_baselines;
+  standard.ground_truth = !no_ground_truth;
+  options.show_progress = !no_progress;
+  if (no_model) model_path.clear();
+  if (gyro_config.empty()) {
+    return command_line.usageError(
+        "package deep_ois not found (source its setup.bash), so pass --gyro-config");
   }
-  if (options.bags.empty()) return usage("--bags needs at least one bag");
-  if (gyro_config.empty())
-    return usage("package deep_ois not found (source its setup.bash), so pass --gyro-config");
-  if (!camera.empty() && annotations.empty())
-    return usage("--camera applies to --annotations recordings only");
+  if (!camera.empty() && annotations.empty()) {
+    return command_line.usageError("--camera applies to --annotations recordings only");
+  }
   if (camera == "ois") {
     options.annotated_scope = deep_ois::kOisCameraPairs;
   } else if (camera == "non-ois") {
     options.annotated_scope = deep_ois::kNonOisCameraPairs;
-  } else if (!camera.empty()) {
-    return usage("--camera is ois or non-ois, got '" + camera + "'");
   }
 
   deep_ois::EvaluationReport report;
@@ -130,8 +127,10 @@ int main(int argc, char** argv) {
   std::unique_ptr<deep_ois::CompensationModel> model;
 #else
   // Built without libtorch: only an explicit --model is an error, the default row is left out.
-  const bool model_requested = std::find(argv + 1, argv + argc, std::string("--model")) != argv + argc;
-  if (model_requested) return usage("--model: this build has no compensation network (built without libtorch)");
+  if (model_option->count() > 0) {
+    return command_line.usageError(
+        "--model: this build has no compensation network (built without libtorch)");
+  }
   model_path.clear();
   const std::unique_ptr<int> model;  // no model row
 #endif
@@ -147,15 +146,17 @@ int main(int argc, char** argv) {
 #ifdef DEEP_OIS_WITH_TORCH
     if (!model_path.empty()) {
       deep_ois::setTorchThreads(torch_threads);
-      model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(model_path));
+      model = std::make_unique<deep_ois::CompensationModel>(
+          deep_ois::CompensationModel::load(model_path));
       auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
       auto recording = std::make_shared<std::uint64_t>(0);
-      runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")", deep_ois::kOisCameraPairs,
+      runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")",
+                        deep_ois::kOisCameraPairs,
                         [stream, recording](const deep_ois::FramePairContext& pair) {
                           if (pair.recording_id != *recording) stream->reset();
                           *recording = pair.recording_id;
-                          return deep_ois::AlignmentEstimate::gridFlow(
-                              stream->compensate(pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
+                          return deep_ois::AlignmentEstimate::gridFlow(stream->compensate(
+                              pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
                         }});
     }
 #else
@@ -168,15 +169,19 @@ int main(int argc, char** argv) {
       live_compensated = deep_ois::readRecordedFlows(recorded, "/deep_ois/compensated_flow");
       // The gyro row is scored on the recorded homographies (as the offline gyro row), the model's
       // on the recorded grid flow (as the offline model row): like with like, so they must agree.
-      auto recordedMethod = [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
-                               bool use_homographies) {
-        return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
-          const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
-          if (found == flows.end()) return deep_ois::AlignmentEstimate::failed("not in the recording");
-          return use_homographies ? deep_ois::AlignmentEstimate::patchHomographies(found->second.homographies)
-                                  : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
-        };
-      };
+      auto recordedMethod =
+          [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
+             bool use_homographies) {
+            return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
+              const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
+              if (found == flows.end())
+                return deep_ois::AlignmentEstimate::failed("not in the recording");
+              return use_homographies
+                         ? deep_ois::AlignmentEstimate::patchHomographies(
+                               found->second.homographies)
+                         : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
+            };
+          };
       runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs,
                         recordedMethod(live_gyro, true)});
       runner.addMethod({"DeepOIS (live nodelets, recorded)", deep_ois::kOisCameraPairs,
@@ -219,7 +224,8 @@ int main(int argc, char** argv) {
     // Replay parity: the live nodelets' flows against the same computation offline, pair by pair.
     constexpr double kParityTolerancePx = 1e-3;
 #ifdef DEEP_OIS_WITH_TORCH
-    const std::string model_row = model ? "DeepOIS, shipped model (" + model->metadata().preset + ")" : "";
+    const std::string model_row =
+        model ? "DeepOIS, shipped model (" + model->metadata().preset + ")" : "";
 #else
     const std::string model_row;
 #endif
@@ -229,10 +235,12 @@ int main(int argc, char** argv) {
     std::printf("\nreplay parity (live nodelets recorded in %s vs offline):\n", recorded.c_str());
     for (const auto& [offline, live] : comparisons) {
       const deep_ois::MethodAgreement agreement = deep_ois::compareMethods(report, offline, live);
-      const bool agrees = agreement.pairs_compared > 0 && agreement.max_abs_difference_px <= kParityTolerancePx;
-      std::printf("- %s: %zu pairs compared, largest difference %.6f px, %zu not in the recording: %s\n",
-                  live.c_str(), agreement.pairs_compared, agreement.max_abs_difference_px,
-                  agreement.missing_in_second, agrees ? "same numbers" : "DIFFERENT");
+      const bool agrees =
+          agreement.pairs_compared > 0 && agreement.max_abs_difference_px <= kParityTolerancePx;
+      std::printf(
+          "- %s: %zu pairs compared, largest difference %.6f px, %zu not in the recording: %s\n",
+          live.c_str(), agreement.pairs_compared, agreement.max_abs_difference_px,
+          agreement.missing_in_second, agrees ? "same numbers" : "DIFFERENT");
       if (!agrees) parity_failed = true;
     }
   }

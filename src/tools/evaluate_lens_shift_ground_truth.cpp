@@ -15,12 +15,12 @@
 //   evaluate_lens_shift_ground_truth --bags a.bag [b.bag ...] [--gyro-config FILE] [--out FILE.csv]
 #include <ros/package.h>
 
-#include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,6 +35,7 @@
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
@@ -77,36 +78,36 @@ struct PairRecord {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  deep_ois::ToolCommandLine command_line(
+      "evaluate_lens_shift_ground_truth",
       "Scores the gyro-anchored lens-shift ground truth and Fundamental Mixtures against the "
-      "simulator's truth, per category (capped and uncapped geometry distance, lens motion error)."};
+      "simulator's truth, per category (capped and uncapped geometry distance, lens motion error).",
+      "Exit status: 0 done, 1 nothing scored, 2 usage, 3 some bags failed.");
+  CLI::App& app = command_line.app();
   std::vector<std::string> bags;
   const std::string package = ros::package::getPath("deep_ois");
   std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
   std::string out_csv;
   app.add_option("--bags", bags, "simulator bags (with /ground_truth/frame_pair)")
       ->required()
-      ->check(CLI::ExistingFile);
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.bag ...");
   app.add_option("--gyro-config", gyro_config, "gyro flow parameters (YAML)")
       ->capture_default_str()
-      ->check(CLI::ExistingFile);
-  app.add_option("--out", out_csv, "one CSV line per pair and target");
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml");
+  app.add_option("--out", out_csv, "one CSV line per pair and target")->type_name("FILE.csv");
   deep_ois::LensShiftOptions lens_options;
-  app.add_option("--huber", lens_options.huber_px, "Huber threshold of a track's residual, px")
-      ->capture_default_str();
-  app.add_option("--outlier", lens_options.outlier_px, "tracks beyond this residual are outliers, px")
-      ->capture_default_str();
-  app.add_option("--random-walk", lens_options.lens_random_walk_px_per_sqrt_s,
-                 "lens random-walk prior, px per sqrt(s)")
-      ->capture_default_str();
-  app.add_option("--centre-prior", lens_options.centre_prior_px, "lens centring prior, px")
-      ->capture_default_str();
-  app.add_option("--iterations", lens_options.iterations, "reweighting passes")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  command_line.addNumber("--huber", lens_options.huber_px, "Huber threshold of a track's residual, px");
+  command_line.addNumber("--outlier", lens_options.outlier_px,
+                         "tracks beyond this residual are outliers, px");
+  command_line.addNumber("--random-walk", lens_options.lens_random_walk_px_per_sqrt_s,
+                         "lens random-walk prior, px per sqrt(s)");
+  command_line.addNumber("--centre-prior", lens_options.centre_prior_px, "lens centring prior, px");
+  command_line.addNumber("--iterations", lens_options.iterations, "reweighting passes");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   if (gyro_config.empty()) {
-    std::fprintf(stderr, "evaluate_lens_shift_ground_truth: --gyro-config: package deep_ois not "
-                         "found, so give the file\n");
-    return 2;
+    return command_line.usageError("--gyro-config: package deep_ois not found, so give the file");
   }
 
   deep_ois::GyroFlowParameters gyro_parameters;

@@ -1,8 +1,6 @@
 // Writes the Fundamental Mixtures training set of some recordings, without a roscore: one
 // deep_ois/TrainingPair per consecutive frame pair (gyro homographies in, rotation-only target).
-//
-//   fundamental_mixtures --bags a.bag [b.bag ...] --out train.bag [--gyro-config FILE]
-//       [--image-topic T] [--camera-info-topic T] [--imu-topic T] [--global]
+// Flags: --help.
 //
 // Progress on stderr, the summary on stdout. Ctrl-C (or SIGTERM) closes the output after the
 // current pair, with every pair done so far; a second Ctrl-C (or SIGKILL) aborts at once: the
@@ -21,6 +19,7 @@
 
 #include "deep_ois/ros/bag/fundamental_mixtures_offline.h"
 #include "deep_ois/ros/live/parameter_source.h"
+#include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
@@ -33,49 +32,50 @@ void onStopSignal(int signal_number) {
   std::signal(signal_number, SIG_DFL);
 }
 
-int usage(const std::string& problem) {
-  std::fprintf(
-      stderr,
-      "fundamental_mixtures: %s\nusage: fundamental_mixtures --bags FILE.bag [FILE.bag ...] "
-      "--out TRAIN.bag [--gyro-config config/gyro_flow.yaml] [--image-topic T] "
-      "[--camera-info-topic T] [--imu-topic T] [--global]\n",
-      problem.c_str());
-  return 2;
-}
-
 }  // namespace
+
+constexpr char kDescription[] =
+    "Writes the Fundamental Mixtures training set of some recordings, without a roscore: one "
+    "deep_ois/TrainingPair per consecutive frame pair (gyro homographies in, rotation-only "
+    "target). "
+    "Progress on stderr, the summary on stdout. Ctrl-C (or SIGTERM) closes the output after the "
+    "current pair, with every pair done so far; a second Ctrl-C aborts at once (the output is then "
+    "left unindexed: `rosbag reindex` recovers it).";
 
 int main(int argc, char** argv) {
   deep_ois::FundamentalMixturesOfflineOptions options;
   // The nodelet's own parameter file, wherever the package is (source checkout or install).
   const std::string package = ros::package::getPath("deep_ois");
   std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    const bool has_value = i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0;
-    if (flag == "--bags") {
-      while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0)
-        options.bags.push_back(argv[++i]);
-    } else if (flag == "--out" && has_value) {
-      options.output_path = argv[++i];
-    } else if (flag == "--gyro-config" && has_value) {
-      gyro_config = argv[++i];
-    } else if (flag == "--image-topic" && has_value) {
-      options.topics.image = argv[++i];
-    } else if (flag == "--camera-info-topic" && has_value) {
-      options.topics.camera_info = argv[++i];
-    } else if (flag == "--imu-topic" && has_value) {
-      options.topics.imu = argv[++i];
-    } else if (flag == "--global") {
-      options.global_fundamental = true;
-    } else {
-      return usage("unknown flag or missing value: " + flag);
-    }
+  deep_ois::ToolCommandLine command_line("fundamental_mixtures", kDescription,
+                                         "Exit status: 0 all bags done, 1 nothing could be done, 2 "
+                                         "usage, 3 some bags failed, 130 stopped.");
+  CLI::App& app = command_line.app();
+  app.add_option("--bags", options.bags, "the recordings")->required()->type_name("FILE.bag");
+  app.add_option("--out", options.output_path, "the training set to write")
+      ->required()
+      ->type_name("TRAIN.bag");
+  app.add_option(
+         "--gyro-config", gyro_config,
+         "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml");
+  app.add_option("--image-topic", options.topics.image, "image topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_option("--camera-info-topic", options.topics.camera_info, "camera_info topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_option("--imu-topic", options.topics.imu, "IMU topic (sensor_msgs/Imu)")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  app.add_flag("--global", options.global_fundamental,
+               "one global fundamental matrix instead of the mixture");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (gyro_config.empty()) {
+    return command_line.usageError(
+        "package deep_ois not found (source its setup.bash), so pass --gyro-config");
   }
-  if (options.bags.empty()) return usage("--bags needs at least one bag");
-  if (options.output_path.empty()) return usage("--out is required");
-  if (gyro_config.empty())
-    return usage("package deep_ois not found (source its setup.bash), so pass --gyro-config");
 
   try {
     options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
     if (summary.pairs_done == 0) return 1;
     return summary.bag_errors.empty() ? 0 : 3;
   } catch (const std::invalid_argument& e) {
-    return usage(e.what());
+    return command_line.usageError(e.what());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fundamental_mixtures: %s\n", e.what());
     return 1;

@@ -1,9 +1,8 @@
 // Listens to a gyro_flow topic and prints a summary of what was published: how many frame pairs
 // of the bag got a flow, the flow magnitudes, and how much the rolling-shutter patches differ.
 // Exits when every pair of the bag has arrived or the topic stays silent; the demo launch marks
-// it required, so its exit ends the demo.
-//
-//   gyro_flow_summary --bag file.bag [--image-topic /camera/image_raw] [--idle-timeout 5]
+// it required, so its exit ends the demo. Flags: --help; ROS remappings (gyro_flow:=/x,
+// __name:=y) go to ros::init.
 #include <deep_ois/GyroFlow.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -19,6 +18,7 @@
 #include <vector>
 
 #include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
@@ -29,41 +29,50 @@ struct Options {
   double start_timeout_s = 60.0;
 };
 
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "gyro_flow_summary: %s\nusage: gyro_flow_summary --bag FILE [--image-topic TOPIC] "
-               "[--idle-timeout SECONDS] [--start-timeout SECONDS]\n",
-               problem.c_str());
-  return 2;
-}
-
 struct PairStats {
   double stamp_s;
   double mean_flow_px;     // mean |flow| over the grid, grid pixels
   double max_flow_px;      // max |flow|, grid pixels
-  double patch_spread_px;  // largest displacement difference between patches at the image centre, camera pixels
+  double patch_spread_px;  // largest displacement difference between patches at the image centre,
+                           // camera pixels
 };
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Listens to a gyro_flow topic (remap it: gyro_flow:=/deep_ois/gyro_flow) and prints a summary "
+    "of "
+    "what was published: how many frame pairs of the bag got a flow, the flow magnitudes (grid "
+    "pixels), and how much the rolling-shutter patches differ (camera pixels). Exits when every "
+    "pair of the bag has arrived or the topic stays silent; the demo launch marks it required, so "
+    "its exit ends the demo. ROS arguments (name:=value) are passed to ros::init.";
+
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "gyro_flow_summary");
   Options options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-    const std::string value = argv[++i];
-    try {
-      if (flag == "--bag") options.bag = value;
-      else if (flag == "--image-topic") options.image_topic = value;
-      else if (flag == "--idle-timeout") options.idle_timeout_s = std::stod(value);
-      else if (flag == "--start-timeout") options.start_timeout_s = std::stod(value);
-      else return usage("unknown flag " + flag);
-    } catch (const std::exception&) {
-      return usage("flag " + flag + " needs a number, got '" + value + "'");
-    }
-  }
-  if (options.bag.empty()) return usage("--bag is required");
+  deep_ois::ToolCommandLine command_line(
+      "gyro_flow_summary", kDescription,
+      "Exit status: 0 every pair summarised, 1 failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--bag", options.bag, "the bag being played (its frames are counted)")
+      ->required()
+      ->type_name("FILE.bag");
+  app.add_option("--image-topic", options.image_topic, "image topic of the bag")
+      ->capture_default_str()
+      ->type_name("TOPIC");
+  command_line
+      .addNumber("--idle-timeout", options.idle_timeout_s,
+                 "exit when the topic stays silent this long after a message, seconds")
+      ->type_name("SECONDS");
+  command_line
+      .addNumber("--start-timeout", options.start_timeout_s,
+                 "exit when no message arrives this long after the start, seconds")
+      ->type_name("SECONDS");
+  // Remappings and special names (gyro_flow:=/x, __name:=y, as roslaunch passes) are ros::init's;
+  // CLI11 sees the rest.
+  std::vector<std::string> arguments;
+  ros::removeROSArgs(argc, argv, arguments);
+  if (const std::optional<int> status = command_line.parse(arguments)) return *status;
+  ros::init(argc, argv, "gyro_flow_summary");
 
   std::size_t frames_in_bag = 0;
   try {
@@ -144,20 +153,24 @@ int main(int argc, char** argv) {
     return 1;
   }
   const auto& m = first_message;
-  std::printf("camera:              %ux%u, fx %.2f fy %.2f cx %.2f cy %.2f px, frame %s\n", m.image_width,
-              m.image_height, m.K[0], m.K[4], m.K[2], m.K[5], m.header.frame_id.c_str());
-  std::printf("model:               %u patches, readout %.4f s, time offset %.4f s\n", m.patch_count,
-              m.readout_time, m.time_offset);
-  std::printf("flow grid:           %ux%u (%s)\n", m.flow.width, m.flow.height, m.flow.encoding.c_str());
+  std::printf("camera:              %ux%u, fx %.2f fy %.2f cx %.2f cy %.2f px, frame %s\n",
+              m.image_width, m.image_height, m.K[0], m.K[4], m.K[2], m.K[5],
+              m.header.frame_id.c_str());
+  std::printf("model:               %u patches, readout %.4f s, time offset %.4f s\n",
+              m.patch_count, m.readout_time, m.time_offset);
+  std::printf("flow grid:           %ux%u (%s)\n", m.flow.width, m.flow.height,
+              m.flow.encoding.c_str());
   double mean = 0.0, max = 0.0, spread = 0.0;
   for (const auto& p : pairs) {
     mean += p.mean_flow_px;
     max = std::max(max, p.max_flow_px);
     spread += p.patch_spread_px;
   }
-  std::printf("mean |flow|:         %.3f grid px (largest %.3f grid px)\n", mean / pairs.size(), max);
-  std::printf("rolling shutter:     patches disagree by %.3f camera px at the image centre on average\n",
-              spread / pairs.size());
+  std::printf("mean |flow|:         %.3f grid px (largest %.3f grid px)\n", mean / pairs.size(),
+              max);
+  std::printf(
+      "rolling shutter:     patches disagree by %.3f camera px at the image centre on average\n",
+      spread / pairs.size());
   std::printf("first/last pair:     %.6f .. %.6f s\n", pairs.front().stamp_s, pairs.back().stamp_s);
   std::printf("===========================\n");
   std::fflush(stdout);

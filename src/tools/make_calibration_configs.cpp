@@ -3,8 +3,7 @@
 // [-50, +50] ms and readout times over [0, 33] ms (stratified, so the ranges are covered), every
 // one of the 24 signed axis permutations as the IMU mount (in shuffled order, then at random)
 // turned by 1-5 degrees about a random axis, and a gyro bias of up to 0.01 rad/s per axis.
-//
-//   make_calibration_configs --base config/simulator/sample.yaml --count 24 --seed 1 --out DIR
+// Flags: --help.
 //
 // Writes DIR/cal_<i>.yaml (i = 00..count-1) and prints one line of truth per config. Same
 // arguments, same files.
@@ -19,22 +18,15 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/gyro/orientation_integrator.h"
-#include "deep_ois/core/common/portable_random.h"
 #include "deep_ois/core/calibration/rotation_alignment.h"
+#include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/gyro/orientation_integrator.h"
 #include "deep_ois/core/sim/simulator_config.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "make_calibration_configs: %s\n"
-               "usage: make_calibration_configs --base FILE.yaml --count N --seed S --out DIR\n",
-               problem.c_str());
-  return 2;
-}
 
 // A permutation of 0..n-1 from the portable generator (Fisher-Yates).
 std::vector<int> shuffled(int n, std::mt19937& rng) {
@@ -56,31 +48,32 @@ YAML::Node flowSequence(const double* values, int count) {
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Writes simulator configs with known camera-IMU calibrations, for the calibration benchmark "
+    "(scripts/make_calibration_bags.sh runs simulate on each): time offsets spread over [-50, +50] "
+    "ms and readout times over [0, 33] ms (stratified, so the ranges are covered), every one of "
+    "the "
+    "24 signed axis permutations as the IMU mount (in shuffled order, then at random) turned by "
+    "1-5 "
+    "degrees about a random axis, and a gyro bias of up to 0.01 rad/s per axis. Writes "
+    "DIR/cal_<i>.yaml (i = 00..count-1) and prints one line of truth per config. Same arguments, "
+    "same files.";
+
 int main(int argc, char** argv) {
   std::string base_path, out_dir;
-  long count = 24, seed = 1;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string flag = argv[i], value = argv[i + 1];
-    try {
-      if (flag == "--base") {
-        base_path = value;
-      } else if (flag == "--out") {
-        out_dir = value;
-      } else if (flag == "--count") {
-        count = std::stol(value);
-      } else if (flag == "--seed") {
-        seed = std::stol(value);
-      } else {
-        return usage("unknown flag " + flag);
-      }
-    } catch (const std::logic_error&) {
-      return usage(flag + " needs a whole number, got '" + value + "'");
-    }
-  }
-  if (argc % 2 == 0) return usage("every flag needs a value");
-  if (base_path.empty() || out_dir.empty()) return usage("--base and --out are required");
-  if (count < 1 || count > 1000) return usage("--count must be in 1..1000");
-  if (seed < 0 || seed > 4294967295L) return usage("--seed must be in 0..4294967295");
+  int count = 24;
+  std::uint32_t seed = 1;
+  deep_ois::ToolCommandLine command_line("make_calibration_configs", kDescription,
+                                         "Exit status: 0 written, 1 failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--base", base_path, "the simulator config the others start from")
+      ->required()
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml");
+  command_line.addNumber("--count", count, "configs to write, 1..1000")->check(CLI::Range(1, 1000));
+  command_line.addNumber("--seed", seed, "seed of the calibrations, 0..4294967295");
+  app.add_option("--out", out_dir, "folder of the configs")->required()->type_name("DIR");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
   try {
     const deep_ois::sim::SimulatorConfig base = deep_ois::sim::loadSimulatorConfig(base_path);
@@ -93,12 +86,15 @@ int main(int argc, char** argv) {
     std::printf("# config  time_offset_ms  readout_ms  mount  misalignment_deg  bias_rad_s\n");
     for (int i = 0; i < count; ++i) {
       const double offset_s = -0.05 + 0.1 * (offset_strata[i] + deep_ois::uniform01(rng)) / count;
-      const double readout_s = max_readout_s * (readout_strata[i] + deep_ois::uniform01(rng)) / count;
-      const int mount = i < 24 ? mounts[i] : std::min(static_cast<int>(deep_ois::uniform01(rng) * 24), 23);
+      const double readout_s =
+          max_readout_s * (readout_strata[i] + deep_ois::uniform01(rng)) / count;
+      const int mount =
+          i < 24 ? mounts[i] : std::min(static_cast<int>(deep_ois::uniform01(rng) * 24), 23);
       const Eigen::Vector3d axis = deep_ois::gaussian3(rng).normalized();
       const double angle_deg = deep_ois::uniform(rng, 1.0, 5.0);
       const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> R =
-          deep_ois::expSO3(axis * angle_deg * kPi / 180.0) * deep_ois::signedAxisPermutations()[mount];
+          deep_ois::expSO3(axis * angle_deg * kPi / 180.0) *
+          deep_ois::signedAxisPermutations()[mount];
       Eigen::Vector3d bias;
       for (int k = 0; k < 3; ++k) bias(k) = deep_ois::uniform(rng, -0.01, 0.01);
 
@@ -114,14 +110,15 @@ int main(int argc, char** argv) {
       emitter.SetDoublePrecision(17);
       emitter << root;
       std::ofstream file(path);
-      file << "# deep_ois calibration benchmark config " << name << ", from " << base_path << " (make_calibration_configs --seed "
-           << seed << "): time offset, readout, IMU mount and gyro bias are the truth.\n"
+      file << "# deep_ois calibration benchmark config " << name << ", from " << base_path
+           << " (make_calibration_configs --seed " << seed
+           << "): time offset, readout, IMU mount and gyro bias are the truth.\n"
            << emitter.c_str() << "\n";
       if (!file) throw std::runtime_error(path + ": cannot write");
       file.close();
       deep_ois::sim::loadSimulatorConfig(path);  // it must load: same validation as simulate
-      std::printf("%s  %+8.3f  %7.3f  %2d  %.2f  [%+.5f %+.5f %+.5f]\n", name, offset_s * 1e3, readout_s * 1e3,
-                  mount, angle_deg, bias(0), bias(1), bias(2));
+      std::printf("%s  %+8.3f  %7.3f  %2d  %.2f  [%+.5f %+.5f %+.5f]\n", name, offset_s * 1e3,
+                  readout_s * 1e3, mount, angle_deg, bias(0), bias(1), bias(2));
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "make_calibration_configs: %s\n", e.what());

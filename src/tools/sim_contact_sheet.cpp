@@ -1,7 +1,6 @@
 // A PNG contact sheet of the simulator: one row per category (RE, LT, LL, MF) with frame a,
 // frame b and the ghost overlay (red channel of b over a: misalignment shows as colour fringes).
-//
-//   sim_contact_sheet --out docs/simulator_contact_sheet.png [--seed N] [--config-dir DIR]
+// Flags: --help.
 #include <ros/package.h>
 
 #include <cstdio>
@@ -12,48 +11,42 @@
 
 #include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/core/sim/simulator.h"
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr, "sim_contact_sheet: %s\nusage: sim_contact_sheet --out FILE.png [--seed N] [--config-dir DIR]\n",
-               problem.c_str());
-  return 2;
-}
 
 // A panel with a caption strip above it.
 cv::Mat captioned(const cv::Mat& rgb, const std::string& caption) {
   cv::Mat panel(rgb.rows + 22, rgb.cols, CV_8UC3, cv::Scalar(255, 255, 255));
   rgb.copyTo(panel(cv::Rect(0, 22, rgb.cols, rgb.rows)));
-  cv::putText(panel, caption, cv::Point(4, 16), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(panel, caption, cv::Point(4, 16), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0),
+              1, cv::LINE_AA);
   return panel;
 }
 
 }  // namespace
 
+constexpr char kDescription[] =
+    "Draws a PNG contact sheet of the simulator: one row per category (RE, LT, LL, MF) with frame "
+    "a, "
+    "frame b and the ghost overlay (red channel of b over a: misalignment shows as colour "
+    "fringes).";
+
 int main(int argc, char** argv) {
   // The installed package's configs (or the source tree's, when run from the devel space).
   std::string out, config_dir = ros::package::getPath("deep_ois") + "/config/simulator";
-  unsigned long seed = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-    const std::string value = argv[++i];
-    if (flag == "--out") {
-      out = value;
-    } else if (flag == "--config-dir") {
-      config_dir = value;
-    } else if (flag == "--seed") {
-      try {
-        seed = std::stoul(value);
-      } catch (const std::exception&) {
-        return usage("--seed needs a whole number, got '" + value + "'");
-      }
-    } else {
-      return usage("unknown flag " + flag);
-    }
-  }
-  if (out.empty()) return usage("--out is required");
+  std::uint32_t seed = 1;
+  deep_ois::ToolCommandLine command_line("sim_contact_sheet", kDescription,
+                                         "Exit status: 0 written, 1 failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--out", out, "the sheet, e.g. docs/simulator_contact_sheet.png")
+      ->required()
+      ->type_name("FILE.png");
+  command_line.addNumber("--seed", seed, "the simulator's seed");
+  app.add_option("--config-dir", config_dir, "folder with RE.yaml, LT.yaml, LL.yaml and MF.yaml")
+      ->check(deep_ois::existingDirectory())
+      ->type_name("DIR");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   try {
     std::vector<cv::Mat> rows;
     for (const char* name : {"RE", "LT", "LL", "MF"}) {
@@ -63,8 +56,9 @@ int main(int argc, char** argv) {
       const int k = 10;  // a pair well inside the sequence
       const cv::Mat a = simulator.renderFrame(k - 1), b = simulator.renderFrame(k);
       const std::string label = std::string(name) + (config.ois.enabled ? " (OIS on)" : "");
-      std::vector<cv::Mat> panels = {captioned(a, label + ": frame a"), captioned(b, "frame b"),
-                                     captioned(deep_ois::ghostOverlay(a, b), "ghost: red of b over a")};
+      std::vector<cv::Mat> panels = {
+          captioned(a, label + ": frame a"), captioned(b, "frame b"),
+          captioned(deep_ois::ghostOverlay(a, b), "ghost: red of b over a")};
       cv::Mat row;
       cv::hconcat(panels, row);
       rows.push_back(row);

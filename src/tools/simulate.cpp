@@ -1,10 +1,5 @@
 // Writes a simulated OIS (or non-OIS twin) camera sequence with exact ground truth to a rosbag.
-//
-//   simulate --config config/simulator/RE.yaml --seed N --duration S --out file.bag
-//            [--overlay config/simulator/modules/M.yaml ...] [--ois on|off]
-//            [--compression bz2|lz4|none] [--quiet]
-//
-// --overlay (repeatable) reads a stabiliser module or camera file over the config.
+// Flags: --help.
 //
 // Same config and seed -> identical bag content. Ctrl-C closes the bag after the current frame.
 #include <rosbag/bag.h>
@@ -17,8 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/core/sim/simulator.h"
+#include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/tools/support/simulation_bag_writer.h"
 
 namespace {
@@ -26,65 +22,51 @@ namespace {
 std::atomic<bool> g_stop{false};
 void onSignal(int) { g_stop = true; }
 
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "simulate: %s\n"
-               "usage: simulate --config FILE.yaml --seed N --duration SECONDS --out FILE.bag\n"
-               "                [--overlay FILE.yaml ...] [--ois on|off] [--compression bz2|lz4|none] [--quiet]\n",
-               problem.c_str());
-  return 2;
-}
-
 }  // namespace
+
+constexpr char kDescription[] =
+    "Writes a simulated OIS (or non-OIS twin) camera sequence with exact ground truth to a rosbag: "
+    "the camera, IMU, tf and camera_info topics a real robot would record, plus ground-truth "
+    "topics "
+    "(true per-row motion, OIS lens shift, annotated point correspondences, category). Same config "
+    "and seed -> identical bag content. Ctrl-C closes the bag after the current frame.";
 
 int main(int argc, char** argv) {
   std::string config_path, out_path, ois_override, compression_name = "bz2";
   std::vector<std::string> overlays;
-  long seed = -1;
-  double duration_s = -1.0;
+  std::uint32_t seed = 0;
+  double duration_s = 0.0;
   bool quiet = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--quiet") {
-      quiet = true;
-      continue;
-    }
-    if (i + 1 >= argc) return usage("flag " + flag + " needs a value");
-    const std::string value = argv[++i];
-    try {
-      if (flag == "--config") {
-        config_path = value;
-      } else if (flag == "--overlay") {
-        overlays.push_back(value);
-      } else if (flag == "--out") {
-        out_path = value;
-      } else if (flag == "--seed") {
-        std::size_t used = 0;
-        seed = std::stol(value, &used);
-        if (used != value.size() || seed < 0 || seed > 4294967295L) throw std::invalid_argument(value);
-      } else if (flag == "--duration") {
-        std::size_t used = 0;
-        duration_s = std::stod(value, &used);
-        if (used != value.size()) throw std::invalid_argument(value);
-      } else if (flag == "--ois") {
-        if (value != "on" && value != "off") return usage("--ois must be 'on' or 'off', got '" + value + "'");
-        ois_override = value;
-      } else if (flag == "--compression") {
-        if (value != "bz2" && value != "lz4" && value != "none") {
-          return usage("--compression must be bz2, lz4 or none, got '" + value + "'");
-        }
-        compression_name = value;
-      } else {
-        return usage("unknown flag " + flag);
-      }
-    } catch (const std::logic_error&) {
-      return usage("flag " + flag + " needs a number, got '" + value + "'");
-    }
-  }
-  if (config_path.empty()) return usage("--config is required");
-  if (out_path.empty()) return usage("--out is required");
-  if (seed < 0) return usage("--seed is required (a whole number 0..4294967295)");
-  if (!(duration_s > 0.0)) return usage("--duration is required (seconds, > 0)");
+  deep_ois::ToolCommandLine command_line("simulate", kDescription,
+                                         "Exit status: 0 written, 1 failed, 2 usage, 130 stopped.");
+  CLI::App& app = command_line.app();
+  app.add_option("--config", config_path, "simulator config, e.g. config/simulator/RE.yaml")
+      ->required()
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml");
+  command_line.addNumber("--seed", seed, "the simulator's seed, 0..4294967295")
+      ->required()
+      ->default_str("");
+  command_line.addNumber("--duration", duration_s, "length of the sequence, seconds (> 0)")
+      ->required()
+      ->default_str("")
+      ->check(deep_ois::greaterThan(0))
+      ->type_name("SECONDS");
+  app.add_option("--overlay", overlays,
+                 "stabiliser module or camera files read over the config, in order, e.g. "
+                 "config/simulator/modules/pan_release.yaml (repeatable)")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml");
+  app.add_option("--out", out_path, "the bag to write")->required()->type_name("FILE.bag");
+  app.add_option("--ois", ois_override, "override the config's OIS (off: the non-OIS twin)")
+      ->check(deep_ois::oneOf({"on", "off"}))
+      ->type_name("on|off");
+  app.add_option("--compression", compression_name, "bag compression")
+      ->check(deep_ois::oneOf({"bz2", "lz4", "none"}))
+      ->capture_default_str()
+      ->type_name("bz2|lz4|none");
+  app.add_flag("--quiet", quiet, "no progress bar");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
   try {
     deep_ois::sim::SimulatorConfig config = deep_ois::sim::loadSimulatorConfig(config_path, overlays);
@@ -105,12 +87,14 @@ int main(int argc, char** argv) {
         simulator, out_path, compression, deep_ois::SimulationBagTopics{}, progress, &g_stop);
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    std::printf("simulate: %s: %s, OIS %s, seed %ld, %d frames %dx%d, %d frame pairs with %d "
-                "correspondences, %d IMU samples, %d lens-shift samples, %.1f s%s\n",
-                out_path.c_str(), deep_ois::sim::toString(config.category), config.ois.enabled ? "on" : "off",
-                seed, stats.frames, config.sensor.width_px, config.sensor.height_px, stats.frame_pairs,
-                stats.correspondences, stats.imu_messages, stats.lens_shift_messages, elapsed,
-                stats.interrupted ? " (interrupted: the bag holds the frames written so far)" : "");
+    std::printf(
+        "simulate: %s: %s, OIS %s, seed %u, %d frames %dx%d, %d frame pairs with %d "
+        "correspondences, %d IMU samples, %d lens-shift samples, %.1f s%s\n",
+        out_path.c_str(), deep_ois::sim::toString(config.category),
+        config.ois.enabled ? "on" : "off", seed, stats.frames, config.sensor.width_px,
+        config.sensor.height_px, stats.frame_pairs, stats.correspondences, stats.imu_messages,
+        stats.lens_shift_messages, elapsed,
+        stats.interrupted ? " (interrupted: the bag holds the frames written so far)" : "");
     return stats.interrupted ? 130 : 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "simulate: %s\n", e.what());

@@ -1,58 +1,42 @@
-// Trains the compensation network on training-set bags of the Fundamental Mixtures job.
-//
-//   train --data gt.bag [more.bag ...] --out models/NAME.pt [--preset fast|paper] [--epochs 40]
-//         [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50]
-//         [--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1]
-//         [--threads 2] [--resume] [--max-pairs N] [--history none|S,S,...] [--widths W,W,...]
-//
-// Writes NAME.pt (weights + metadata), NAME.yaml (the metadata, for people), NAME_loss.png and,
-// during training, NAME.checkpoint.pt (after every epoch; Ctrl-C writes it too; --resume goes on
-// from it).
-#include <opencv2/imgcodecs.hpp>
-
+// Trains the compensation network on training-set bags of the Fundamental Mixtures job (flags:
+// `train --help`, docs/command_line_tools.md).
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <memory>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <set>
 #include <string>
 #include <vector>
 
-#include "deep_ois/tools/support/dataset_hash.h"
-#include "deep_ois/tools/support/line_plot.h"
 #include "deep_ois/core/common/portable_random.h"
-#include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/flow_trainer.h"
 #include "deep_ois/ros/bag/training_set_reader.h"
+#include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/dataset_hash.h"
+#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
 
 std::atomic<bool> g_stop_requested{false};
 void onSignal(int) { g_stop_requested = true; }
 
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "train: %s\nusage: train --data GT.bag [GT.bag ...] --out models/NAME.pt [--preset fast|paper] "
-               "[--epochs N] [--batch-size 8] [--lr 1e-4] [--beta1 0.9] [--beta2 0.999] [--lr-decay-epochs 50] "
-               "[--lr-decay-factor 0.8] [--loss l1|l2] [--validation-fraction 0.1] [--seed 1] [--threads 2] "
-               "[--resume] [--max-pairs N] [--history none|S,S,...] [--widths W,W,...]\n",
-               problem.c_str());
-  return 2;
-}
-
 // Whole recordings go to validation (pairs of one recording are correlated): a seeded choice of
 // ceil(fraction * recordings) of them; with a single recording, its last pairs.
-void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double fraction, unsigned seed,
-                      std::vector<deep_ois::TrainingSample>& train, std::vector<deep_ois::TrainingSample>& validation) {
+void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double fraction,
+                      unsigned seed, std::vector<deep_ois::TrainingSample>& train,
+                      std::vector<deep_ois::TrainingSample>& validation) {
   std::vector<std::string> sources;
   for (const auto& sample : all) {
-    if (std::find(sources.begin(), sources.end(), sample.source) == sources.end()) sources.push_back(sample.source);
+    if (std::find(sources.begin(), sources.end(), sample.source) == sources.end())
+      sources.push_back(sample.source);
   }
   if (fraction <= 0.0) {
     train = all;
@@ -70,31 +54,32 @@ void splitByRecording(const std::vector<deep_ois::TrainingSample>& all, double f
     const auto j = static_cast<std::size_t>(deep_ois::uniform01(rng) * static_cast<double>(i));
     std::swap(sources[i - 1], sources[std::min(j, i - 1)]);
   }
-  const auto held_out = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(fraction * sources.size())));
-  const std::set<std::string> validation_sources(sources.begin(), sources.begin() + static_cast<std::ptrdiff_t>(held_out));
-  for (const auto& sample : all) (validation_sources.count(sample.source) ? validation : train).push_back(sample);
-}
-
-// "a,b,c" -> {"a", "b", "c"}.
-std::vector<std::string> splitList(const std::string& list) {
-  std::vector<std::string> items;
-  std::size_t start = 0;
-  while (start <= list.size()) {
-    const std::size_t comma = std::min(list.find(',', start), list.size());
-    items.push_back(list.substr(start, comma - start));
-    start = comma + 1;
-  }
-  return items;
+  const auto held_out =
+      std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(fraction * sources.size())));
+  const std::set<std::string> validation_sources(
+      sources.begin(), sources.begin() + static_cast<std::ptrdiff_t>(held_out));
+  for (const auto& sample : all)
+    (validation_sources.count(sample.source) ? validation : train).push_back(sample);
 }
 
 std::string stripSuffix(const std::string& path, const std::string& suffix) {
-  if (path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
+  if (path.size() > suffix.size() &&
+      path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0) {
     return path.substr(0, path.size() - suffix.size());
   }
   return path;
 }
 
 }  // namespace
+
+constexpr char kDescription[] =
+    "Trains the compensation network on training-set bags of the Fundamental Mixtures job. Writes "
+    "NAME.pt (weights + metadata, with the SHA-256 of the training bags), NAME.yaml (the metadata, "
+    "for people), NAME_loss.png and, during training, NAME.checkpoint.pt (after every epoch; "
+    "Ctrl-C "
+    "writes it too; --resume goes on from it). Losses and errors are in working-grid pixels.";
+constexpr char kFooter[] =
+    "Exit status: 0 trained, 1 failed, 2 usage, 130 stopped (checkpoint written).";
 
 int main(int argc, char** argv) {
   std::vector<std::string> data;
@@ -103,67 +88,65 @@ int main(int argc, char** argv) {
   double validation_fraction = 0.1;
   int threads = 2;
   std::size_t max_pairs = 0;
-  bool history_given = false;
-  std::vector<double> history_time_constants_s;
+  std::string history = "preset";
   std::vector<int> widths;
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string flag = argv[i];
-      const bool has_value = i + 1 < argc;
-      if (flag == "--data") {
-        while (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0) data.push_back(argv[++i]);
-      } else if (flag == "--resume") {
-        options.resume = true;
-      } else if (!has_value) {
-        return usage("unknown flag or missing value: " + flag);
-      } else if (flag == "--out") {
-        out = argv[++i];
-      } else if (flag == "--preset") {
-        preset = argv[++i];
-      } else if (flag == "--epochs") {
-        options.epochs = std::stoi(argv[++i]);
-      } else if (flag == "--batch-size") {
-        options.batch_size = std::stoi(argv[++i]);
-      } else if (flag == "--lr") {
-        options.learning_rate = std::stod(argv[++i]);
-      } else if (flag == "--beta1") {
-        options.beta1 = std::stod(argv[++i]);
-      } else if (flag == "--beta2") {
-        options.beta2 = std::stod(argv[++i]);
-      } else if (flag == "--lr-decay-epochs") {
-        options.lr_decay_every_epochs = std::stoi(argv[++i]);
-      } else if (flag == "--lr-decay-factor") {
-        options.lr_decay_factor = std::stod(argv[++i]);
-      } else if (flag == "--loss") {
-        options.loss = argv[++i];
-      } else if (flag == "--validation-fraction") {
-        validation_fraction = std::stod(argv[++i]);
-      } else if (flag == "--seed") {
-        options.seed = static_cast<unsigned>(std::stoul(argv[++i]));
-      } else if (flag == "--threads") {
-        threads = std::stoi(argv[++i]);
-      } else if (flag == "--max-pairs") {
-        max_pairs = static_cast<std::size_t>(std::stoul(argv[++i]));
-      } else if (flag == "--history") {
-        // The motion history's time constants in seconds, or none (the gyro flow alone).
-        history_given = true;
-        const std::string list = argv[++i];
-        if (list != "none") {
-          for (const std::string& item : splitList(list)) history_time_constants_s.push_back(std::stod(item));
-        }
-      } else if (flag == "--widths") {
-        // The UNet's level widths instead of the preset's (the preset becomes "custom").
-        for (const std::string& item : splitList(argv[++i])) widths.push_back(std::stoi(item));
-      } else {
-        return usage("unknown flag: " + flag);
-      }
-    }
-  } catch (const std::exception&) {
-    return usage("a numeric flag has a value that is not a number");
+  deep_ois::ToolCommandLine command_line("train", kDescription, kFooter);
+  CLI::App& app = command_line.app();
+  app.add_option("--data", data, "training-set bags (fundamental_mixtures output)")
+      ->required()
+      ->type_name("FILE.bag");
+  app.add_option("--out", out, "the model file, e.g. models/NAME.pt")
+      ->required()
+      ->type_name("FILE.pt");
+  app.add_option("--preset", preset, "architecture and working grid")
+      ->check(deep_ois::oneOf({"fast", "paper"}))
+      ->capture_default_str()
+      ->type_name("fast|paper");
+  command_line.addNumber("--epochs", options.epochs, "training epochs");
+  command_line.addNumber("--batch-size", options.batch_size, "frame pairs per step (paper: 8)");
+  command_line.addNumber("--lr", options.learning_rate, "Adam learning rate (paper: 1e-4)");
+  command_line.addNumber("--beta1", options.beta1, "Adam beta1");
+  command_line.addNumber("--beta2", options.beta2, "Adam beta2");
+  command_line.addNumber("--lr-decay-epochs", options.lr_decay_every_epochs,
+                         "multiply the learning rate by --lr-decay-factor every this many epochs");
+  command_line.addNumber("--lr-decay-factor", options.lr_decay_factor,
+                         "learning-rate decay factor");
+  app.add_option("--loss", options.loss, "per flow component, working-grid pixels")
+      ->check(deep_ois::oneOf({"l1", "l2"}))
+      ->capture_default_str()
+      ->type_name("l1|l2");
+  command_line.addNumber("--validation-fraction", validation_fraction,
+                         "share of the recordings held out for validation, in [0, 1)");
+  command_line.addNumber("--seed", options.seed, "initial weights, split and batch order");
+  command_line.addNumber("--threads", threads, "torch threads");
+  app.add_flag("--resume", options.resume, "go on from NAME.checkpoint.pt");
+  command_line.addNumber("--max-pairs", max_pairs, "use at most this many pairs (0: all)");
+  // The motion history's time constants in seconds, or none (the gyro flow alone).
+  app.add_option("--history", history,
+                 "motion-history time constants in seconds, or none (the gyro flow alone); "
+                 "default: the preset's")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            if (text == "none") return {};
+            try {
+              deep_ois::splitCommaSeparatedNumbers(text);
+              return {};
+            } catch (const std::invalid_argument& e) {
+              return "needs none or comma-separated seconds, got '" + text + "' (" + e.what() + ")";
+            }
+          },
+          ""))
+      ->type_name("none|S,S,...");
+  // The UNet's level widths instead of the preset's (the preset becomes "custom").
+  app.add_option("--widths", widths,
+                 "UNet level widths instead of the preset's (preset becomes custom)")
+      ->delimiter(',')
+      ->check(deep_ois::strictNumber<int>())
+      ->type_name("W,W,...");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (validation_fraction < 0.0 || validation_fraction >= 1.0) {
+    return command_line.usageError("--validation-fraction must be in [0, 1)");
   }
-  if (data.empty()) return usage("--data needs at least one training-set bag");
-  if (out.empty()) return usage("--out is required (e.g. models/fast.pt)");
-  if (validation_fraction < 0.0 || validation_fraction >= 1.0) return usage("--validation-fraction must be in [0, 1)");
 
   const std::string stem = stripSuffix(out, ".pt");
   options.checkpoint_path = stem + ".checkpoint.pt";
@@ -174,24 +157,31 @@ int main(int argc, char** argv) {
       metadata.architecture.widths = widths;
       metadata.preset = "custom";
     }
-    if (history_given) {
-      metadata.setHistoryTimeConstants(history_time_constants_s);
+    if (history != "preset") {
+      metadata.setHistoryTimeConstants(history == "none"
+                                           ? std::vector<double>{}
+                                           : deep_ois::splitCommaSeparatedNumbers(history));
     }
     deep_ois::CompensationModel model(metadata, options.seed);
 
     const deep_ois::TrainingSet set = deep_ois::readTrainingSet(data);
-    std::fprintf(stderr, "train: %zu records in %zu bag(s), %zu with a target, %zu more for the motion history only\n",
+    std::fprintf(stderr,
+                 "train: %zu records in %zu bag(s), %zu with a target, %zu more for the motion "
+                 "history only\n",
                  set.records, data.size(), set.with_target, set.samples.size() - set.with_target);
-    for (const auto& [reason, count] : set.skipped_by_reason) std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
+    for (const auto& [reason, count] : set.skipped_by_reason)
+      std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
     std::vector<deep_ois::TrainingSample> samples = set.samples;
     if (max_pairs > 0 && samples.size() > max_pairs) samples.resize(max_pairs);
     std::vector<deep_ois::TrainingSample> train, validation;
     splitByRecording(samples, validation_fraction, options.seed, train, validation);
     std::fprintf(stderr,
-                 "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d, %zu motion-history "
+                 "train: %zu training pairs, %zu validation pairs, preset %s (working grid %dx%d, "
+                 "%zu motion-history "
                  "sums), %d threads\n",
-                 train.size(), validation.size(), model.metadata().preset.c_str(), model.metadata().working_grid.width,
-                 model.metadata().working_grid.height, model.metadata().history_time_constants_s.size(), threads);
+                 train.size(), validation.size(), model.metadata().preset.c_str(),
+                 model.metadata().working_grid.width, model.metadata().working_grid.height,
+                 model.metadata().history_time_constants_s.size(), threads);
 
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
@@ -205,28 +195,33 @@ int main(int argc, char** argv) {
             static_cast<std::size_t>(p.epochs - p.epoch + 1) * p.steps_per_epoch, "steps");
       }
       char note[96];
-      std::snprintf(note, sizeof(note), "epoch %d/%d, loss %.4f", p.epoch, p.epochs, p.running_loss);
-      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * p.steps_per_epoch + p.step, note);
+      std::snprintf(note, sizeof(note), "epoch %d/%d, loss %.4f", p.epoch, p.epochs,
+                    p.running_loss);
+      bar->update(static_cast<std::size_t>(p.epoch - bar_first_epoch) * p.steps_per_epoch + p.step,
+                  note);
     };
     auto on_epoch = [&](int epoch, const deep_ois::TrainingRecord& record) {
-      std::fprintf(stderr,
-                   "\ntrain: epoch %d: train loss %.4f, validation loss %.4f, validation EPE %.4f px "
-                   "(gyro input %.4f px), working-grid pixels\n",
-                   epoch, record.train_loss.back(), record.validation_loss.back(), record.validation_epe_px.back(),
-                   record.validation_gyro_epe_px.back());
+      std::fprintf(
+          stderr,
+          "\ntrain: epoch %d: train loss %.4f, validation loss %.4f, validation EPE %.4f px "
+          "(gyro input %.4f px), working-grid pixels\n",
+          epoch, record.train_loss.back(), record.validation_loss.back(),
+          record.validation_epe_px.back(), record.validation_gyro_epe_px.back());
     };
     const deep_ois::TrainingOutcome outcome =
         deep_ois::trainCompensationModel(model, train, validation, options, on_step, on_epoch);
-    if (outcome.resumed) std::fprintf(stderr, "train: resumed after epoch %d\n", outcome.resumed_from_epoch);
+    if (outcome.resumed)
+      std::fprintf(stderr, "train: resumed after epoch %d\n", outcome.resumed_from_epoch);
     if (outcome.stopped_early) {
-      std::fprintf(stderr, "\ntrain: stopped after %d epochs; checkpoint %s (continue with --resume)\n",
+      std::fprintf(stderr,
+                   "\ntrain: stopped after %d epochs; checkpoint %s (continue with --resume)\n",
                    outcome.epochs_done, options.checkpoint_path.c_str());
       return 130;
     }
 
     deep_ois::TrainingRecord& record = model.metadata().training;
     record.data_files = data;
-    record.data_hash = deep_ois::fnv1aHashOfFiles(data);
+    record.data_sha256 = deep_ois::sha256OfFiles(data);
     model.save(out);
     std::ofstream yaml(stem + ".yaml");
     yaml << "# Metadata of " << out << " (also stored inside it).\n" << model.metadata().toYaml();
@@ -234,10 +229,12 @@ int main(int argc, char** argv) {
     const cv::Mat plot = deep_ois::drawLinePlot(
         {{"training loss", record.train_loss, cv::Scalar(200, 80, 0)},
          {"validation loss", record.validation_loss, cv::Scalar(0, 120, 230)}},
-        "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch", "epoch", "loss (px)", true);
-    if (!cv::imwrite(stem + "_loss.png", plot)) throw std::runtime_error("cannot write " + stem + "_loss.png");
-    std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n", out.c_str(),
-                stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);
+        "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch", "epoch",
+        "loss (px)", true);
+    if (!cv::imwrite(stem + "_loss.png", plot))
+      throw std::runtime_error("cannot write " + stem + "_loss.png");
+    std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n",
+                out.c_str(), stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);
     if (!record.validation_epe_px.empty()) {
       std::printf("train: validation EPE %.4f px vs gyro input %.4f px (working grid %dx%d)\n",
                   record.validation_epe_px.back(), record.validation_gyro_epe_px.back(),

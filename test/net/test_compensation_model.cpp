@@ -198,9 +198,23 @@ TEST(CompensationStream, FeedsTheModelTheMotionHistoryOfTheEarlierPairs) {
 TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
   ModelMetadata m = tinyMetadata();
   m.training.validation_epe_px = {0.5, 0.25};
-  m.training.data_hash = "0123456789abcdef";
+  m.training.data_sha256 = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
   const ModelMetadata back = ModelMetadata::fromYaml(m.toYaml());
   EXPECT_EQ(back.toYaml(), m.toYaml());
+  EXPECT_EQ(back.training.data_sha256, m.training.data_sha256);
+  EXPECT_EQ(m.toYaml().find("data_hash"), std::string::npos) << m.toYaml();
+
+  // A model from before the SHA-256 (as the shipped models/fast.pt): its FNV-1a hash under
+  // data_hash is read as what it is, not as a SHA-256, and written back unchanged.
+  std::string fnv_yaml = m.toYaml();
+  const std::size_t sha_at = fnv_yaml.find("data_sha256: ");
+  ASSERT_NE(sha_at, std::string::npos) << fnv_yaml;
+  fnv_yaml.replace(sha_at, fnv_yaml.find('\n', sha_at) - sha_at, "data_hash: 25df48db6eac2a9b");
+  const ModelMetadata old_model = ModelMetadata::fromYaml(fnv_yaml);
+  EXPECT_EQ(old_model.training.data_sha256, "");
+  EXPECT_EQ(old_model.training.legacy_data_fnv1a64, "25df48db6eac2a9b");
+  EXPECT_EQ(ModelMetadata::fromYaml(old_model.toYaml()).training.legacy_data_fnv1a64,
+            "25df48db6eac2a9b");
 
   std::string yaml = m.toYaml();
   const std::string without_grid = yaml.substr(0, yaml.find("working_grid")) + yaml.substr(yaml.find("input_mean_px"));

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
@@ -160,6 +161,22 @@ TEST(EvaluationRunner, ScoresEveryRowOnTheSampleBagWithPluggableMethods) {
     EXPECT_GT(std::filesystem::file_size(out + "/" + file), 100u) << file;
   }
   EXPECT_EQ(written.size(), 6u);
+  // evaluation.json holds the table's numbers, method by method.
+  std::ifstream json_file(out + "/evaluation.json");
+  const nlohmann::json json = nlohmann::json::parse(json_file);
+  ASSERT_EQ(json.at("methods").size(), table.methods().size());
+  for (std::size_t m = 0; m < table.methods().size(); ++m) {
+    const std::string& method = table.methods()[m];
+    const nlohmann::json& row = json.at("methods")[m];
+    EXPECT_EQ(row.at("name"), method);
+    EXPECT_NEAR(row.at("avg_px").get<double>(), table.average(method), 1e-9) << method;
+    const nlohmann::json& re = row.at("categories").at("RE");
+    EXPECT_EQ(re.at("pairs").get<std::size_t>(), table.count(method, "RE")) << method;
+    EXPECT_NEAR(re.at("mean_px").get<double>(), table.mean(method, "RE"), 1e-9) << method;
+    EXPECT_EQ(re.at("failed").get<std::size_t>(), table.failures(method, "RE")) << method;
+  }
+  EXPECT_EQ(json.at("recordings").at(0).at("pairs_scored").get<std::size_t>(),
+            report.recordings.at(0).pairs_scored);
 }
 
 TEST(EvaluationRunner, TwinsScoreOnlyTheNonOisGyroRowAndABrokenBagCostsOnlyItself) {

@@ -28,7 +28,13 @@ struct UNetArchitecture {
 // Provenance of the weights, filled by the trainer (empty for an untrained model).
 struct TrainingRecord {
   std::vector<std::string> data_files;
-  std::string data_hash;  // FNV-1a 64 of the training-set files' bytes, hex
+  // SHA-256 of the training-set files' bytes concatenated in data_files order, hex: check it with
+  // `cat <data_files> | sha256sum`. YAML key training.data_sha256.
+  std::string data_sha256;
+  // Models trained before the SHA-256 carry FNV-1a 64 of the same bytes (16 hex digits) under the
+  // key training.data_hash; it is read into this field (never into data_sha256, which it is not)
+  // and written back under that key, so re-saving an old model keeps what it said.
+  std::string legacy_data_fnv1a64;
   std::size_t train_pairs = 0;
   std::size_t validation_pairs = 0;
   int epochs = 0;

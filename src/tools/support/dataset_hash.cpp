@@ -1,15 +1,21 @@
 #include "deep_ois/tools/support/dataset_hash.h"
 
-#include <cstdint>
-#include <cstdio>
+#include <openssl/evp.h>
+
 #include <fstream>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
 namespace deep_ois {
 
-std::string fnv1aHashOfFiles(const std::vector<std::string>& paths) {
-  std::uint64_t hash = 0xcbf29ce484222325ull;
+std::string sha256OfFiles(const std::vector<std::string>& paths) {
+  const std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> context(EVP_MD_CTX_new(),
+                                                                        &EVP_MD_CTX_free);
+  if (!context || EVP_DigestInit_ex(context.get(), EVP_sha256(), nullptr) != 1) {
+    throw std::runtime_error("SHA-256: OpenSSL cannot start a digest");
+  }
+  // Streamed in 1 MiB blocks: training bags are gigabytes.
   std::vector<char> buffer(1 << 20);
   for (const std::string& path : paths) {
     std::ifstream in(path, std::ios::binary);
@@ -17,15 +23,24 @@ std::string fnv1aHashOfFiles(const std::vector<std::string>& paths) {
     while (in) {
       in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
       const std::streamsize n = in.gcount();
-      for (std::streamsize i = 0; i < n; ++i) {
-        hash ^= static_cast<unsigned char>(buffer[static_cast<std::size_t>(i)]);
-        hash *= 0x100000001b3ull;
+      if (n > 0 &&
+          EVP_DigestUpdate(context.get(), buffer.data(), static_cast<std::size_t>(n)) != 1) {
+        throw std::runtime_error("SHA-256: OpenSSL failed while hashing " + path);
       }
     }
     if (in.bad()) throw std::runtime_error("read error while hashing " + path);
   }
-  char text[17];
-  std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(hash));
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  if (EVP_DigestFinal_ex(context.get(), digest, &length) != 1) {
+    throw std::runtime_error("SHA-256: OpenSSL cannot finish the digest");
+  }
+  static const char kHex[] = "0123456789abcdef";
+  std::string text;
+  for (unsigned int i = 0; i < length; ++i) {
+    text += kHex[digest[i] >> 4];
+    text += kHex[digest[i] & 0xf];
+  }
   return text;
 }
 

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -20,42 +21,11 @@
 namespace deep_ois {
 namespace {
 
-std::string jsonString(const std::string& text) {
-  std::ostringstream out;
-  out << '"';
-  for (const char c : text) {
-    switch (c) {
-      case '"':
-        out << "\\\"";
-        break;
-      case '\\':
-        out << "\\\\";
-        break;
-      case '\n':
-        out << "\\n";
-        break;
-      case '\t':
-        out << "\\t";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          out << "\\u" << std::hex << std::setw(4) << std::setfill('0') << static_cast<int>(c)
-              << std::dec;
-        } else {
-          out << c;
-        }
-    }
-  }
-  out << '"';
-  return out.str();
-}
+// Keys in the order written below (the report reads top-down: metric, categories, methods, ...).
+using Json = nlohmann::ordered_json;
 
-std::string jsonNumber(double value) {
-  if (!std::isfinite(value)) return "null";
-  std::ostringstream out;
-  out << std::setprecision(6) << value;
-  return out.str();
-}
+// A number, or null where there is none (a method with no pair in any category has no average).
+Json jsonNumber(double value) { return std::isfinite(value) ? Json(value) : Json(nullptr); }
 
 std::string csvField(const std::string& text) {
   if (text.find_first_of(",\"\n") == std::string::npos) return text;
@@ -194,69 +164,49 @@ std::string EvaluationReport::markdown() const {
 }
 
 std::string EvaluationReport::json() const {
-  std::ostringstream out;
-  out << "{\n  \"metric\": "
-      << jsonString(
-             "geometry distance |p_a + flow(p_a) - p_b| in pixels, mean over the points of a pair, "
-             "then "
-             "over the pairs of a category; each pair capped at its identity error, a method "
-             "without an "
-             "estimate scored as identity; avg = mean of the category means")
-      << ",\n  \"categories\": [";
-  for (std::size_t c = 0; c < table.categories().size(); ++c) {
-    out << (c ? ", " : "") << jsonString(table.categories()[c]);
-  }
-  out << "],\n  \"methods\": [";
-  for (std::size_t m = 0; m < table.methods().size(); ++m) {
-    const std::string& method = table.methods()[m];
-    out << (m ? "," : "") << "\n    {\"name\": " << jsonString(method)
-        << ", \"avg_px\": " << jsonNumber(table.average(method)) << ", \"categories\": {";
-    bool first = true;
+  Json root;
+  root["metric"] =
+      "geometry distance |p_a + flow(p_a) - p_b| in pixels, mean over the points of a pair, then "
+      "over the pairs of a category; each pair capped at its identity error, a method without an "
+      "estimate scored as identity; avg = mean of the category means";
+  root["categories"] = table.categories();
+  Json methods = Json::array();
+  for (const std::string& method : table.methods()) {
+    Json categories = Json::object();
     for (const std::string& category : table.categories()) {
       if (table.count(method, category) == 0) continue;
-      out << (first ? "" : ", ") << jsonString(category)
-          << ": {\"pairs\": " << table.count(method, category)
-          << ", \"mean_px\": " << jsonNumber(table.mean(method, category))
-          << ", \"failed\": " << table.failures(method, category)
-          << ", \"capped\": " << table.capped(method, category) << "}";
-      first = false;
+      categories[category] = {{"pairs", table.count(method, category)},
+                              {"mean_px", jsonNumber(table.mean(method, category))},
+                              {"failed", table.failures(method, category)},
+                              {"capped", table.capped(method, category)}};
     }
-    out << "}, \"failure_reasons\": {";
-    first = true;
     const auto reasons = failure_reasons.find(method);
-    if (reasons != failure_reasons.end()) {
-      for (const auto& [reason, count] : reasons->second) {
-        out << (first ? "" : ", ") << jsonString(reason) << ": " << count;
-        first = false;
-      }
-    }
-    out << "}}";
+    methods.push_back(
+        {{"name", method},
+         {"avg_px", jsonNumber(table.average(method))},
+         {"categories", categories},
+         {"failure_reasons",
+          reasons == failure_reasons.end() ? Json::object() : Json(reasons->second)}});
   }
-  out << "\n  ],\n  \"recordings\": [";
-  for (std::size_t r = 0; r < recordings.size(); ++r) {
-    const RecordingOutcome& recording = recordings[r];
-    out << (r ? "," : "") << "\n    {\"path\": " << jsonString(recording.path)
-        << ", \"pairs_scored\": " << recording.pairs_scored
-        << ", \"pairs_skipped\": " << recording.pairs_skipped << ", \"skip_reasons\": {";
-    bool first = true;
-    for (const auto& [reason, count] : recording.skip_reasons) {
-      out << (first ? "" : ", ") << jsonString(reason) << ": " << count;
-      first = false;
-    }
-    out << "}, \"error\": " << (recording.error.empty() ? "null" : jsonString(recording.error))
-        << "}";
+  root["methods"] = methods;
+  Json recordings_json = Json::array();
+  for (const RecordingOutcome& recording : recordings) {
+    recordings_json.push_back(
+        {{"path", recording.path},
+         {"pairs_scored", recording.pairs_scored},
+         {"pairs_skipped", recording.pairs_skipped},
+         {"skip_reasons", Json(recording.skip_reasons)},
+         {"error", recording.error.empty() ? Json(nullptr) : Json(recording.error)}});
   }
-  out << "\n  ],\n  \"errors\": [";
-  for (std::size_t e = 0; e < errors.size(); ++e) out << (e ? ", " : "") << jsonString(errors[e]);
-  out << "],\n  \"elapsed_s\": " << jsonNumber(elapsed_s)
-      << ",\n  \"reading_s\": " << jsonNumber(reading_s) << ",\n  \"method_s\": {";
-  bool first_method = true;
-  for (const auto& [method, seconds] : method_s) {
-    out << (first_method ? "" : ", ") << jsonString(method) << ": " << jsonNumber(seconds);
-    first_method = false;
-  }
-  out << "}\n}\n";
-  return out.str();
+  root["recordings"] = recordings_json;
+  root["errors"] = errors;
+  root["elapsed_s"] = jsonNumber(elapsed_s);
+  root["reading_s"] = jsonNumber(reading_s);
+  Json seconds_per_method = Json::object();
+  for (const auto& [method, seconds] : method_s) seconds_per_method[method] = jsonNumber(seconds);
+  root["method_s"] = seconds_per_method;
+  // Invalid UTF-8 in a path or category (free text) is replaced, not thrown at the end of a run.
+  return root.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 std::string EvaluationReport::pairsCsv() const {

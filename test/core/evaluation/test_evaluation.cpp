@@ -2,19 +2,21 @@
 // flows (with the grid <-> camera scaling), the capping rule, the table and report.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
-#include "deep_ois/core/evaluation/table_row_method.h"
-#include "deep_ois/tools/support/evaluation_plots.h"
-#include "deep_ois/tools/support/evaluation_report.h"
-#include "deep_ois/core/evaluation/results_table.h"
-#include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/evaluation/results_table.h"
+#include "deep_ois/core/evaluation/table_row_method.h"
+#include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/flow/grid_flow_sampling.h"
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
+#include "deep_ois/tools/support/evaluation_plots.h"
+#include "deep_ois/tools/support/evaluation_report.h"
 #include "test_helpers.h"
 
 namespace deep_ois {
@@ -230,10 +232,20 @@ TEST(EvaluationReport, NotesFailuresCappingAndErrorsUnderTheTable) {
   EXPECT_NE(markdown.find("pairs.csv:7:"), std::string::npos) << markdown;
   EXPECT_FALSE(report.complete());
   EXPECT_EQ(report.failedRecordings(), 1u);
-  const std::string json = report.json();
-  EXPECT_NE(json.find("\"ORB + RANSAC\", \"avg_px\": 2"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"too few matches (< 8)\": 1"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"error\": \"bad.bag: cannot open the bag\""), std::string::npos) << json;
+  const std::string text = report.json();
+  const nlohmann::json json = nlohmann::json::parse(text);
+  const nlohmann::json& methods = json.at("methods");
+  const auto orb = std::find_if(methods.begin(), methods.end(), [](const nlohmann::json& m) {
+    return m.at("name") == "ORB + RANSAC";
+  });
+  ASSERT_NE(orb, methods.end()) << text;
+  EXPECT_DOUBLE_EQ(orb->at("avg_px").get<double>(), 2.0) << text;
+  EXPECT_EQ(orb->at("failure_reasons").at("too few matches (< 8)").get<int>(), 1) << text;
+  EXPECT_EQ(orb->at("categories").at("RE").at("failed").get<int>(), 1) << text;
+  ASSERT_EQ(json.at("recordings").size(), 2u) << text;
+  EXPECT_TRUE(json.at("recordings")[0].at("error").is_null()) << text;
+  EXPECT_EQ(json.at("recordings")[1].at("error"), "bad.bag: cannot open the bag") << text;
+  EXPECT_EQ(json.at("errors").size(), 1u) << text;
 }
 
 TEST(EvaluationReport, ReportsUncappedMeansAndTheGapClosed) {

@@ -6,9 +6,9 @@
 
 namespace deep_ois {
 
-// FNV-1a 64-bit over the bytes of the files in the given order, as 16 hex digits. Not
-// cryptographic: it tells data sets apart, it does not defend against tampering. Throws
-// std::runtime_error naming a file that cannot be read.
-std::string fnv1aHashOfFiles(const std::vector<std::string>& paths);
+// SHA-256 of the bytes of the files concatenated in the given order, as 64 lowercase hex digits:
+// what `cat a.bag b.bag | sha256sum` prints, so anyone can check a model's training data with a
+// standard tool. Throws std::runtime_error naming a file that cannot be read.
+std::string sha256OfFiles(const std::vector<std::string>& paths);
 
 }  // namespace deep_ois
