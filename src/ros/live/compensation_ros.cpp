@@ -11,6 +11,7 @@
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
+#include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -112,17 +113,8 @@ void CompensationRos::connectCallback() {
 
 template <typename Handle>
 void CompensationRos::guarded(const std::string& topic, Handle handle) {
-  try {
-    handle();
-  } catch (const std::exception& e) {
-    // Never out of a callback: one bad message (a model that throws on it, an OpenCV assertion)
-    // would take down the manager and every nodelet in it. Its flow has no output; say so.
-    drops_.add("error: " + std::string(e.what()));
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
-                            "compensation: error while handling a message on %s (%zu flows without output so "
-                            "far): %s",
-                            topic.c_str(), drops_.total(), e.what());
-  }
+  // A flow whose processing threw has no output: counted with the others.
+  if (!runGuarded("compensation", topic, errors_, handle)) drops_.add("an error while processing (warned)");
 }
 
 void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {

@@ -123,6 +123,7 @@ class CompensationRos {
   std::optional<ros::Time> last_flow_stamp_;  // frame b of the last gyro flow received
   std::optional<double> min_delay_s_;         // smallest handling delay seen (see ~max_lag)
   std::optional<cv::Size> last_flow_grid_;    // the history restarts when the grid changes
+  std::size_t errors_ = 0;  // exceptions caught at the callbacks
   std::size_t published_ = 0;
 };
 

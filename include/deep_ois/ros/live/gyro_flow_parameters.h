@@ -29,7 +29,9 @@ struct GyroFlowParameters {
   double imu_wait_timeout_s = 0.5;     // how long a frame may wait for IMU samples covering it
   double max_frame_interval_s = 0.25;  // frames further apart are not paired (dropped frames)
   double time_jump_reset_s = 1.0;      // a stamp this much older than the newest one resets state
-  int image_queue_size = 5;
+  // Frames larger than this are refused (3840x2160, 4K UHD, the largest common video mode).
+  int max_image_pixels = 3840 * 2160;
+  int image_queue_size = 30;  // a second of 30 fps: a stalled thread does not lose frames
   int imu_queue_size = 2000;
 };
 
