@@ -90,7 +90,9 @@ void GyroFlowRos::resetState(const std::string& why) {
   imu_buffer_.clear();
   pending_frames_.clear();
   previous_.reset();
-  cached_rotation_.reset();
+  // The IMU-to-camera rotation is kept (it is keyed by the two frame ids): the mount is rigid, and
+  // a time jump makes tf2's listener clear its buffer, so a mount published on /tf (not latched
+  // /tf_static) could otherwise not be found again after a bag loops.
   last_ros_time_ = ros::Time();
   time_base_.reset();
 }
@@ -255,11 +257,18 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
     cached_rotation_frames_ = frames;
     return cached_rotation_;
   } catch (const tf2::TransformException& e) {
-    skipPair("no IMU-to-camera transform " + frames + " in tf");
+    // Say what tf knows: nothing at all (no /tf_static received: the publisher is not running, or
+    // its latched message has not arrived yet), or other frames (a wrong frame_id).
+    std::vector<std::string> known;
+    tf_buffer_._getFrameStrings(known);
+    std::string known_text;
+    for (const std::string& f : known) known_text += (known_text.empty() ? "" : ", ") + f;
+    const std::string what = known.empty() ? "tf has received no transform at all yet" : "tf knows " + known_text;
+    skipPair("no IMU-to-camera transform " + frames + " in tf (" + what + ")");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: no IMU-to-camera transform %s in tf (%s); set "
+                            "gyro_flow: no IMU-to-camera transform %s in tf (%s; %s); set "
                             "~imu_to_camera_rotation or publish it on /tf_static",
-                            frames.c_str(), e.what());
+                            frames.c_str(), e.what(), what.c_str());
     return std::nullopt;
   }
 }
