@@ -315,7 +315,12 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",
                             frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
                             may_still_come ? " (waited ~imu_wait_timeout)" : "");
-    skipPair(result.reason + (may_still_come ? " (the IMU did not cover the frame within ~imu_wait_timeout)" : ""));
+    // The tally groups by kind (the warning above has the stamps).
+    const std::string kind = result.status == IntegrationStatus::kTooOld
+                                 ? "the pair starts before the oldest IMU sample (stream start, loop, or lagging frames)"
+                                 : std::string(toString(result.status));
+    skipPair("IMU not covering the pair: " + kind +
+             (may_still_come ? " (waited ~imu_wait_timeout)" : ""));
     return Outcome::kDropped;
   }
   // A pair longer than the camera's usual interval lost a frame in between: say so (it still
