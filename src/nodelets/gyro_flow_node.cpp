@@ -7,10 +7,13 @@
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "gyro_flow");
+  // Held outside the try: the last NodeHandle going away shuts ROS down, and rosconsole with it,
+  // so a FATAL logged after the wrapper's own handles were unwound by its exception would be lost.
+  ros::NodeHandle nh, private_nh("~");
   try {
-    deep_ois::GyroFlowRos gyro_flow(ros::NodeHandle(), ros::NodeHandle("~"));
+    deep_ois::GyroFlowRos gyro_flow(nh, private_nh);
     ros::spin();
-  } catch (const std::invalid_argument& e) {
+  } catch (const std::exception& e) {
     ROS_FATAL("%s", e.what());
     return 1;
   }

@@ -13,6 +13,7 @@
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/ros/live/parameter_source.h"
+#include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -43,6 +44,16 @@ CompensationParameters loadCompensationParameters(const ros::NodeHandle& private
   if (p.image_cache_size < 2) reject(nh, "image_cache_size", "must be at least 2 (both frames of a pair)");
   p.max_wait_s = nh.param("max_wait", p.max_wait_s);
   if (!std::isfinite(p.max_wait_s) || p.max_wait_s < 0.0) reject(nh, "max_wait", "must be >= 0 seconds");
+  p.max_pending_flows = nh.param("max_pending_flows", p.max_pending_flows);
+  if (p.max_pending_flows < 1) reject(nh, "max_pending_flows", "must be at least 1");
+  p.max_image_pixels = nh.param("max_image_pixels", p.max_image_pixels);
+  if (p.max_image_pixels < 1) reject(nh, "max_image_pixels", "must be at least 1 pixel");
+  p.max_lag_s = nh.param("max_lag", p.max_lag_s);
+  if (!std::isfinite(p.max_lag_s) || p.max_lag_s <= 0.0) reject(nh, "max_lag", "must be > 0 seconds");
+  p.test_processing_delay_s = nh.param("test_processing_delay", p.test_processing_delay_s);
+  if (!std::isfinite(p.test_processing_delay_s) || p.test_processing_delay_s < 0.0) {
+    reject(nh, "test_processing_delay", "must be >= 0 seconds (a test hook: leave it unset)");
+  }
   p.warp_iterations = nh.param("warp_iterations", p.warp_iterations);
   if (p.warp_iterations < 0 || p.warp_iterations > 20) reject(nh, "warp_iterations", "must be in [0, 20]");
   p.warp_threads = nh.param("warp_threads", p.warp_threads);
@@ -60,7 +71,9 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       params_(loadCompensationParameters(private_nh)),
       model_(CompensationModel::load(params_.model_path)),
       stream_(model_),
-      it_(nh) {
+      it_(nh),
+      matcher_(FlowFrameMatcherOptions{static_cast<std::size_t>(params_.image_cache_size),
+                                       static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}) {
   setTorchThreads(params_.torch_threads);
   // OpenCV's thread count is process-wide: the warp (map build and remaps) is the OpenCV work
   // that splits into stripes; one thread unless ~warp_threads asks for more.
@@ -85,6 +98,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         params_.color_max_flow_px = live.color_max_flow_px;
         params_.warp_iterations = live.warp_iterations;
         params_.max_wait_s = live.max_wait_s;
+        matcher_.setMaxWait(live.max_wait_s);
         diagnostics_->setValue("color_max_flow [px]", std::to_string(live.color_max_flow_px));
         diagnostics_->setValue("warp_iterations", std::to_string(live.warp_iterations));
       });
@@ -96,6 +110,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   aligned_pub_ = it_.advertise("aligned/image_raw", 5, on_image_subscribers, on_image_subscribers);
   ghost_pub_ = it_.advertise("aligned/ghost", 5, on_image_subscribers, on_image_subscribers);
   flow_image_pub_ = FlowImagePublisher(nh_, "compensated_flow/image", [this] { connectCallback(); });
+  // Gives up on flows whose frames stopped coming (no image callback runs then).
+  expire_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), &CompensationRos::expireTimerCallback, this);
   const ModelMetadata& m = model_.metadata();
   ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
                  "%d warp thread(s)",
@@ -104,6 +120,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
 }
 
 CompensationRos::~CompensationRos() {
+  expire_timer_.stop();
   reconfigure_.reset();  // no more reconfigure callbacks into this
   diagnostics_.reset();
   std::lock_guard<std::mutex> lock(mutex_);
@@ -123,8 +140,7 @@ void CompensationRos::connectCallback() {
   if (!wanted && subscribed) {
     gyro_flow_sub_.shutdown();
     image_sub_.shutdown();
-    images_.clear();
-    pending_.clear();
+    matcher_.clear();
   } else if (wanted && !subscribed) {
     const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh_);
     image_sub_ = it_.subscribe("image_raw", params_.image_queue_size, &CompensationRos::imageCallback, this, hints);
@@ -132,59 +148,112 @@ void CompensationRos::connectCallback() {
   }
 }
 
+template <typename Handle>
+void CompensationRos::guarded(const std::string& topic, Handle handle) {
+  // A flow whose processing threw has no output: counted with the others.
+  if (!runGuarded("compensation", topic, errors_, handle)) countDrop("an error while processing (warned)");
+}
+
 void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   diagnostics_->tick("images");
-  if (!images_.empty() && msg->header.stamp < images_.back()->header.stamp) {
-    // Time went backwards (a bag loops): frames of the old run can never pair with new flows.
-    images_.clear();
-  }
-  images_.push_back(msg);
-  while (images_.size() > static_cast<std::size_t>(params_.image_cache_size)) images_.pop_front();
-  processPending();
+  guarded(image_sub_.getTopic(), [&] {
+    const std::string problem = validateImage(*msg);
+    if (!problem.empty()) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: refusing frame %.6f on %s: %s",
+                              msg->header.stamp.toSec(), image_sub_.getTopic().c_str(), problem.c_str());
+      return;
+    }
+    if (static_cast<double>(msg->width) * msg->height > params_.max_image_pixels) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
+                              "compensation: refusing frame %.6f on %s: %ux%u is more than ~max_image_pixels "
+                              "(%d) pixels",
+                              msg->header.stamp.toSec(), image_sub_.getTopic().c_str(), msg->width, msg->height,
+                              params_.max_image_pixels);
+      return;
+    }
+    settle(matcher_.addFrame(static_cast<std::int64_t>(msg->header.stamp.toNSec()), msg,
+                             ros::WallTime::now().toSec()));
+  });
+  reportDrops();
 }
 
 void CompensationRos::gyroFlowCallback(const GyroFlowConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   diagnostics_->tick("gyro flows");
-  pending_.push_back({msg, ros::WallTime::now()});
-  processPending();
-}
-
-sensor_msgs::ImageConstPtr CompensationRos::cachedImage(const ros::Time& stamp) const {
-  for (auto it = images_.rbegin(); it != images_.rend(); ++it) {
-    if ((*it)->header.stamp == stamp) return *it;
-  }
-  return nullptr;
-}
-
-void CompensationRos::processPending() {
-  const ros::WallTime now = ros::WallTime::now();
-  while (!pending_.empty()) {
-    const PendingFlow& front = pending_.front();
-    const sensor_msgs::ImageConstPtr image_a = cachedImage(front.flow->previous_stamp);
-    const sensor_msgs::ImageConstPtr image_b = cachedImage(front.flow->header.stamp);
-    if (image_a && image_b) {
-      process(*front.flow, image_a, image_b);
-    } else if ((now - front.received).toSec() < params_.max_wait_s && pending_.size() < 2 * static_cast<std::size_t>(params_.image_cache_size)) {
-      return;  // its frames may still come; later flows wait behind it to keep the order
-    } else {
-      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
-                              "compensation: dropping gyro flow %.6f: frame %s (%.6f) not received on %s",
-                              front.flow->header.stamp.toSec(), image_a ? "b" : "a",
-                              (image_a ? front.flow->header.stamp : front.flow->previous_stamp).toSec(),
-                              image_sub_.getTopic().c_str());
-      diagnostics_->drop("frames not received");
-      // No output without its frames, but its motion is known: keep the history unbroken.
-      std::vector<Eigen::Matrix3d> homographies;
-      cv::Mat gyro_flow;
-      if (readGyroFlowMsg(*front.flow, homographies, gyro_flow).empty()) {
-        stream_.observe(gyro_flow, static_cast<std::int64_t>(front.flow->previous_stamp.toNSec()),
-                        static_cast<std::int64_t>(front.flow->header.stamp.toNSec()));
-      }
+  guarded(gyro_flow_sub_.getTopic(), [&] {
+    if (last_flow_stamp_ && msg->previous_stamp > *last_flow_stamp_) {
+      // Consecutive pairs chain; a gap means flows lost upstream (the gyro flow nodelet says why)
+      // or in a full subscriber queue.
+      countDrop("gyro flows missing between two received ones");
     }
-    pending_.pop_front();
+    if (last_flow_stamp_ && msg->header.stamp < *last_flow_stamp_) min_delay_s_.reset();  // time went back
+    last_flow_stamp_ = msg->header.stamp;
+    if (!(msg->previous_stamp < msg->header.stamp)) {
+      countDrop("previous_stamp not before stamp");
+      return;
+    }
+    settle(matcher_.addFlow(static_cast<std::int64_t>(msg->previous_stamp.toNSec()),
+                            static_cast<std::int64_t>(msg->header.stamp.toNSec()), msg, ros::WallTime::now().toSec()));
+  });
+  reportDrops();
+}
+
+void CompensationRos::expireTimerCallback(const ros::WallTimerEvent&) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  guarded(gyro_flow_sub_.getTopic(), [&] { settle(matcher_.expire(ros::WallTime::now().toSec())); });
+  reportDrops();
+}
+
+void CompensationRos::countDrop(const std::string& reason) {
+  drops_.add(reason);
+  diagnostics_->drop(reason);
+}
+
+void CompensationRos::settle(const std::vector<Matcher::Settled>& settled) {
+  for (const Matcher::Settled& s : settled) {
+    if (!s.matched) {
+      countDrop(flowDropReasonText(s.reason));
+      guarded(gyro_flow_sub_.getTopic(), [&] { observeOnly(*s.flow); });
+      continue;
+    }
+    const double lag_s = lagS(s.flow->header.stamp);
+    if (lag_s > params_.max_lag_s) {
+      countDrop("compensation more than ~max_lag behind its input");
+      guarded(gyro_flow_sub_.getTopic(), [&] { observeOnly(*s.flow); });
+      continue;
+    }
+    guarded(gyro_flow_sub_.getTopic(), [&] { process(*s.flow, s.frame_a, s.frame_b); });
   }
+}
+
+void CompensationRos::observeOnly(const GyroFlow& gyro) {
+  std::vector<Eigen::Matrix3d> homographies;
+  cv::Mat gyro_flow;
+  if (!readGyroFlowMsg(gyro, homographies, gyro_flow).empty() || !cv::checkRange(gyro_flow)) return;
+  if (!last_flow_grid_ || *last_flow_grid_ != gyro_flow.size()) return;  // process() restarts it
+  stream_.observe(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+                  static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+}
+
+double CompensationRos::lagS(const ros::Time& stamp_b) {
+  const ros::Time now = ros::Time::now();
+  if (now.isZero()) return 0.0;  // simulated time before the first /clock message
+  const double delay_s = (now - stamp_b).toSec();
+  if (!min_delay_s_ || delay_s < *min_delay_s_) min_delay_s_ = delay_s;
+  return delay_s - *min_delay_s_;
+}
+
+void CompensationRos::reportDrops() {
+  const ros::WallTime now = ros::WallTime::now();
+  if (!drops_.pending() || (now - last_drop_report_).toSec() < kWarnPeriodS) return;
+  last_drop_report_ = now;
+  const std::size_t count = drops_.pendingCount();
+  ROS_WARN_NAMED("compensation",
+                 "compensation: %zu gyro flow(s) on %s without output since the last report (%zu since start; "
+                 "frames on %s): %s",
+                 count, gyro_flow_sub_.getTopic().c_str(), drops_.total(), image_sub_.getTopic().c_str(),
+                 drops_.take().c_str());
 }
 
 void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
@@ -193,22 +262,41 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   cv::Mat gyro_flow;
   const std::string problem = readGyroFlowMsg(gyro, homographies, gyro_flow);
   if (!problem.empty()) {
+    countDrop("bad gyro flow message");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: %s",
                             gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str(), problem.c_str());
     diagnostics_->drop("invalid gyro flow");
     return;
   }
+  if (!cv::checkRange(gyro_flow)) {
+    countDrop("gyro flow holds NaN or inf");
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: its flow holds NaN or inf",
+                            gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str());
+    return;
+  }
+  if (!last_flow_grid_ || *last_flow_grid_ != gyro_flow.size()) {
+    // The motion history sums flows of one grid: a new grid (a reconfigured gyro flow) restarts it.
+    if (last_flow_grid_) stream_.reset();
+    last_flow_grid_ = gyro_flow.size();
+  }
+  if (params_.test_processing_delay_s > 0.0) ros::WallDuration(params_.test_processing_delay_s).sleep();
   if (image_a->width != gyro.image_width || image_a->height != gyro.image_height ||
       image_b->width != gyro.image_width || image_b->height != gyro.image_height) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
                             "compensation: dropping gyro flow %.6f: it is for %ux%u images but %s has %ux%u",
                             gyro.header.stamp.toSec(), gyro.image_width, gyro.image_height,
                             image_sub_.getTopic().c_str(), image_b->width, image_b->height);
-    diagnostics_->drop("image size differs from the gyro flow's");
+    countDrop("gyro flow and frames of different sizes");
     return;
   }
   const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
                                                  static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  if (!cv::checkRange(compensated)) {
+    // Never publish NaN: a model that diverges on this input gives no output for it.
+    stream_.reset();
+    countDrop("the model output holds NaN or inf");
+    return;
+  }
   diagnostics_->tick("compensated flows");
   diagnostics_->latency((ros::Time::now() - gyro.header.stamp).toSec());
 
@@ -256,7 +344,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   } catch (const cv_bridge::Exception& e) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: cannot convert the images on %s: %s",
                             image_sub_.getTopic().c_str(), e.what());
-    diagnostics_->drop("image conversion failed");
+    countDrop("images that cannot be converted");
     return;
   }
   ++published_;

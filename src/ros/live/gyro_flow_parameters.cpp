@@ -106,7 +106,9 @@ GyroFlowParameters loadGyroFlowParameters(const ParameterSource& nh) {
     reject(nh, "imu_buffer_duration", "must cover at least two frame intervals (2 x max_frame_interval)");
   }
   p.use_camera_info_only = nh.param("use_camera_info_only", false);
-  p.image_queue_size = nh.param("image_queue_size", 5);
+  p.image_queue_size = nh.param("image_queue_size", p.image_queue_size);
+  p.max_image_pixels = nh.param("max_image_pixels", p.max_image_pixels);
+  if (p.max_image_pixels < 1) reject(nh, "max_image_pixels", "must be at least 1 pixel");
   p.imu_queue_size = nh.param("imu_queue_size", 2000);
   if (p.image_queue_size < 1 || p.imu_queue_size < 1) {
     reject(nh, "image_queue_size/imu_queue_size", "must be at least 1");

@@ -10,6 +10,7 @@
 
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -30,6 +31,9 @@ void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& par
   diagnostics.setValue("grid [px]", std::to_string(params.grid_size.width) + "x" +
                                         std::to_string(params.grid_size.height));
 }
+constexpr std::size_t kIntervalHistory = 9;    // frame intervals behind the typical interval
+// A pair this many typical intervals long lost a frame in between.
+constexpr double kSpanningFactor = 1.5;
 }  // namespace
 
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -102,8 +106,8 @@ void GyroFlowRos::connectCallback() {
     } else {
       camera_sub_ = it_.subscribeCamera("image_raw", params_.image_queue_size,
                                         &GyroFlowRos::cameraCallback, this, hints);
-      image_topic_ = image_topic_;
-      info_topic_ = info_topic_;
+      image_topic_ = camera_sub_.getTopic();
+      info_topic_ = camera_sub_.getInfoTopic();
     }
     imu_sub_ = nh_.subscribe("imu", params_.imu_queue_size, &GyroFlowRos::imuCallback, this,
                              ros::TransportHints().tcpNoDelay());
@@ -126,7 +130,9 @@ void GyroFlowRos::resetState(const std::string& why) {
   imu_buffer_.clear();
   pending_frames_.clear();
   previous_.reset();
-  cached_rotation_.reset();
+  // The IMU-to-camera rotation is kept (it is keyed by the two frame ids): the mount is rigid, and
+  // a time jump makes tf2's listener clear its buffer, so a mount published on /tf (not latched
+  // /tf_static) could otherwise not be found again after a bag loops.
   last_ros_time_ = ros::Time();
   time_base_.reset();
 }
@@ -138,7 +144,14 @@ double GyroFlowRos::secondsSinceBase(const ros::Time& stamp) {
 
 void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
   std::lock_guard<std::mutex> lock(mutex_);
+  runGuarded("gyro_flow", imu_sub_.getTopic(), errors_, [&] { handleImu(imu); });
+  reportSkips();
+}
+
+void GyroFlowRos::handleImu(const sensor_msgs::ImuConstPtr& imu) {
   checkRosTimeJump();
+  ++imu_in_window_;
+  if (imu->header.stamp > newest_imu_stamp_) newest_imu_stamp_ = imu->header.stamp;
   ++imu_received_;
   diagnostics_->tick("imu");
   last_imu_arrival_ = ros::Time::now();
@@ -169,19 +182,37 @@ void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
 void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                                  const sensor_msgs::CameraInfoConstPtr& info) {
   std::lock_guard<std::mutex> lock(mutex_);
+  const std::size_t errors_before = errors_;
+  runGuarded("gyro_flow", image_topic_, errors_, [&] { handleFrame(image, info); });
+  if (errors_ != errors_before) skipPair("an error while handling the frame (warned)");
+  reportSkips();
+}
+
+void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info) {
   checkRosTimeJump();
   ++frames_received_;
   diagnostics_->tick("frames");
+  ++frames_in_window_;
   const std::string& topic = image_topic_;
   // Without an image (~use_camera_info_only) the CameraInfo's header stands for the frame's.
   const std_msgs::Header& header = image ? image->header : info->header;
+  if (header.stamp > newest_frame_stamp_) newest_frame_stamp_ = header.stamp;
   const double stamp_s = header.stamp.toSec();
 
   std::string problem = image ? validateImage(*image) : "";
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f on %s: %s",
                             stamp_s, topic.c_str(), problem.c_str());
-    diagnostics_->drop("invalid image");
+    skipPair("frame refused: " + problem);
+    return;
+  }
+  const std::uint32_t width = image ? image->width : info->width;
+  const std::uint32_t height = image ? image->height : info->height;
+  if (static_cast<double>(width) * height > params_.max_image_pixels) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: dropping frame %.6f on %s: %ux%u is more than ~max_image_pixels (%d) pixels",
+                            stamp_s, topic.c_str(), width, height, params_.max_image_pixels);
+    skipPair("frame larger than ~max_image_pixels");
     return;
   }
   Frame frame;
@@ -194,7 +225,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
   if (!problem.empty()) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s: %s",
                             stamp_s, info_topic_.c_str(), problem.c_str());
-    diagnostics_->drop("unusable camera_info");
+    skipPair("camera_info refused: " + problem);
     return;
   }
   if (image && (image->width != info->width || image->height != info->height)) {
@@ -202,7 +233,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                             "gyro_flow: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u",
                             stamp_s, topic.c_str(), image->width, image->height,
                             info_topic_.c_str(), info->width, info->height);
-    diagnostics_->drop("image and camera_info sizes differ");
+    skipPair("image and camera_info sizes differ");
     return;
   }
   frame.stamp = header.stamp;
@@ -223,7 +254,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                               "gyro_flow: dropping frame %.6f on %s: %s stamp (latest frame %.6f)",
                               stamp_s, topic.c_str(), back_s == 0.0 ? "duplicate" : "out-of-order",
                               latest->toSec());
-      diagnostics_->drop("duplicate or out-of-order frame");
+      skipPair(back_s == 0.0 ? "duplicate frame stamp" : "out-of-order frame stamp");
       return;
     }
   }
@@ -232,8 +263,9 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %zu frames wait for IMU data on %s: dropping the oldest",
                             pending_frames_.size(), imu_sub_.getTopic().c_str());
-    diagnostics_->drop("too many frames waiting for IMU");
+    skipPair("more than 60 frames waiting for IMU data");
     previous_ = pending_frames_.front();
+    frames_dropped_since_previous_ = 0;
     pending_frames_.pop_front();
   }
   processPendingFrames();
@@ -248,7 +280,12 @@ void GyroFlowRos::processPendingFrames() {
     const Frame& frame = pending_frames_.front();
     if (previous_ && processFrame(frame) == Outcome::kWaitForImu) return;
     // Published or dropped, this frame is the earlier frame of the next pair.
+    if (previous_) {
+      recent_intervals_s_.push_back((frame.stamp - previous_->stamp).toSec());
+      if (recent_intervals_s_.size() > kIntervalHistory) recent_intervals_s_.pop_front();
+    }
     previous_ = frame;
+    frames_dropped_since_previous_ = 0;
     pending_frames_.pop_front();
   }
 }
@@ -256,6 +293,7 @@ void GyroFlowRos::processPendingFrames() {
 std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::string& camera_frame) {
   if (!params_.rotation_from_tf) return params_.rolling_shutter.imu_to_camera_rotation;
   if (imu_frame_id_.empty() || camera_frame.empty()) {
+    skipPair("empty frame_id: no IMU-to-camera transform can be looked up");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s has an empty frame_id: set ~%s or ~imu_to_camera_rotation",
                             imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : image_topic_.c_str(),
@@ -274,10 +312,18 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
     cached_rotation_frames_ = frames;
     return cached_rotation_;
   } catch (const tf2::TransformException& e) {
+    // Say what tf knows: nothing at all (no /tf_static received: the publisher is not running, or
+    // its latched message has not arrived yet), or other frames (a wrong frame_id).
+    std::vector<std::string> known;
+    tf_buffer_._getFrameStrings(known);
+    std::string known_text;
+    for (const std::string& f : known) known_text += (known_text.empty() ? "" : ", ") + f;
+    const std::string what = known.empty() ? "tf has received no transform at all yet" : "tf knows " + known_text;
+    skipPair("no IMU-to-camera transform " + frames + " in tf (" + what + ")");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: no IMU-to-camera transform %s in tf (%s); set "
+                            "gyro_flow: no IMU-to-camera transform %s in tf (%s; %s); set "
                             "~imu_to_camera_rotation or publish it on /tf_static",
-                            frames.c_str(), e.what());
+                            frames.c_str(), e.what(), what.c_str());
     return std::nullopt;
   }
 }
@@ -291,21 +337,18 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
                             "%.1f ms): not pairing them",
                             previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(),
                             interval_s * 1e3, params_.max_frame_interval_s * 1e3);
-    diagnostics_->drop("frames too far apart");
+    skipPair("frames further apart than ~max_frame_interval");
     return Outcome::kDropped;
   }
   if (frame.camera != previous.camera) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
                             "gyro_flow: %s changed between frames %.6f and %.6f: not pairing them",
                             info_topic_.c_str(), previous.stamp.toSec(), frame.stamp.toSec());
-    diagnostics_->drop("camera_info changed");
+    skipPair("camera_info changed between the frames");
     return Outcome::kDropped;
   }
   const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame.frame_id);
-  if (!rotation) {
-    diagnostics_->drop("no IMU-to-camera rotation");
-    return Outcome::kDropped;
-  }
+  if (!rotation) return Outcome::kDropped;  // imuToCameraRotation counted it
   diagnostics_->setValue("R_cam_imu source", params_.rotation_from_tf ? "tf " + cached_rotation_frames_
                                                                        : "~imu_to_camera_rotation");
 
@@ -329,8 +372,29 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",
                             frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
                             may_still_come ? " (waited ~imu_wait_timeout)" : "");
-    diagnostics_->drop("IMU does not cover the pair");
+    // The tally groups by kind (the warning above has the stamps).
+    const std::string kind = result.status == IntegrationStatus::kTooOld
+                                 ? "the pair starts before the oldest IMU sample (stream start, loop, or lagging frames)"
+                                 : std::string(toString(result.status));
+    skipPair("IMU not covering the pair: " + kind +
+             (may_still_come ? " (waited ~imu_wait_timeout)" : ""));
     return Outcome::kDropped;
+  }
+  // A pair longer than the camera's usual interval lost a frame in between: say so (it still
+  // is a right flow between these two frames).
+  const double typical_s = typicalFrameIntervalS();
+  if (typical_s > 0.0 && interval_s > kSpanningFactor * typical_s) {
+    const int spans = static_cast<int>(std::lround(interval_s / typical_s));
+    const std::string where = frames_dropped_since_previous_ > 0
+                                  ? "frame(s) between them were dropped here (see the warnings)"
+                                  : "frame(s) between them never reached this nodelet (lost upstream, or a full "
+                                    "~image_queue_size subscriber queue)";
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                            "gyro_flow: the flow from %.6f to %.6f on %s spans %d frame intervals (%.1f ms, usual "
+                            "%.1f ms): %s",
+                            previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(), spans,
+                            interval_s * 1e3, typical_s * 1e3, where.c_str());
+    skipPair("flow spanning " + std::to_string(spans) + " frame intervals (published)");
   }
 
   if (!renderer_ || !renderer_->compatible(frame.camera, params_.grid_size, config.patch_count)) {
@@ -360,34 +424,95 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   ++flows_published_;
   diagnostics_->tick("gyro flows");
   diagnostics_->latency((ros::Time::now() - frame.stamp).toSec());
+  ++flows_in_window_;
   return Outcome::kPublished;
+}
+
+void GyroFlowRos::skipPair(const std::string& reason) {
+  skipped_.add(reason);
+  diagnostics_->drop(reason);
+  window_problem_ = reason;
+  if (reason.find("(published)") == std::string::npos) ++frames_dropped_since_previous_;
+}
+
+void GyroFlowRos::reportSkips() {
+  const ros::WallTime now = ros::WallTime::now();
+  if (!skipped_.pending() || (now - last_skip_report_).toSec() < kWarnPeriodS) return;
+  last_skip_report_ = now;
+  const std::size_t count = skipped_.pendingCount();
+  ROS_WARN_NAMED("gyro_flow",
+                 "gyro_flow: %zu frame pair(s) on %s skipped or spanning lost frames since the last report (%zu "
+                 "since start): %s",
+                 count, image_topic_.c_str(), skipped_.total(), skipped_.take().c_str());
+}
+
+double GyroFlowRos::typicalFrameIntervalS() const {
+  if (recent_intervals_s_.size() < 3) return 0.0;
+  std::vector<double> sorted(recent_intervals_s_.begin(), recent_intervals_s_.end());
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  return sorted[sorted.size() / 2];
 }
 
 void GyroFlowRos::waitingTimerCallback(const ros::WallTimerEvent&) {
   std::lock_guard<std::mutex> lock(mutex_);
+  runGuarded("gyro_flow", imu_sub_.getTopic(), errors_, [&] { checkProgress(); });
+}
+
+void GyroFlowRos::checkProgress() {
+  reportSkips();  // also when no callback runs any more
   if (!imu_sub_) return;
-  if (params_.use_camera_info_only && frames_received_ == 0) {
-    ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/CameraInfo on %s (~use_camera_info_only)",
-                   info_topic_.c_str());
+  const std::size_t imu = imu_in_window_, frames = frames_in_window_, flows = flows_in_window_;
+  const std::string problem = window_problem_;
+  imu_in_window_ = frames_in_window_ = flows_in_window_ = 0;
+  window_problem_.clear();
+  // Copies: getTopic() returns by value.
+  const std::string imu_topic_s = imu_sub_.getTopic(), image_topic_s = image_topic_,
+                    info_topic_s = info_topic_;
+  const char* imu_topic = imu_topic_s.c_str();
+  const char* image_topic = image_topic_s.c_str();
+  const char* info_topic = info_topic_s.c_str();
+  if (flows > 0) {
+    input_stopped_reported_ = false;
+    return;
   }
-  if (flows_published_ == flows_published_at_last_check_) {
-    if (imu_received_ == 0) {
-      ROS_WARN_NAMED("gyro_flow", "gyro_flow: still waiting for sensor_msgs/Imu on %s",
-                     imu_sub_.getTopic().c_str());
-    }
-    if (frames_received_ == 0 && !params_.use_camera_info_only) {
+  if (imu == 0 && frames == 0) {
+    if (imu_received_ == 0 && frames_received_ == 0) {
       ROS_WARN_NAMED("gyro_flow",
-                     "gyro_flow: still waiting for images on %s with camera_info on %s (stamps must match)",
-                     image_topic_.c_str(), info_topic_.c_str());
-    }
-    if (imu_received_ > 0 && frames_received_ > 0) {
+                     "gyro_flow: still waiting for sensor_msgs/Imu on %s and images on %s with camera_info on %s",
+                     imu_topic, image_topic, info_topic);
+    } else if (!input_stopped_reported_) {
+      // Once: a bag that ended or a stopped camera is not an error to repeat every few seconds.
       ROS_WARN_NAMED("gyro_flow",
-                     "gyro_flow: received %zu IMU samples and %zu frames but published nothing in "
-                     "the last %.0f s (see the warnings above)",
-                     imu_received_, frames_received_, kWaitingCheckPeriodS);
+                     "gyro_flow: no input on %s or %s in the last %.0f s (stream stopped or bag ended): waiting",
+                     imu_topic, image_topic, kWaitingCheckPeriodS);
+      input_stopped_reported_ = true;
     }
+    return;
   }
-  flows_published_at_last_check_ = flows_published_;
+  input_stopped_reported_ = false;
+  if (imu == 0) {
+    ROS_WARN_NAMED("gyro_flow",
+                   "gyro_flow: %zu frames on %s but no sensor_msgs/Imu on %s in the last %.0f s: no flow without "
+                   "gyro data",
+                   frames, image_topic, imu_topic, kWaitingCheckPeriodS);
+  } else if (frames == 0) {
+    ROS_WARN_NAMED("gyro_flow",
+                   "gyro_flow: %zu IMU samples on %s but no frames in the last %.0f s: are images published on %s "
+                   "with camera_info of the same stamps on %s?",
+                   imu, imu_topic, kWaitingCheckPeriodS, image_topic, info_topic);
+  } else if (!problem.empty()) {
+    ROS_WARN_NAMED("gyro_flow",
+                   "gyro_flow: %zu IMU samples and %zu frames in the last %.0f s but no flow published; latest "
+                   "reason: %s",
+                   imu, frames, kWaitingCheckPeriodS, problem.c_str());
+  } else {
+    ROS_WARN_NAMED("gyro_flow",
+                   "gyro_flow: %zu IMU samples and %zu frames in the last %.0f s but no flow published: %zu "
+                   "frame(s) wait for IMU samples covering them (newest IMU stamp %.3f, newest frame %.3f; "
+                   "~time_offset %.4f s)",
+                   imu, frames, kWaitingCheckPeriodS, pending_frames_.size(), newest_imu_stamp_.toSec(),
+                   newest_frame_stamp_.toSec(), params_.rolling_shutter.time_offset_s);
+  }
 }
 
 }  // namespace deep_ois

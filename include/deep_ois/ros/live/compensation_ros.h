@@ -10,9 +10,13 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <vector>
 #include <string>
 
 #include "deep_ois/core/flow/backward_map.h"
+#include "deep_ois/core/common/drop_tally.h"
+#include "deep_ois/core/flow/flow_frame_matcher.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/ros/live/compensation_reconfigure.h"
@@ -24,10 +28,23 @@ namespace deep_ois {
 struct CompensationParameters {
   std::string model_path;        // ~model: the model file (required)
   int torch_threads = 1;         // ~torch_threads: intra-op threads (process-wide in torch)
-  int image_queue_size = 5;      // ~image_queue_size
-  int gyro_flow_queue_size = 5;  // ~gyro_flow_queue_size
+  // Input queues hold a second of 30 fps video: work is dropped by ~max_lag, counted and said,
+  // rather than silently by a full subscriber queue.
+  int image_queue_size = 30;      // ~image_queue_size
+  int gyro_flow_queue_size = 30;  // ~gyro_flow_queue_size
   int image_cache_size = 30;     // ~image_cache_size: frames kept to pair with gyro flows
   double max_wait_s = 1.0;       // ~max_wait: wall time a gyro flow waits for its images
+  int max_pending_flows = 60;    // ~max_pending_flows: gyro flows waiting for their frames
+  // ~max_image_pixels: larger frames are refused (3840x2160, 4K UHD: the largest common video
+  // mode; 30 cached rgb8 frames of it take 750 MB, and the network works at 360x270 anyway).
+  int max_image_pixels = 3840 * 2160;
+  // ~max_lag: a pair whose frame b is this much later (ROS time of handling minus stamp, above
+  // the smallest such delay seen, which absorbs a constant clock offset) is dropped unprocessed:
+  // the compensation catches up instead of falling behind.
+  double max_lag_s = 0.5;
+  // ~test_processing_delay: TEST HOOK ONLY (default 0): seconds slept per processed pair, to
+  // make a slow compensation in the lag rostest on any machine. Never set it in use.
+  double test_processing_delay_s = 0.0;
   int warp_iterations = 3;       // ~warp_iterations: fixed-point steps inverting the flow
   int warp_threads = 1;          // ~warp_threads: OpenCV threads for the warp (process-wide)
   double color_max_flow_px = 0.0;  // ~color_max_flow: as the gyro flow nodelet's
@@ -54,6 +71,11 @@ class CompensationRos {
  public:
   // Loads the model; throws ModelFileError naming the file and the problem, or
   // std::invalid_argument for a bad parameter.
+  //
+  // Reliability: no exception leaves a callback (each is caught at the callback, counted, and
+  // said in a throttled warning naming the topic); every gyro flow not turned into an output is
+  // counted by reason and said in one throttled warning (FlowFrameMatcher decides per flow, so a
+  // lost frame costs only the flows that need it).
   CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh);
   ~CompensationRos();
 
@@ -61,18 +83,26 @@ class CompensationRos {
   CompensationRos& operator=(const CompensationRos&) = delete;
 
  private:
-  struct PendingFlow {
-    GyroFlowConstPtr flow;
-    ros::WallTime received;
-  };
+  using Matcher = FlowFrameMatcher<GyroFlowConstPtr, sensor_msgs::ImageConstPtr>;
 
   void connectCallback();
   void gyroFlowCallback(const GyroFlowConstPtr& msg);
   void imageCallback(const sensor_msgs::ImageConstPtr& msg);
-  // Processes every pending gyro flow whose two frames are cached; drops those that waited too long
-  // (their motion still enters the history of the next pairs).
-  void processPending();
-  sensor_msgs::ImageConstPtr cachedImage(const ros::Time& stamp) const;
+  void expireTimerCallback(const ros::WallTimerEvent&);
+  // Runs `handle` and turns any exception into a counted, throttled warning naming `topic`.
+  template <typename Handle>
+  void guarded(const std::string& topic, Handle handle);
+  // Processes the matched flows and accounts for the dropped ones (their motion still enters the
+  // history of the next pairs), in stamp order.
+  void settle(const std::vector<Matcher::Settled>& settled);
+  // Counts a gyro flow that got no output (the throttled warning and /diagnostics).
+  void countDrop(const std::string& reason);
+  // Adds the flow's motion to the history without an output.
+  void observeOnly(const GyroFlow& gyro);
+  // Processing delay of the pair ending at `stamp_b` beyond the smallest seen, seconds.
+  double lagS(const ros::Time& stamp_b);
+  // The throttled warning of everything dropped since the last one.
+  void reportDrops();
   void process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                const sensor_msgs::ImageConstPtr& image_b);
   bool anyOutputWanted() const;
@@ -94,9 +124,16 @@ class CompensationRos {
   image_transport::Publisher ghost_pub_;
   FlowImagePublisher flow_image_pub_;  // compensated_flow/image: the flow as a plain 32FC2 image
 
-  std::deque<sensor_msgs::ImageConstPtr> images_;  // newest last
-  std::deque<PendingFlow> pending_;
   FixedPointMap warp_map_;  // the backward map of the current pair (buffers reused per frame)
+  ros::WallTimer expire_timer_;
+
+  Matcher matcher_;
+  DropTally drops_;                  // gyro flows without an output, by reason
+  ros::WallTime last_drop_report_;
+  std::optional<ros::Time> last_flow_stamp_;  // frame b of the last gyro flow received
+  std::optional<double> min_delay_s_;         // smallest handling delay seen (see ~max_lag)
+  std::optional<cv::Size> last_flow_grid_;    // the history restarts when the grid changes
+  std::size_t errors_ = 0;  // exceptions caught at the callbacks
   std::size_t published_ = 0;
   std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, model
   std::unique_ptr<CompensationReconfigure> reconfigure_;

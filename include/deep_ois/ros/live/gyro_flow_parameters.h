@@ -31,7 +31,9 @@ struct GyroFlowParameters {
   double time_jump_reset_s = 1.0;      // a stamp this much older than the newest one resets state
   // Subscribe camera_info alone (stamp, size, intrinsics), not the images: ~use_camera_info_only.
   bool use_camera_info_only = false;
-  int image_queue_size = 5;
+  // Frames larger than this are refused (3840x2160, 4K UHD, the largest common video mode).
+  int max_image_pixels = 3840 * 2160;
+  int image_queue_size = 30;  // a second of 30 fps: a stalled thread does not lose frames
   int imu_queue_size = 2000;
 };
 

@@ -18,6 +18,7 @@
 #include <string>
 
 #include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/common/drop_tally.h"
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
@@ -62,12 +63,23 @@ class GyroFlowRos {
   void cameraCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
   void cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info);
   void waitingTimerCallback(const ros::WallTimerEvent&);
+  // The callbacks' work, inside runGuarded.
+  void handleImu(const sensor_msgs::ImuConstPtr& imu);
+  void handleFrame(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
+  // The watchdog: says, per window, why nothing was published (once when the input stopped).
+  void checkProgress();
 
   // Pairs pending frames with the previous frame as far as the IMU data allows.
   void processPendingFrames();
   // Publishes the gyro flow from previous_ to `frame`; false when IMU data is not there yet.
   enum class Outcome { kPublished, kWaitForImu, kDropped };
   Outcome processFrame(const Frame& frame);
+  // Counts a frame pair that gives no flow, with the reason (also the watchdog's latest problem).
+  void skipPair(const std::string& reason);
+  // The throttled warning of every pair skipped since the last one.
+  void reportSkips();
+  // Median interval of the recent consecutive frames, seconds; 0 until known.
+  double typicalFrameIntervalS() const;
   // R_cam_imu from the parameter or tf; empty (and a throttled warning) when unavailable.
   std::optional<Eigen::Matrix3d> imuToCameraRotation(const std::string& camera_frame);
   // Forgets IMU samples and frames, e.g. when time jumps backwards because a bag loops.
@@ -108,12 +120,22 @@ class GyroFlowRos {
   std::optional<ros::Time> time_base_;
   double secondsSinceBase(const ros::Time& stamp);
 
-  // Counters for the "still waiting" diagnostics.
+  // Pairs without a flow, and flows spanning more than one frame interval, by reason.
+  DropTally skipped_;
+  ros::WallTime last_skip_report_;
+  std::size_t frames_dropped_since_previous_ = 0;  // frames refused here since previous_
+  std::deque<double> recent_intervals_s_;         // of consecutive accepted frames
+  std::size_t errors_ = 0;                        // exceptions caught at the callbacks
+
+  // Counters for the watchdog: since start, and in the current window.
   std::size_t imu_received_ = 0;
   ros::Time last_imu_arrival_;  // ROS time the latest IMU message was handled
   std::size_t frames_received_ = 0;
   std::size_t flows_published_ = 0;
-  std::size_t flows_published_at_last_check_ = 0;
+  std::size_t imu_in_window_ = 0, frames_in_window_ = 0, flows_in_window_ = 0;
+  std::string window_problem_;          // the latest reason a pair gave no flow in the window
+  bool input_stopped_reported_ = false;  // said once when the input stops, until it resumes
+  ros::Time newest_imu_stamp_, newest_frame_stamp_;
 };
 
 }  // namespace deep_ois

@@ -1,0 +1,192 @@
+// The live pipeline's reliability (issue 14, live defects), both nodelets in one manager fed in
+// real time (live_pipeline_rostest_helpers.h). Each test states the defect it guards against; the
+// tests run in order on one stream.
+#include <cstdio>
+#include <string>
+
+#include "live_pipeline_rostest_helpers.h"
+
+namespace deep_ois {
+namespace {
+
+using live_test::LivePipelineHarness;
+
+LivePipelineHarness* harness = nullptr;
+
+// The pipeline connected and publishing (once per process).
+void ensureStarted() {
+  static bool started = false;
+  if (started) return;
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  harness->stream(1.5);
+  started = true;
+}
+
+// Compensated flows received in [t0 + 1 s, t0 + 3 s) against the frames published then: after one
+// second the output must be at the input's rate again (half of it on a loaded CI machine).
+void expectFullRateAfterOneSecond(const ros::WallTime& t0) {
+  const ros::WallTime from = t0 + ros::WallDuration(1.0), to = t0 + ros::WallDuration(3.0);
+  const std::size_t frames = harness->framesBetween(from, to), outputs = harness->countBetween(true, from, to);
+  EXPECT_GE(2 * outputs, frames) << outputs << " compensated flows for " << frames << " frames; warnings:\n"
+                                 << harness->warningsText(t0);
+}
+
+// Defect 1: one orphan gyro flow (its frames never exist) stopped the compensation for good.
+TEST(LiveReliability, AnOrphanGyroFlowCostsOnlyItself) {
+  ensureStarted();
+  const GyroFlowConstPtr last = harness->lastGyroFlow();
+  ASSERT_TRUE(last);
+  GyroFlow orphan = *last;
+  orphan.previous_stamp = last->header.stamp + ros::Duration(0.005);
+  orphan.header.stamp = last->header.stamp + ros::Duration(0.020);
+  orphan.flow.header.stamp = orphan.header.stamp;
+  const ros::WallTime t0 = ros::WallTime::now();
+  harness->injectFlow(orphan);
+  harness->stream(3.0);
+  expectFullRateAfterOneSecond(t0);
+  EXPECT_FALSE(harness->warnings(t0, {"compensation", live_test::kGyroFlowTopic, "its frame never came"}).empty())
+      << harness->warningsText(t0);
+}
+
+// Defect 1: a frame that never reaches the compensation cost every later pair.
+TEST(LiveReliability, AFrameThatNeverComesCostsOnlyItsPairs) {
+  ensureStarted();
+  const ros::WallTime t0 = ros::WallTime::now();
+  bool withheld = false;
+  harness->stream(3.0, [&](live_test::FrameEdit& edit) {
+    if (!withheld) edit.to_compensation = false;
+    withheld = true;
+  });
+  expectFullRateAfterOneSecond(t0);
+  EXPECT_FALSE(harness->warnings(t0, {"compensation", "its frame never came"}).empty()) << harness->warningsText(t0);
+}
+
+// Defect 5: a frame lost before the gyro flow made a flow span two frame intervals, silently.
+TEST(LiveReliability, AFlowSpanningALostFrameIsSaid) {
+  ensureStarted();
+  const ros::WallTime t0 = ros::WallTime::now();
+  int first = -1;
+  harness->stream(2.0, [&](live_test::FrameEdit& edit) {
+    if (first < 0) first = edit.index;
+    if (edit.index == first + 5) edit.to_gyro_flow = edit.to_compensation = false;
+  });
+  EXPECT_FALSE(harness->warnings(t0, {"gyro_flow", live_test::kImageTopic, "spans 2 frame intervals"}).empty())
+      << harness->warningsText(t0);
+}
+
+// Defect 2: an exception inside a callback (here an OpenCV assertion on a gyro flow whose rows
+// are padded) took the manager, and both nodelets, down.
+TEST(LiveReliability, AnExceptionInACallbackIsWarnedAndTheStreamGoesOn) {
+  ensureStarted();
+  const GyroFlowConstPtr last = harness->lastGyroFlow();
+  ASSERT_TRUE(last);
+  GyroFlow padded = *last;
+  const std::size_t row_bytes = last->flow.step, padded_step = row_bytes + 16;
+  padded.flow.step = static_cast<uint32_t>(padded_step);
+  padded.flow.data.assign(padded_step * last->flow.height, 0);
+  for (uint32_t y = 0; y < last->flow.height; ++y) {
+    std::memcpy(&padded.flow.data[y * padded_step], &last->flow.data[y * row_bytes], row_bytes);
+  }
+  const ros::WallTime t0 = ros::WallTime::now();
+  harness->injectFlow(padded);
+  harness->stream(3.0);
+  expectFullRateAfterOneSecond(t0);
+  EXPECT_FALSE(harness->warnings(t0, {"compensation: error while handling a message on", live_test::kGyroFlowTopic}).empty())
+      << harness->warningsText(t0);
+}
+
+// Defect 10: a 4000x3000 stream took the manager to 1.3 GB, 10 s behind, without a word.
+TEST(LiveReliability, AFrameAboveMaxImagePixelsIsRefusedWithAWarning) {
+  ensureStarted();
+  const ros::WallTime t0 = ros::WallTime::now();
+  int first = -1;
+  harness->stream(3.0, [&](live_test::FrameEdit& edit) {
+    if (first < 0) first = edit.index;
+    if (edit.index == first + 3) {
+      edit.image = live_test::makeImage(edit.image->header.stamp, 5000, 4000);
+      edit.info = live_test::makeInfo(edit.image->header.stamp, 5000, 4000);
+    }
+  });
+  expectFullRateAfterOneSecond(t0);
+  EXPECT_FALSE(harness->warnings(t0, {"gyro_flow", live_test::kImageTopic, "5000x4000", "max_image_pixels"}).empty())
+      << harness->warningsText(t0);
+  EXPECT_FALSE(
+      harness->warnings(t0, {"compensation", live_test::kCompensationImageTopic, "5000x4000", "max_image_pixels"})
+          .empty())
+      << harness->warningsText(t0);
+}
+
+// Defect 8: the watchdog counted since start, pointed to warnings that did not exist, and repeated
+// forever once the input stopped. Now: the cause of the window, and once when the input stops.
+TEST(LiveReliability, TheWatchdogSaysWhatIsWrongAndStopsWhenTheInputStops) {
+  ensureStarted();
+  ros::WallTime t0 = ros::WallTime::now();
+  harness->stream(11.0, {}, [](sensor_msgs::Imu&) { return false; });  // frames, no IMU
+  EXPECT_FALSE(harness->warnings(t0, {"gyro_flow", "but no sensor_msgs/Imu on", live_test::kImuTopic}).empty())
+      << harness->warningsText(t0);
+  harness->stream(1.0);
+  t0 = ros::WallTime::now();
+  ros::WallDuration(16.0).sleep();  // no input: three watchdog windows
+  EXPECT_EQ(harness->warnings(t0, {"gyro_flow", "no input on"}).size(), 1u) << harness->warningsText(t0);
+  EXPECT_TRUE(harness->warnings(t0, {"see the warnings above"}).empty()) << harness->warningsText(t0);
+  EXPECT_TRUE(harness->warnings(t0, {"published nothing"}).empty()) << harness->warningsText(t0);
+  // It comes back to full rate.
+  t0 = ros::WallTime::now();
+  harness->stream(3.0);
+  expectFullRateAfterOneSecond(t0);
+}
+
+// Defect 6: the nodes exited 1 without a word on a bad parameter.
+void expectFatal(const std::string& command, const std::string& expected) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
+  const int status = pclose(pipe);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << command << " -> status " << status;
+  EXPECT_NE(output.find("FATAL"), std::string::npos) << command << " printed:\n" << output;
+  EXPECT_NE(output.find(expected), std::string::npos) << command << " printed:\n" << output;
+}
+
+TEST(LiveReliability, TheNodesSayWhyTheyExit) {
+  expectFatal(std::string(DEEP_OIS_COMPENSATION_NODE) + " _model:=/nonexistent.pt __name:=fatal_compensation",
+              "/nonexistent.pt");
+  expectFatal(std::string(DEEP_OIS_GYRO_FLOW_NODE) + " _patch_count:=-3 __name:=fatal_gyro_flow", "patch_count");
+}
+
+// Defect 10 (lag), with live_lag.test: the compensation slower than its input (0.1 s per pair by
+// its test hook, 30 pairs/s in) drops the oldest work, says so, and stays within ~max_lag (0.5 s).
+TEST(LiveLag, ASlowCompensationDropsOldWorkInsteadOfFallingBehind) {
+  ensureStarted();
+  const ros::WallTime t0 = ros::WallTime::now();
+  harness->stream(6.0);
+  const std::vector<double> delays = harness->compensatedDelaysBetween(t0 + ros::WallDuration(1.0),
+                                                                       t0 + ros::WallDuration(7.0));
+  ASSERT_GE(delays.size(), 10u) << harness->warningsText(t0);
+  double worst_s = 0.0;
+  for (double d : delays) worst_s = std::max(worst_s, d);
+  std::printf("slow compensation: %zu compensated flows in 6 s of 30 fps input, worst delay %.3f s\n", delays.size(),
+              worst_s);
+  // max_lag 0.5 s beyond the smallest delay, plus one 0.1 s pair and the transport.
+  EXPECT_LT(worst_s, 1.0) << delays.size() << " outputs";
+  EXPECT_FALSE(harness->warnings(t0, {"compensation", live_test::kGyroFlowTopic, "max_lag"}).empty())
+      << harness->warningsText(t0);
+}
+
+}  // namespace
+}  // namespace deep_ois
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_live_reliability");
+  ros::NodeHandle nh;
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  deep_ois::live_test::LivePipelineHarness h;
+  deep_ois::harness = &h;
+  const int result = RUN_ALL_TESTS();
+  deep_ois::harness = nullptr;
+  return result;
+}
