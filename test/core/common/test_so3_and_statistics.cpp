@@ -14,7 +14,7 @@ TEST(So3, SkewIsTheCrossProduct) {
 }
 
 TEST(So3, LogInvertsExpAndExpIsARotation) {
-  for (const Eigen::Vector3d r : {Eigen::Vector3d(1e-9, 0, 0), Eigen::Vector3d(0.01, -0.02, 0.005),
+  for (const Eigen::Vector3d& r : {Eigen::Vector3d(1e-9, 0, 0), Eigen::Vector3d(0.01, -0.02, 0.005),
                                   Eigen::Vector3d(1.0, 0.5, -2.0)}) {
     const Eigen::Matrix3d R = expSO3(r);
     EXPECT_TRUE(isProperRotation(R));

@@ -19,7 +19,7 @@ TEST(WorkingGrid, PixelCentresLineUp) {
 
 TEST(WorkingGrid, ToGridInvertsToCamera) {
   const WorkingGrid grid(cv::Size(1280, 720), cv::Size(360, 270));
-  for (const Eigen::Vector2d g : {Eigen::Vector2d(0, 0), Eigen::Vector2d(17.25, 101.5),
+  for (const Eigen::Vector2d& g : {Eigen::Vector2d(0, 0), Eigen::Vector2d(17.25, 101.5),
                                   Eigen::Vector2d(359, 269), Eigen::Vector2d(-3, 400)}) {
     EXPECT_MATRIX_NEAR(g, grid.toGrid(grid.toCamera(g)), 1e-12);
   }
