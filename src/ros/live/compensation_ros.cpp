@@ -68,6 +68,7 @@ CompensationParameters loadCompensationParameters(const ros::NodeHandle& private
 CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
     : nh_(nh),
       private_nh_(private_nh),
+      log_name_(private_nh.getNamespace()),
       params_(loadCompensationParameters(private_nh)),
       model_(CompensationModel::load(params_.model_path)),
       stream_(model_),
@@ -113,8 +114,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   // Gives up on flows whose frames stopped coming (no image callback runs then).
   expire_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), &CompensationRos::expireTimerCallback, this);
   const ModelMetadata& m = model_.metadata();
-  ROS_INFO_NAMED("compensation", "compensation: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
-                 "%d warp thread(s)",
+  ROS_INFO_NAMED("compensation", "%s: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
+                 "%d warp thread(s)", log_name_.c_str(),
                  params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
                  m.training.epochs, params_.torch_threads, params_.warp_threads);
 }
@@ -151,7 +152,7 @@ void CompensationRos::connectCallback() {
 template <typename Handle>
 void CompensationRos::guarded(const std::string& topic, Handle handle) {
   // A flow whose processing threw has no output: counted with the others.
-  if (!runGuarded("compensation", topic, errors_, handle)) countDrop("an error while processing (warned)");
+  if (!runGuarded("compensation", log_name_, topic, errors_, handle)) countDrop("an error while processing (warned)");
 }
 
 void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
@@ -160,14 +161,14 @@ void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
   guarded(image_sub_.getTopic(), [&] {
     const std::string problem = validateImage(*msg);
     if (!problem.empty()) {
-      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: refusing frame %.6f on %s: %s",
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: refusing frame %.6f on %s: %s", log_name_.c_str(),
                               msg->header.stamp.toSec(), image_sub_.getTopic().c_str(), problem.c_str());
       return;
     }
     if (static_cast<double>(msg->width) * msg->height > params_.max_image_pixels) {
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
-                              "compensation: refusing frame %.6f on %s: %ux%u is more than ~max_image_pixels "
-                              "(%d) pixels",
+                              "%s: refusing frame %.6f on %s: %ux%u is more than ~max_image_pixels "
+                              "(%d) pixels", log_name_.c_str(),
                               msg->header.stamp.toSec(), image_sub_.getTopic().c_str(), msg->width, msg->height,
                               params_.max_image_pixels);
       return;
@@ -250,8 +251,8 @@ void CompensationRos::reportDrops() {
   last_drop_report_ = now;
   const std::size_t count = drops_.pendingCount();
   ROS_WARN_NAMED("compensation",
-                 "compensation: %zu gyro flow(s) on %s without output since the last report (%zu since start; "
-                 "frames on %s): %s",
+                 "%s: %zu gyro flow(s) on %s without output since the last report (%zu since start; "
+                 "frames on %s): %s", log_name_.c_str(),
                  count, gyro_flow_sub_.getTopic().c_str(), drops_.total(), image_sub_.getTopic().c_str(),
                  drops_.take().c_str());
 }
@@ -263,14 +264,14 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   const std::string problem = readGyroFlowMsg(gyro, homographies, gyro_flow);
   if (!problem.empty()) {
     countDrop("bad gyro flow message");
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: %s",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: dropping gyro flow %.6f on %s: %s", log_name_.c_str(),
                             gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str(), problem.c_str());
     diagnostics_->drop("invalid gyro flow");
     return;
   }
   if (!cv::checkRange(gyro_flow)) {
     countDrop("gyro flow holds NaN or inf");
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: dropping gyro flow %.6f on %s: its flow holds NaN or inf",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: dropping gyro flow %.6f on %s: its flow holds NaN or inf", log_name_.c_str(),
                             gyro.header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str());
     return;
   }
@@ -283,7 +284,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   if (image_a->width != gyro.image_width || image_a->height != gyro.image_height ||
       image_b->width != gyro.image_width || image_b->height != gyro.image_height) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
-                            "compensation: dropping gyro flow %.6f: it is for %ux%u images but %s has %ux%u",
+                            "%s: dropping gyro flow %.6f: it is for %ux%u images but %s has %ux%u", log_name_.c_str(),
                             gyro.header.stamp.toSec(), gyro.image_width, gyro.image_height,
                             image_sub_.getTopic().c_str(), image_b->width, image_b->height);
     countDrop("gyro flow and frames of different sizes");
@@ -342,7 +343,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
       ghost_pub_.publish(msg);
     }
   } catch (const cv_bridge::Exception& e) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "compensation: cannot convert the images on %s: %s",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: cannot convert the images on %s: %s", log_name_.c_str(),
                             image_sub_.getTopic().c_str(), e.what());
     countDrop("images that cannot be converted");
     return;

@@ -39,6 +39,7 @@ constexpr double kSpanningFactor = 1.5;
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
     : nh_(nh),
       private_nh_(private_nh),
+      log_name_(private_nh.getNamespace()),
       params_(loadGyroFlowParameters(private_nh)),
       it_(nh),
       imu_buffer_(params_.imu_buffer_duration_s) {
@@ -68,8 +69,8 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   waiting_timer_ = nh_.createWallTimer(ros::WallDuration(kWaitingCheckPeriodS),
                                        &GyroFlowRos::waitingTimerCallback, this);
   ROS_INFO_NAMED("gyro_flow",
-                 "gyro_flow: %d patches, readout %.4f s, time offset %.4f s, grid %dx%d, IMU-to-camera "
-                 "rotation from %s",
+                 "%s: %d patches, readout %.4f s, time offset %.4f s, grid %dx%d, IMU-to-camera "
+                 "rotation from %s", log_name_.c_str(),
                  params_.rolling_shutter.patch_count, params_.rolling_shutter.readout_time_s,
                  params_.rolling_shutter.time_offset_s, params_.grid_size.width,
                  params_.grid_size.height, params_.rotation_from_tf ? "tf" : "~imu_to_camera_rotation");
@@ -125,7 +126,7 @@ void GyroFlowRos::checkRosTimeJump() {
 
 void GyroFlowRos::resetState(const std::string& why) {
   if (!why.empty()) {
-    ROS_WARN_NAMED("gyro_flow", "gyro_flow: %s: clearing IMU buffer and frame history", why.c_str());
+    ROS_WARN_NAMED("gyro_flow", "%s: %s: clearing IMU buffer and frame history", log_name_.c_str(), why.c_str());
   }
   imu_buffer_.clear();
   pending_frames_.clear();
@@ -144,7 +145,7 @@ double GyroFlowRos::secondsSinceBase(const ros::Time& stamp) {
 
 void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
   std::lock_guard<std::mutex> lock(mutex_);
-  runGuarded("gyro_flow", imu_sub_.getTopic(), errors_, [&] { handleImu(imu); });
+  runGuarded("gyro_flow", log_name_, imu_sub_.getTopic(), errors_, [&] { handleImu(imu); });
   reportSkips();
 }
 
@@ -165,13 +166,13 @@ void GyroFlowRos::handleImu(const sensor_msgs::ImuConstPtr& imu) {
   const std::string& frame_id = params_.imu_frame_id.empty() ? imu->header.frame_id : params_.imu_frame_id;
   if (!imu_buffer_.empty() && frame_id != imu_frame_id_) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: frame_id on %s changed from '%s' to '%s': clearing the IMU buffer",
+                            "%s: frame_id on %s changed from '%s' to '%s': clearing the IMU buffer", log_name_.c_str(),
                             imu_sub_.getTopic().c_str(), imu_frame_id_.c_str(), frame_id.c_str());
     imu_buffer_.clear();
   }
   const ImuAddResult added = imu_buffer_.add(sample);
   if (!added.accepted()) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping IMU sample on %s: %s",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: dropping IMU sample on %s: %s", log_name_.c_str(),
                             imu_sub_.getTopic().c_str(), added.reason.c_str());
     return;
   }
@@ -183,7 +184,7 @@ void GyroFlowRos::cameraCallback(const sensor_msgs::ImageConstPtr& image,
                                  const sensor_msgs::CameraInfoConstPtr& info) {
   std::lock_guard<std::mutex> lock(mutex_);
   const std::size_t errors_before = errors_;
-  runGuarded("gyro_flow", image_topic_, errors_, [&] { handleFrame(image, info); });
+  runGuarded("gyro_flow", log_name_, image_topic_, errors_, [&] { handleFrame(image, info); });
   if (errors_ != errors_before) skipPair("an error while handling the frame (warned)");
   reportSkips();
 }
@@ -201,7 +202,7 @@ void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sen
 
   std::string problem = image ? validateImage(*image) : "";
   if (!problem.empty()) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f on %s: %s",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: dropping frame %.6f on %s: %s", log_name_.c_str(),
                             stamp_s, topic.c_str(), problem.c_str());
     skipPair("frame refused: " + problem);
     return;
@@ -210,7 +211,7 @@ void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sen
   const std::uint32_t height = image ? image->height : info->height;
   if (static_cast<double>(width) * height > params_.max_image_pixels) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: dropping frame %.6f on %s: %ux%u is more than ~max_image_pixels (%d) pixels",
+                            "%s: dropping frame %.6f on %s: %ux%u is more than ~max_image_pixels (%d) pixels", log_name_.c_str(),
                             stamp_s, topic.c_str(), width, height, params_.max_image_pixels);
     skipPair("frame larger than ~max_image_pixels");
     return;
@@ -219,18 +220,18 @@ void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sen
   std::string note;
   problem = toCameraModel(*info, frame.camera, &note);
   if (note != camera_info_note_) {  // said once per change, not per frame
-    if (!note.empty()) ROS_WARN_NAMED("gyro_flow", "gyro_flow: %s: %s", info_topic_.c_str(), note.c_str());
+    if (!note.empty()) ROS_WARN_NAMED("gyro_flow", "%s: %s: %s", log_name_.c_str(), info_topic_.c_str(), note.c_str());
     camera_info_note_ = note;
   }
   if (!problem.empty()) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s: %s",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: dropping frame %.6f: %s: %s", log_name_.c_str(),
                             stamp_s, info_topic_.c_str(), problem.c_str());
     skipPair("camera_info refused: " + problem);
     return;
   }
   if (image && (image->width != info->width || image->height != info->height)) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u",
+                            "%s: dropping frame %.6f: image on %s is %ux%u but %s says %ux%u", log_name_.c_str(),
                             stamp_s, topic.c_str(), image->width, image->height,
                             info_topic_.c_str(), info->width, info->height);
     skipPair("image and camera_info sizes differ");
@@ -251,7 +252,7 @@ void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sen
       resetState("camera stamps on " + topic + " jumped backwards by " + std::to_string(back_s) + " s");
     } else {
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                              "gyro_flow: dropping frame %.6f on %s: %s stamp (latest frame %.6f)",
+                              "%s: dropping frame %.6f on %s: %s stamp (latest frame %.6f)", log_name_.c_str(),
                               stamp_s, topic.c_str(), back_s == 0.0 ? "duplicate" : "out-of-order",
                               latest->toSec());
       skipPair(back_s == 0.0 ? "duplicate frame stamp" : "out-of-order frame stamp");
@@ -261,7 +262,7 @@ void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sen
   pending_frames_.push_back(frame);
   if (pending_frames_.size() > kMaxPendingFrames) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: %zu frames wait for IMU data on %s: dropping the oldest",
+                            "%s: %zu frames wait for IMU data on %s: dropping the oldest", log_name_.c_str(),
                             pending_frames_.size(), imu_sub_.getTopic().c_str());
     skipPair("more than 60 frames waiting for IMU data");
     previous_ = pending_frames_.front();
@@ -295,7 +296,7 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
   if (imu_frame_id_.empty() || camera_frame.empty()) {
     skipPair("empty frame_id: no IMU-to-camera transform can be looked up");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: %s has an empty frame_id: set ~%s or ~imu_to_camera_rotation",
+                            "%s: %s has an empty frame_id: set ~%s or ~imu_to_camera_rotation", log_name_.c_str(),
                             imu_frame_id_.empty() ? imu_sub_.getTopic().c_str() : image_topic_.c_str(),
                             imu_frame_id_.empty() ? "imu_frame_id" : "camera_frame_id");
     return std::nullopt;
@@ -321,8 +322,8 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
     const std::string what = known.empty() ? "tf has received no transform at all yet" : "tf knows " + known_text;
     skipPair("no IMU-to-camera transform " + frames + " in tf (" + what + ")");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: no IMU-to-camera transform %s in tf (%s; %s); set "
-                            "~imu_to_camera_rotation or publish it on /tf_static",
+                            "%s: no IMU-to-camera transform %s in tf (%s; %s); set "
+                            "~imu_to_camera_rotation or publish it on /tf_static", log_name_.c_str(),
                             frames.c_str(), e.what(), what.c_str());
     return std::nullopt;
   }
@@ -333,8 +334,8 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   const double interval_s = (frame.stamp - previous.stamp).toSec();
   if (interval_s > params_.max_frame_interval_s) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
-                            "%.1f ms): not pairing them",
+                            "%s: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
+                            "%.1f ms): not pairing them", log_name_.c_str(),
                             previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(),
                             interval_s * 1e3, params_.max_frame_interval_s * 1e3);
     skipPair("frames further apart than ~max_frame_interval");
@@ -342,7 +343,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   }
   if (frame.camera != previous.camera) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: %s changed between frames %.6f and %.6f: not pairing them",
+                            "%s: %s changed between frames %.6f and %.6f: not pairing them", log_name_.c_str(),
                             info_topic_.c_str(), previous.stamp.toSec(), frame.stamp.toSec());
     skipPair("camera_info changed between the frames");
     return Outcome::kDropped;
@@ -369,7 +370,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     if (may_still_come && (waited_s < params_.imu_wait_timeout_s || imu_quiet_s < params_.imu_wait_timeout_s)) {
       return Outcome::kWaitForImu;
     }
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "gyro_flow: dropping frame %.6f: %s on %s%s",
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: dropping frame %.6f: %s on %s%s", log_name_.c_str(),
                             frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
                             may_still_come ? " (waited ~imu_wait_timeout)" : "");
     // The tally groups by kind (the warning above has the stamps).
@@ -390,8 +391,8 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
                                   : "frame(s) between them never reached this nodelet (lost upstream, or a full "
                                     "~image_queue_size subscriber queue)";
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "gyro_flow: the flow from %.6f to %.6f on %s spans %d frame intervals (%.1f ms, usual "
-                            "%.1f ms): %s",
+                            "%s: the flow from %.6f to %.6f on %s spans %d frame intervals (%.1f ms, usual "
+                            "%.1f ms): %s", log_name_.c_str(),
                             previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(), spans,
                             interval_s * 1e3, typical_s * 1e3, where.c_str());
     skipPair("flow spanning " + std::to_string(spans) + " frame intervals (published)");
@@ -441,8 +442,8 @@ void GyroFlowRos::reportSkips() {
   last_skip_report_ = now;
   const std::size_t count = skipped_.pendingCount();
   ROS_WARN_NAMED("gyro_flow",
-                 "gyro_flow: %zu frame pair(s) on %s skipped or spanning lost frames since the last report (%zu "
-                 "since start): %s",
+                 "%s: %zu frame pair(s) on %s skipped or spanning lost frames since the last report (%zu "
+                 "since start): %s", log_name_.c_str(),
                  count, image_topic_.c_str(), skipped_.total(), skipped_.take().c_str());
 }
 
@@ -455,7 +456,7 @@ double GyroFlowRos::typicalFrameIntervalS() const {
 
 void GyroFlowRos::waitingTimerCallback(const ros::WallTimerEvent&) {
   std::lock_guard<std::mutex> lock(mutex_);
-  runGuarded("gyro_flow", imu_sub_.getTopic(), errors_, [&] { checkProgress(); });
+  runGuarded("gyro_flow", log_name_, imu_sub_.getTopic(), errors_, [&] { checkProgress(); });
 }
 
 void GyroFlowRos::checkProgress() {
@@ -478,12 +479,12 @@ void GyroFlowRos::checkProgress() {
   if (imu == 0 && frames == 0) {
     if (imu_received_ == 0 && frames_received_ == 0) {
       ROS_WARN_NAMED("gyro_flow",
-                     "gyro_flow: still waiting for sensor_msgs/Imu on %s and images on %s with camera_info on %s",
+                     "%s: still waiting for sensor_msgs/Imu on %s and images on %s with camera_info on %s", log_name_.c_str(),
                      imu_topic, image_topic, info_topic);
     } else if (!input_stopped_reported_) {
       // Once: a bag that ended or a stopped camera is not an error to repeat every few seconds.
       ROS_WARN_NAMED("gyro_flow",
-                     "gyro_flow: no input on %s or %s in the last %.0f s (stream stopped or bag ended): waiting",
+                     "%s: no input on %s or %s in the last %.0f s (stream stopped or bag ended): waiting", log_name_.c_str(),
                      imu_topic, image_topic, kWaitingCheckPeriodS);
       input_stopped_reported_ = true;
     }
@@ -492,24 +493,24 @@ void GyroFlowRos::checkProgress() {
   input_stopped_reported_ = false;
   if (imu == 0) {
     ROS_WARN_NAMED("gyro_flow",
-                   "gyro_flow: %zu frames on %s but no sensor_msgs/Imu on %s in the last %.0f s: no flow without "
-                   "gyro data",
+                   "%s: %zu frames on %s but no sensor_msgs/Imu on %s in the last %.0f s: no flow without "
+                   "gyro data", log_name_.c_str(),
                    frames, image_topic, imu_topic, kWaitingCheckPeriodS);
   } else if (frames == 0) {
     ROS_WARN_NAMED("gyro_flow",
-                   "gyro_flow: %zu IMU samples on %s but no frames in the last %.0f s: are images published on %s "
-                   "with camera_info of the same stamps on %s?",
+                   "%s: %zu IMU samples on %s but no frames in the last %.0f s: are images published on %s "
+                   "with camera_info of the same stamps on %s?", log_name_.c_str(),
                    imu, imu_topic, kWaitingCheckPeriodS, image_topic, info_topic);
   } else if (!problem.empty()) {
     ROS_WARN_NAMED("gyro_flow",
-                   "gyro_flow: %zu IMU samples and %zu frames in the last %.0f s but no flow published; latest "
-                   "reason: %s",
+                   "%s: %zu IMU samples and %zu frames in the last %.0f s but no flow published; latest "
+                   "reason: %s", log_name_.c_str(),
                    imu, frames, kWaitingCheckPeriodS, problem.c_str());
   } else {
     ROS_WARN_NAMED("gyro_flow",
-                   "gyro_flow: %zu IMU samples and %zu frames in the last %.0f s but no flow published: %zu "
+                   "%s: %zu IMU samples and %zu frames in the last %.0f s but no flow published: %zu "
                    "frame(s) wait for IMU samples covering them (newest IMU stamp %.3f, newest frame %.3f; "
-                   "~time_offset %.4f s)",
+                   "~time_offset %.4f s)", log_name_.c_str(),
                    imu, frames, kWaitingCheckPeriodS, pending_frames_.size(), newest_imu_stamp_.toSec(),
                    newest_frame_stamp_.toSec(), params_.rolling_shutter.time_offset_s);
   }

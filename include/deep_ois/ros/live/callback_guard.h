@@ -16,22 +16,25 @@ namespace deep_ois {
 
 constexpr double kCallbackErrorWarnPeriodS = 2.0;
 
-// Runs `handle()`; on an exception logs "<node>: error while handling a message on <topic>
-// (<n> so far): <what>" (throttled) and increments `errors`. Returns false when it threw.
+// Runs `handle()`; on an exception logs "<instance>: error while handling a message on <topic>
+// (<n> so far): <what>" (throttled, on the `logger` logger; the instance is the nodelet's name, so
+// two cameras in one manager are told apart) and increments `errors`. Returns false when it threw.
 template <typename Handle>
-bool runGuarded(const char* node, const std::string& topic, std::size_t& errors, Handle&& handle) {
+bool runGuarded(const char* logger, const std::string& instance, const std::string& topic,
+                std::size_t& errors, Handle&& handle) {
   try {
     handle();
     return true;
   } catch (const std::exception& e) {
     ++errors;
-    ROS_WARN_THROTTLE_NAMED(kCallbackErrorWarnPeriodS, node, "%s: error while handling a message on %s (%zu so far): %s",
-                            node, topic.c_str(), errors, e.what());
+    ROS_WARN_THROTTLE_NAMED(kCallbackErrorWarnPeriodS, logger,
+                            "%s: error while handling a message on %s (%zu so far): %s",
+                            instance.c_str(), topic.c_str(), errors, e.what());
   } catch (...) {
     ++errors;
-    ROS_WARN_THROTTLE_NAMED(kCallbackErrorWarnPeriodS, node,
-                            "%s: error while handling a message on %s (%zu so far): unknown exception", node,
-                            topic.c_str(), errors);
+    ROS_WARN_THROTTLE_NAMED(kCallbackErrorWarnPeriodS, logger,
+                            "%s: error while handling a message on %s (%zu so far): unknown exception",
+                            instance.c_str(), topic.c_str(), errors);
   }
   return false;
 }

@@ -109,6 +109,9 @@ class CompensationRos {
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
+  // The nodelet's resolved name (e.g. /deep_ois/gyro_flow), first in every log line: two cameras
+  // in one manager are told apart.
+  std::string log_name_;
   // Its live-tunable fields change (under mutex_) through dynamic_reconfigure.
   CompensationParameters params_;
   CompensationModel model_;

@@ -89,6 +89,9 @@ class GyroFlowRos {
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
+  // The nodelet's resolved name (e.g. /deep_ois/gyro_flow), first in every log line: two cameras
+  // in one manager are told apart.
+  std::string log_name_;
   // Replaced as a whole (under mutex_) when dynamic_reconfigure changes a live-tunable value.
   GyroFlowParameters params_;
 
