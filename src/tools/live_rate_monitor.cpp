@@ -11,8 +11,11 @@
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "deep_ois/tools/support/command_line.h"
 
 namespace {
 
@@ -33,25 +36,21 @@ int main(int argc, char** argv) {
   double period_s = 60.0;
   int periods = 0;
   std::vector<std::string> topics;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--pid" && i + 1 < argc) {
-      pid = argv[++i];
-    } else if (arg == "--period" && i + 1 < argc) {
-      period_s = std::atof(argv[++i]);
-    } else if (arg == "--periods" && i + 1 < argc) {
-      periods = std::atoi(argv[++i]);
-    } else if (arg == "--help" || arg.rfind("--", 0) == 0 || period_s <= 0.0) {
-      std::fprintf(stderr, "usage: live_rate_monitor --pid PID [--period S] [--periods N] TOPIC...\n");
-      return arg == "--help" ? 0 : 2;
-    } else {
-      topics.push_back(arg);
-    }
-  }
-  if (pid.empty() || topics.empty()) {
-    std::fprintf(stderr, "usage: live_rate_monitor --pid PID [--period S] [--periods N] TOPIC...\n");
-    return 2;
-  }
+  deep_ois::ToolCommandLine command_line(
+      "live_rate_monitor",
+      "Counts the messages on image topics (sensor_msgs/Image) and prints, every period, how many "
+      "each got in that period and the resident memory (VmRSS) of a process; scripts/soak.sh uses "
+      "it to watch the live pipeline's output rate and the manager's memory.",
+      "Exit status: 0 done, 2 usage.");
+  CLI::App& app = command_line.app();
+  app.add_option("--pid", pid, "the process whose memory is printed")->required()->type_name("PID");
+  command_line.addNumber("--period", period_s, "seconds between two lines")
+      ->check(deep_ois::greaterThan(0))
+      ->type_name("SECONDS");
+  command_line.addNumber("--periods", periods, "lines to print (0: until stopped)")
+      ->check(deep_ois::atLeast(0));
+  app.add_option("topics", topics, "image topics to count")->required()->type_name("TOPIC ...");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   ros::NodeHandle nh;
   std::vector<std::unique_ptr<std::atomic<long>>> counts;
   std::vector<ros::Subscriber> subscribers;
