@@ -22,6 +22,9 @@ run_suite() {  # $1: build directory, further arguments: extra CMake options
 
 status=0
 run_suite "$repo/_build/main" || status=$?
-echo "test: the torch-free build (-DDEEP_OIS_WITH_TORCH=OFF)"
-run_suite "$repo/_build/notorch" -DDEEP_OIS_WITH_TORCH=OFF || status=$?
+# Outside the package folder: rosrun searches the whole package for executables, and a second
+# build tree in it would make `rosrun deep_ois TOOL` ambiguous for the demo.
+notorch_dir="${DEEP_OIS_NOTORCH_BUILD_DIR:-${TMPDIR:-/tmp}/deep_ois_build_notorch_$(printf %s "$repo" | md5sum | cut -c1-8)}"
+echo "test: the torch-free build (-DDEEP_OIS_WITH_TORCH=OFF) in $notorch_dir"
+run_suite "$notorch_dir" -DDEEP_OIS_WITH_TORCH=OFF || status=$?
 exit "$status"
