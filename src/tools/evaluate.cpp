@@ -8,7 +8,7 @@
 //
 // Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC (one global homography); the gyro on the
 // non-OIS camera (the simulator's twins) and on the OIS camera, uncompensated; the global F and
-// Fundamental Mixtures ground truths; then the shipped model (the compensation nodelet's network
+// Fundamental Mixtures ground truths; then the model, named by its file (the compensation nodelet's network
 // on the gyro flow nodelet's flow). With --recorded, the gyro_flow and compensated_flow messages
 // the live nodelets published during a replay of the same bags (rosbag record) are scored too, as
 // rows of their own: they must equal the offline rows. The work is EvaluationRunner's
@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -32,6 +33,19 @@
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/evaluation_runner.h"
 #include "deep_ois/tools/support/recorded_flows.h"
+
+#ifdef DEEP_OIS_WITH_TORCH
+namespace {
+
+// The model's row, named by its file so that a table says which model it scored (e.g.
+// "DeepOIS, fast.pt (preset fast)").
+std::string modelRowName(const std::string& model_path, const std::string& preset) {
+  return "DeepOIS, " + std::filesystem::path(model_path).filename().string() + " (preset " +
+         preset + ")";
+}
+
+}  // namespace
+#endif
 
 constexpr char kDescription[] =
     "Scores recordings with annotated correspondences and prints the paper's table: mean geometry "
@@ -150,7 +164,7 @@ int main(int argc, char** argv) {
           deep_ois::CompensationModel::load(model_path));
       auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
       auto recording = std::make_shared<std::uint64_t>(0);
-      runner.addMethod({"DeepOIS, shipped model (" + model->metadata().preset + ")",
+      runner.addMethod({modelRowName(model_path, model->metadata().preset),
                         deep_ois::kOisCameraPairs,
                         [stream, recording](const deep_ois::FramePairContext& pair) {
                           if (pair.recording_id != *recording) stream->reset();
@@ -225,7 +239,7 @@ int main(int argc, char** argv) {
     constexpr double kParityTolerancePx = 1e-3;
 #ifdef DEEP_OIS_WITH_TORCH
     const std::string model_row =
-        model ? "DeepOIS, shipped model (" + model->metadata().preset + ")" : "";
+        model ? modelRowName(model_path, model->metadata().preset) : "";
 #else
     const std::string model_row;
 #endif
