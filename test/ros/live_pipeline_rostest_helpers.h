@@ -288,5 +288,21 @@ class LivePipelineHarness {
   ros::Duration stamp_shift_;
 };
 
+// main() of a live-pipeline rostest node: the spinner serves the harness's subscriptions while the
+// tests publish; `harness` points at the one harness while the tests run.
+inline int runLivePipelineGtests(int argc, char** argv, const char* node_name,
+                                 LivePipelineHarness*& harness) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, node_name);
+  ros::NodeHandle nh;  // starts the node before the spinner, keeps it up between tests
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  LivePipelineHarness instance;
+  harness = &instance;
+  const int result = RUN_ALL_TESTS();
+  harness = nullptr;
+  return result;
+}
+
 }  // namespace live_test
 }  // namespace deep_ois

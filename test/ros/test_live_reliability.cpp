@@ -179,14 +179,5 @@ TEST(LiveLag, ASlowCompensationDropsOldWorkInsteadOfFallingBehind) {
 }  // namespace deep_ois
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_live_reliability");
-  ros::NodeHandle nh;
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  deep_ois::live_test::LivePipelineHarness h;
-  deep_ois::harness = &h;
-  const int result = RUN_ALL_TESTS();
-  deep_ois::harness = nullptr;
-  return result;
+  return deep_ois::live_test::runLivePipelineGtests(argc, argv, "test_live_reliability", deep_ois::harness);
 }
