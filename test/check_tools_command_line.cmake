@@ -30,6 +30,7 @@ set(NUMERIC_make_calibration_configs "--count;24x")
 set(NUMERIC_sim_contact_sheet "--seed;0x10")
 set(NUMERIC_simulate "--duration;inf")
 set(NUMERIC_train "--batch-size;8.5")
+set(NUMERIC_train_stabiliser "--iterations;3.5")
 
 set(failures "")
 set(checked 0)

@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/evaluation/stabiliser_table_row.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
 #ifdef DEEP_OIS_WITH_TORCH
 #include "deep_ois/net/compensation_model.h"
@@ -111,6 +113,11 @@ int main(int argc, char** argv) {
           ->check(deep_ois::existingFile())
           ->type_name("FILE.pt");
   app.add_flag("--no-model", no_model, "leave out the model row")->excludes(model_option);
+  std::vector<std::string> stabiliser_paths;
+  app.add_option("--stabiliser", stabiliser_paths,
+                 "learned stabiliser models (train_stabiliser), one row each")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.yaml ...");
   command_line.addNumber("--torch-threads", torch_threads, "torch threads of the model row")
       ->check(deep_ois::atLeast(1));
   app.add_option("--recorded", recorded,
@@ -176,6 +183,12 @@ int main(int argc, char** argv) {
 #else
     (void)torch_threads;
 #endif
+    // Learned stabiliser models: their state carried over each recording's gyro stream.
+    for (const std::string& path : stabiliser_paths) {
+      const deep_ois::StabiliserModelFile file = deep_ois::StabiliserModelFile::load(path);
+      runner.addMethod(deep_ois::stabiliserAlignmentMethod(
+          "stabiliser model, " + std::filesystem::path(path).filename().string(), file.parameters));
+    }
     // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
     std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
     if (!recorded.empty()) {

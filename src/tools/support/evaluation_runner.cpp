@@ -329,6 +329,11 @@ EvaluationReport EvaluationRunner::run() {
         context.gray_a = a.gray;
         context.gray_b = b.gray;
         context.gyro_homographies = gyro.homographies;
+        context.gyro_rotations = gyro.rotations;
+        context.imu = &recording.imu;
+        context.rolling_shutter = &recording.rolling_shutter;
+        context.stamp_a_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns));
+        context.stamp_b_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns));
         recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
         context.points_a_px = pair.points_a_px;
         context.points_b_px = pair.points_b_px;

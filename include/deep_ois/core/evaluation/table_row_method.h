@@ -21,6 +21,8 @@
 #include <vector>
 
 #include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 
 namespace deep_ois {
 
@@ -50,6 +52,14 @@ struct FramePairContext {
   // grid (grid_flow.h convention) that the nodelet publishes and the network takes as input.
   std::vector<Eigen::Matrix3d> gyro_homographies;
   cv::Mat gyro_flow_grid;
+  // The gyro stream behind them, for methods that carry a stabiliser's state (core/ois/): the
+  // recording's IMU samples, the gyro flow's rolling-shutter config (IMU -> camera rotation, time
+  // offset, readout, patches), the frames' stamps in the IMU buffer's time base (seconds, camera
+  // clock: patchImuTime() maps them) and the gyro's rotation R_b_a per patch.
+  const ImuSampleBuffer* imu = nullptr;
+  const RollingShutterConfig* rolling_shutter = nullptr;
+  double stamp_a_s = 0.0, stamp_b_s = 0.0;
+  std::vector<Eigen::Matrix3d> gyro_rotations;
   // The correspondences the pair is scored on (raw pixels). Methods other than references must
   // not use them.
   std::vector<Eigen::Vector2d> points_a_px, points_b_px;

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/ois/lens_actuator.h"
 #include "deep_ois/core/sim/camera_motion.h"
 
 namespace deep_ois {
@@ -51,29 +52,9 @@ const char* toString(StrokeShape shape);
 // "box" or "circle"; false for anything else.
 bool parseStrokeShape(const std::string& text, StrokeShape* shape);
 
-// The lens actuator of one axis (voice coil with its position loop), a second-order system from
-// the commanded to the actual shift: x'' = wn^2 (x_cmd - x) - 2 zeta wn x', discretised exactly
-// for a command held over each step. The lens stops dead at +-limit_px (its end stop).
-class LensActuator {
- public:
-  // Throws std::invalid_argument unless natural_hz, damping and step_s are positive and
-  // limit_px is non-negative.
-  LensActuator(double natural_hz, double damping, double step_s, double limit_px);
+// The lens actuator is shared with the learned stabiliser model (core/ois/lens_actuator.h).
+using deep_ois::LensActuator;
 
-  // Holds `command_px` for one step and returns the position at the end of it, pixels.
-  double advance(double command_px);
-  double positionPx() const { return position_px_; }
-  double velocityPxPerS() const { return velocity_scaled_ * natural_rad_s_; }
-
- private:
-  double natural_rad_s_;
-  double limit_px_;
-  // State (x, x' / wn): both in pixels, so the transition matrix is well conditioned.
-  Eigen::Matrix2d transition_;
-  Eigen::Vector2d input_;
-  double position_px_ = 0.0;
-  double velocity_scaled_ = 0.0;
-};
 
 // The principal-point shift the lens causes over [motion.startTime(), motion.endTime()].
 // A shift s moves every image point by +s: the OIS camera's intrinsics at time t are K with

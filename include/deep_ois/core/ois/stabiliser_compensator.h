@@ -1,0 +1,64 @@
+// OIS compensation from the gyro stream with a learned stabiliser model: the compensated motion of
+// a frame pair is K(s_b) R K(s_a)^-1 per row patch (core/ois/lens_shift_homographies.h), with the
+// gyro's rotations R and the lens shifts s the model predicts at the patches' capture times.
+//
+// One per camera stream: it carries the stabiliser's state from pair to pair. The compensation
+// nodelet, the evaluator and the benchmark all go through it (the same computation live and
+// offline). A gap in the gyro stream restarts the model from a centred lens (counted).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_model.h"
+
+namespace deep_ois {
+
+// The camera-frame rates of the IMU samples after after_s up to and including the first at or
+// after until_s (IMU clock, seconds): what a model needs to answer at until_s.
+std::vector<CameraRateSample> cameraRates(const ImuSampleBuffer& imu,
+                                          const Eigen::Matrix3d& imu_to_camera_rotation,
+                                          double after_s, double until_s);
+
+struct StabiliserCompensation {
+  bool ok = false;
+  std::string reason;  // why not, when !ok
+  std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;  // per patch, at the patch times
+  std::vector<Eigen::Matrix3d> homographies;             // K(s_b) R K(s_a)^-1, undistorted pixels
+};
+
+class StabiliserCompensator {
+ public:
+  // Throws std::invalid_argument for invalid parameters or a non-positive focal length.
+  // `warm_up_s`: at the start of a stream (or after a gap) the model is first run over this much
+  // of the gyro history before the pair, when the caller has it (the lens state depends on it).
+  StabiliserCompensator(const StabiliserParameters& parameters, const Eigen::Matrix3d& K,
+                        double warm_up_s = 1.0);
+
+  // Appends camera-frame rates in time order; older or repeated samples are ignored.
+  void addRates(const std::vector<CameraRateSample>& rates);
+  // The IMU time from which the caller should feed rates before compensating a pair whose first
+  // patch is at t_first_s: the model's newest sample, or t_first_s - warm_up_s for a fresh model.
+  double feedFrom(double t_first_s) const;
+
+  // The compensated motion of a pair from the gyro's per-patch rotations and the patch capture
+  // times (IMU clock, seconds). Not ok when the model does not cover the times (the gyro stream
+  // has not reached t_b, or started after t_a): the caller falls back and counts it.
+  StabiliserCompensation compensate(const std::vector<Eigen::Matrix3d>& rotations,
+                                    const std::vector<double>& patch_times_a_s,
+                                    const std::vector<double>& patch_times_b_s) const;
+
+  void reset() { predictor_.reset(); }
+  int stateResets() const { return predictor_.resets(); }
+  const LensShiftPredictor& predictor() const { return predictor_; }
+
+ private:
+  Eigen::Matrix3d K_;
+  double warm_up_s_;
+  LensShiftPredictor predictor_;
+};
+
+}  // namespace deep_ois

@@ -1,0 +1,81 @@
+// Learning a camera's stabiliser (core/ois/stabiliser_model.h) from observed lens motion: the
+// per-row-patch lens shifts between frames that the gyro-anchored ground truth estimates from
+// point tracks (core/ground_truth/lens_shift_ground_truth.h) or that a camera logs.
+//
+// Why lens motion and not lens position: image motion between two frames only sees the lens'
+// change s(t_b) - s(t_a) (to first order), so that is what the images measure well and what the
+// compensation needs.
+//
+// The fit: Levenberg-Marquardt with Huber weights over the physical parameters (gain matrix,
+// centring corner, actuator, sensor lag, stroke), the rate at which pan detection lets go chosen
+// from a grid (its hysteresis makes the cost step-like in the threshold), then a ridge fit of the
+// linear residual bank on what remains. Pure C++/Eigen: no ROS.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/common/progress_callback.h"
+#include "deep_ois/core/ois/stabiliser_model.h"
+
+namespace deep_ois {
+
+// The lens moved by `motion_px` between t_a and t_b (IMU clock, seconds; t_a < t_b).
+struct LensMotionObservation {
+  double t_a_s = 0.0;
+  double t_b_s = 0.0;
+  Eigen::Vector2d motion_px = Eigen::Vector2d::Zero();
+  double weight = 1.0;
+};
+
+// One recording: its gyro stream (camera frame, increasing stamps) and what was observed.
+struct StabiliserFitRecording {
+  std::string name;  // for messages
+  double focal_px = 0.0;
+  std::vector<CameraRateSample> rates;
+  std::vector<LensMotionObservation> observations;  // any order
+};
+
+struct StabiliserFitOptions {
+  // Leaky-integral time constants of the linear residual bank (empty = no residual).
+  std::vector<double> residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
+  double residual_ridge = 1e-3;  // ridge weight, relative to the bank's mean energy
+  double huber_px = 0.3;         // Huber threshold on an observation's residual norm, pixels
+  int iterations = 30;           // Levenberg-Marquardt iterations per candidate
+  // Pan-detection thresholds tried (rad/s); 0 = pan detection off.
+  std::vector<double> pan_thresholds_rad_s = {0.0, 0.3, 0.6, 1.2};
+  bool try_circular_stroke = true;
+  double step_s = 1e-3;  // the model's integration step (as LensShiftPredictor's)
+  // Observations in the first warm_up_s of a recording's gyro stream are not used: the model
+  // starts from a centred lens, the real stabiliser did not.
+  double warm_up_s = 1.0;
+
+  std::string validate() const;
+};
+
+struct StabiliserFitResult {
+  StabiliserParameters parameters;
+  std::size_t observations_used = 0;
+  std::size_t observations_skipped = 0;  // before the warm-up or outside the gyro stream
+  // Root mean square of the observations' residual norm (pixels, weighted): with no lens model
+  // (motion 0, what the uncompensated gyro assumes), with the physical model, and with its residual.
+  double rms_without_model_px = 0.0;
+  double rms_physical_px = 0.0;
+  double rms_px = 0.0;
+  std::vector<std::string> log;  // one line per candidate tried, for the training report
+};
+
+// Throws std::invalid_argument when the options are invalid, a recording has no focal length or
+// non-increasing rate stamps, or no observation is usable (the message says why).
+StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& recordings,
+                                  const StabiliserFitOptions& options,
+                                  const ProgressCallback& progress = {});
+
+// The model's predicted lens motion for each observation of `recording` (in input order; NaN for
+// those it cannot predict: before the gyro stream's warm-up or outside it).
+std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
+                                               const StabiliserFitRecording& recording,
+                                               double step_s = 1e-3, double warm_up_s = 1.0);
+
+}  // namespace deep_ois

@@ -1,0 +1,117 @@
+// A learned model of an optical image stabiliser: predicts where the OIS lens is (a shift of the
+// principal point, pixels) from the camera's gyro stream, carrying the stabiliser's state across
+// frames.
+//
+// Why a stateful physical model: an OIS lens position is a causal function of the gyro history.
+// The stabiliser integrates its gyro, re-centres (a high-pass with its own corner), lets go during
+// deliberate pans, saturates at its stroke and moves the lens through an actuator with its own
+// bandwidth and a sensor lag. One inter-frame flow cannot carry that state; a model with the same
+// structure and a dozen parameters learned per camera can, and it is cheap (microseconds per
+// frame). What the structure does not capture is fitted as a linear residual over a bank of
+// leaky integrals of the rate (any stable linear dynamics is well approximated by such a bank).
+//
+// Units are normalised by the focal length where it matters (gain as a fraction of the rotation
+// cancelled, stroke in degrees), so a model transfers between cameras of one module that differ
+// in resolution. Pure C++/Eigen: no ROS.
+#pragma once
+
+#include <Eigen/Core>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/lens_actuator.h"
+
+namespace deep_ois {
+
+struct StabiliserParameters {
+  // Commanded shift = focal_px * gain * (tan theta_x, tan theta_y) for the high-passed pan/tilt
+  // angles theta (rad, camera optical frame). An ideal stabiliser of this package's convention has
+  // gain = [[0, 1], [-1, 0]] (x follows the turn about y, y against the turn about x); a module
+  // cancelling 90 % of the motion has 0.9 of that; a mount turned in the image plane mixes axes.
+  Eigen::Matrix2d gain = (Eigen::Matrix2d() << 0.0, 1.0, -1.0, 0.0).finished();
+  double highpass_corner_hz = 0.6;  // centring: the integrated angle leaks back with this corner
+  double actuator_natural_hz = 35.0;
+  double actuator_damping = 0.7;
+  double sensor_lag_s = 0.0;  // the position loop acts on commands this old (Hall sensor delay)
+  double stroke_x_deg = 1.0;  // commanded shift limits, as angles (f tan(limit) pixels)
+  double stroke_y_deg = 1.0;
+  bool circular_stroke = false;  // false: a box of the two limits; true: the ellipse inside it
+  // Pan detection: while the low-passed |pan/tilt rate| exceeds the threshold (0 = off) the
+  // stabiliser re-centres with pan_release_corner_hz; below 0.7 x the threshold it holds again.
+  double pan_detection_rate_rad_s = 0.0;
+  double pan_detection_time_constant_s = 0.1;
+  double pan_release_corner_hz = 5.0;
+  // Linear residual: shift += focal_px * sum_k residual.col(k) ... over the bank of leaky rate
+  // integrals with residual_time_constants_s (2 x 2K matrix: the K integrals of rate x then the K
+  // of rate y). Empty = none.
+  std::vector<double> residual_time_constants_s;
+  Eigen::MatrixXd residual;  // 2 x (2 * K), unitless (radians of the leaky integral to focal units)
+
+  // Empty when usable; otherwise a sentence naming the bad field.
+  std::string validate() const;
+};
+
+// A camera-frame angular rate sample (IMU clock, seconds; rad/s in the camera optical frame).
+struct CameraRateSample {
+  double stamp_s = 0.0;
+  Eigen::Vector3d rate_rad_s = Eigen::Vector3d::Zero();
+};
+
+// Runs the model over a gyro stream and answers the lens shift at any recent time.
+class LensShiftPredictor {
+ public:
+  // Throws std::invalid_argument with the validate() sentence, or for a non-positive focal length
+  // or step. `step_s`: the internal integration step (the rate is interpolated linearly between
+  // samples); `history_s`: how far back lensShiftAt() can answer.
+  LensShiftPredictor(const StabiliserParameters& parameters, double focal_px, double step_s = 1e-3,
+                     double history_s = 0.5);
+
+  // Appends a rate sample; samples must come in increasing time. A sample not after the last one
+  // is ignored (returns false). A gap longer than max_gap_s since the previous sample resets the
+  // state (the stabiliser's history is unknown across it): counted in resets().
+  bool addRate(const CameraRateSample& sample);
+  // Starts over from a centred lens at rest (the state of a stabiliser switched on).
+  void reset();
+
+  // The lens shift (pixels, x right, y down) at time t: interpolated between internal steps within
+  // the retained history. covers(t) says whether t is inside it.
+  bool covers(double t_s) const;
+  Eigen::Vector2d lensShiftAt(double t_s) const;
+  double newestStamp() const { return last_stamp_s_; }
+  bool started() const { return started_; }
+  int resets() const { return resets_; }
+
+  double max_gap_s = 0.1;
+
+ private:
+  void step(const Eigen::Vector3d& rate_rad_s);
+
+  StabiliserParameters parameters_;
+  double focal_px_;
+  double step_s_;
+  std::size_t history_steps_;
+  // Per-step constants.
+  double decay_hold_ = 1.0, weight_hold_ = 0.0, decay_pan_ = 1.0, weight_pan_ = 0.0;
+  double pan_smoothing_ = 0.0;
+  Eigen::Vector2d stroke_px_;
+  std::vector<double> residual_decay_, residual_weight_;
+  std::size_t lag_steps_ = 0;  // whole steps of sensor lag
+  double lag_fraction_ = 0.0;   // and the fraction of one more
+
+  // State.
+  bool started_ = false;
+  double last_stamp_s_ = 0.0;
+  Eigen::Vector3d last_rate_ = Eigen::Vector3d::Zero();
+  double clock_s_ = 0.0;  // time of the newest internal step
+  Eigen::Vector2d theta_ = Eigen::Vector2d::Zero();
+  double smoothed_rate_ = 0.0;
+  bool panning_ = false;
+  std::vector<Eigen::Vector2d> residual_state_;  // per time constant, (x, y) leaky rate integral
+  std::deque<Eigen::Vector2d> pending_commands_;
+  LensActuator actuator_x_, actuator_y_;
+  std::deque<Eigen::Vector2d> shifts_;  // lens shift at clock_s_ - (size - 1 - j) * step_s_
+  int resets_ = 0;
+};
+
+}  // namespace deep_ois

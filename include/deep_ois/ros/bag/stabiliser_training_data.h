@@ -1,0 +1,38 @@
+// Reads one recording (rosbag) into what the stabiliser fit needs (core/ois/stabiliser_fit.h): the
+// gyro stream in the camera frame and the lens motion per frame pair and row patch, from
+//  - the images: the gyro-anchored lens-shift ground truth (core/ground_truth/
+//    lens_shift_ground_truth.h) on the offline job's point tracks, for any recording; or
+//  - the simulator's truth (FramePairTruth lens shifts), to measure what the images lose.
+// The gyro side is the gyro flow nodelet's code with its parameters, so a model fitted here sees
+// the rotations and patch times the live chain gives it.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "deep_ois/core/camera/camera_description.h"
+#include "deep_ois/core/ground_truth/lens_shift_ground_truth.h"
+#include "deep_ois/core/ois/stabiliser_fit.h"
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
+
+namespace deep_ois {
+
+enum class LensMotionTarget { kImages, kSimulatorTruth };
+
+struct StabiliserRecordingData {
+  StabiliserFitRecording recording;
+  CameraDescription camera;
+  std::size_t frame_pairs = 0;          // consecutive frame pairs in the bag
+  std::size_t pairs_without_gyro = 0;   // not covered by the gyro (no observation)
+  std::size_t pairs_without_tracks = 0; // too few inlier tracks for the images' estimate
+  double median_track_residual_px = 0.0;  // of the images' estimate (0 for the simulator truth)
+};
+
+// Throws std::runtime_error naming the bag and the problem (unreadable, no camera_info, no IMU or
+// IMU -> camera transform when the parameters take it from tf, no simulator truth when asked).
+StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
+                                                const GyroFlowParameters& gyro,
+                                                LensMotionTarget target,
+                                                const LensShiftOptions& lens_options = {});
+
+}  // namespace deep_ois

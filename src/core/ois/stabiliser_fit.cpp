@@ -1,0 +1,527 @@
+#include "deep_ois/core/ois/stabiliser_fit.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+namespace deep_ois {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Observations of a recording sorted by t_b (the order the predictor can answer them in).
+std::vector<std::size_t> orderByEnd(const std::vector<LensMotionObservation>& observations) {
+  std::vector<std::size_t> order(observations.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return observations[a].t_b_s < observations[b].t_b_s;
+  });
+  return order;
+}
+
+// Runs `sample(predictor, observation index)` for every observation the predictor covers after
+// the warm-up, feeding the gyro stream up to each observation's end.
+template <typename Visit>
+void runOver(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+             double step_s, double warm_up_s, Visit visit) {
+  if (recording.rates.empty()) return;
+  double span = 0.0;
+  for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
+  LensShiftPredictor predictor(parameters, recording.focal_px, step_s, std::max(0.25, 2.0 * span));
+  predictor.max_gap_s = std::numeric_limits<double>::infinity();  // the recording's own gaps: fed
+  const double usable_from = recording.rates.front().stamp_s + warm_up_s;
+  std::size_t next_rate = 0;
+  for (std::size_t index : orderByEnd(recording.observations)) {
+    const LensMotionObservation& o = recording.observations[index];
+    while (next_rate < recording.rates.size() &&
+           (!predictor.started() || predictor.newestStamp() < o.t_b_s)) {
+      predictor.addRate(recording.rates[next_rate++]);
+    }
+    if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
+    visit(predictor, index);
+  }
+}
+
+// The physical parameters the Levenberg-Marquardt step moves, as an unconstrained vector.
+struct ParameterPacking {
+  bool pan = false;  // pan_release_corner_hz is free
+  int size() const { return 11 + (pan ? 1 : 0); }
+
+  Eigen::VectorXd pack(const StabiliserParameters& p) const {
+    Eigen::VectorXd x(size());
+    x << p.gain(0, 0), p.gain(0, 1), p.gain(1, 0), p.gain(1, 1), std::log(p.highpass_corner_hz),
+        std::log(p.actuator_natural_hz), std::log(p.actuator_damping), 1000.0 * p.sensor_lag_s,
+        std::log(p.stroke_x_deg), std::log(p.stroke_y_deg), 0.0;
+    x(10) = 0.0;  // spare slot kept for a stable layout (unused)
+    if (pan) x(11) = std::log(p.pan_release_corner_hz);
+    return x;
+  }
+  StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
+    p.gain << x(0), x(1), x(2), x(3);
+    p.highpass_corner_hz = std::clamp(std::exp(x(4)), 1e-3, 50.0);
+    p.actuator_natural_hz = std::clamp(std::exp(x(5)), 2.0, 500.0);
+    p.actuator_damping = std::clamp(std::exp(x(6)), 0.05, 5.0);
+    p.sensor_lag_s = std::clamp(x(7), 0.0, 50.0) / 1000.0;
+    p.stroke_x_deg = std::clamp(std::exp(x(8)), 0.02, 20.0);
+    p.stroke_y_deg = std::clamp(std::exp(x(9)), 0.02, 20.0);
+    if (pan) p.pan_release_corner_hz = std::clamp(std::exp(x(11)), 0.05, 100.0);
+    return p;
+  }
+};
+
+// Every usable observation's weighted residual (predicted - observed motion, 2 per observation).
+struct Residuals {
+  Eigen::VectorXd values;              // 2 per observation, weighted by sqrt(weight)
+  std::vector<double> sqrt_weights;    // per observation (data weight only)
+  std::size_t used = 0, skipped = 0;
+};
+
+Residuals residualsOf(const StabiliserParameters& parameters,
+                      const std::vector<StabiliserFitRecording>& recordings,
+                      const StabiliserFitOptions& options) {
+  std::vector<double> values;
+  Residuals result;
+  for (const StabiliserFitRecording& recording : recordings) {
+    std::size_t used_here = 0;
+    runOver(parameters, recording, options.step_s, options.warm_up_s,
+            [&](const LensShiftPredictor& predictor, std::size_t index) {
+              const LensMotionObservation& o = recording.observations[index];
+              const Eigen::Vector2d r =
+                  predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s) - o.motion_px;
+              const double w = std::sqrt(std::max(0.0, o.weight));
+              values.push_back(w * r.x());
+              values.push_back(w * r.y());
+              result.sqrt_weights.push_back(w);
+              ++used_here;
+            });
+    result.used += used_here;
+    result.skipped += recording.observations.size() - used_here;
+  }
+  result.values = Eigen::Map<Eigen::VectorXd>(values.data(), static_cast<long>(values.size()));
+  return result;
+}
+
+// Huber weights per observation (applied to both of its components), threshold in pixels.
+Eigen::VectorXd huberWeights(const Eigen::VectorXd& residuals, double huber_px) {
+  Eigen::VectorXd weights(residuals.size());
+  for (long k = 0; k + 1 < residuals.size(); k += 2) {
+    const double norm = std::hypot(residuals(k), residuals(k + 1));
+    const double w = norm <= huber_px ? 1.0 : huber_px / norm;
+    weights(k) = weights(k + 1) = w;
+  }
+  return weights;
+}
+
+double weightedRms(const Eigen::VectorXd& residuals, const Eigen::VectorXd& weights) {
+  if (residuals.size() == 0) return kNaN;
+  return std::sqrt(2.0 * residuals.cwiseAbs2().cwiseProduct(weights).sum() / weights.sum());
+}
+
+// Robust cost: sum of Huber losses of the observations' residual norms.
+double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
+  double cost = 0.0;
+  for (long k = 0; k + 1 < residuals.size(); k += 2) {
+    const double n = std::hypot(residuals(k), residuals(k + 1));
+    cost += n <= huber_px ? 0.5 * n * n : huber_px * (n - 0.5 * huber_px);
+  }
+  return cost;
+}
+
+// Levenberg-Marquardt with a forward-difference Jacobian and Huber reweighting per iteration.
+StabiliserParameters levenbergMarquardt(StabiliserParameters start, const ParameterPacking& packing,
+                                        const std::vector<StabiliserFitRecording>& recordings,
+                                        const StabiliserFitOptions& options, int iterations,
+                                        double* final_cost) {
+  Eigen::VectorXd x = packing.pack(start);
+  Residuals current = residualsOf(packing.unpack(x, start), recordings, options);
+  double cost = huberCost(current.values, options.huber_px);
+  double lambda = 1e-2;
+  const std::vector<double> deltas = {1e-4, 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3, 1e-2,
+                                      1e-3, 1e-3, 1e-3, 1e-3};
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    const long n = current.values.size();
+    Eigen::MatrixXd J(n, packing.size());
+    for (int j = 0; j < packing.size(); ++j) {
+      if (j == 10) {
+        J.col(j).setZero();
+        continue;
+      }
+      Eigen::VectorXd moved = x;
+      moved(j) += deltas[static_cast<std::size_t>(j)];
+      const Residuals shifted = residualsOf(packing.unpack(moved, start), recordings, options);
+      if (shifted.values.size() != n) return packing.unpack(x, start);  // coverage changed
+      J.col(j) = (shifted.values - current.values) / deltas[static_cast<std::size_t>(j)];
+    }
+    const Eigen::VectorXd w = huberWeights(current.values, options.huber_px);
+    const Eigen::MatrixXd A = J.transpose() * w.asDiagonal() * J;
+    const Eigen::VectorXd g = J.transpose() * w.cwiseProduct(current.values);
+    bool improved = false;
+    for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
+      Eigen::MatrixXd damped = A;
+      for (int j = 0; j < packing.size(); ++j) damped(j, j) += lambda * (A(j, j) + 1e-9);
+      const Eigen::VectorXd step = damped.ldlt().solve(-g);
+      const Eigen::VectorXd candidate = x + step;
+      const Residuals trial = residualsOf(packing.unpack(candidate, start), recordings, options);
+      if (trial.values.size() != n) {
+        lambda *= 10.0;
+        continue;
+      }
+      const double trial_cost = huberCost(trial.values, options.huber_px);
+      if (trial_cost < cost) {
+        x = packing.pack(packing.unpack(candidate, start));  // keep within the clamps
+        current = residualsOf(packing.unpack(x, start), recordings, options);
+        const double relative = (cost - trial_cost) / std::max(cost, 1e-12);
+        cost = huberCost(current.values, options.huber_px);
+        lambda = std::max(lambda / 3.0, 1e-7);
+        improved = true;
+        if (relative < 1e-6) iteration = iterations;  // converged
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved) break;
+  }
+  if (final_cost) *final_cost = cost;
+  return packing.unpack(x, start);
+}
+
+// The residual bank's features at time t: the leaky integrals of the pan/tilt rate, advanced
+// alongside the predictor (integrated here on the same steps, so its residual matches the model's).
+class ResidualBank {
+ public:
+  ResidualBank(const std::vector<double>& time_constants_s, double step_s) : step_s_(step_s) {
+    for (double tau : time_constants_s) {
+      decay_.push_back(std::exp(-step_s / tau));
+      weight_.push_back(-std::expm1(-step_s / tau) * tau);
+    }
+  }
+  // The features at each observation's t_a and t_b for a recording, from its rates.
+  void observe(const StabiliserFitRecording& recording, double warm_up_s,
+               const StabiliserParameters& physical, std::vector<Eigen::VectorXd>* feature_deltas,
+               std::vector<Eigen::Vector2d>* targets, std::vector<double>* weights) const {
+    // Physical predictions first (the bank fits what they leave).
+    std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
+                                           Eigen::Vector2d::Constant(kNaN));
+    runOver(physical, recording, step_s_, warm_up_s,
+            [&](const LensShiftPredictor& predictor, std::size_t index) {
+              const LensMotionObservation& o = recording.observations[index];
+              predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
+            });
+    // Bank states on the step grid, from the first rate (same clock as the predictor).
+    const std::size_t k_count = decay_.size();
+    const double start = recording.rates.front().stamp_s;
+    const double end = recording.rates.back().stamp_s;
+    const std::size_t steps = static_cast<std::size_t>((end - start) / step_s_) + 1;
+    std::vector<Eigen::VectorXd> states(steps + 1, Eigen::VectorXd::Zero(2 * k_count));
+    std::size_t r = 0;
+    for (std::size_t j = 0; j < steps; ++j) {
+      const double middle = start + (static_cast<double>(j) + 0.5) * step_s_;
+      while (r + 1 < recording.rates.size() && recording.rates[r + 1].stamp_s < middle) ++r;
+      Eigen::Vector2d rate = recording.rates[r].rate_rad_s.head<2>();
+      if (r + 1 < recording.rates.size()) {
+        const double t0 = recording.rates[r].stamp_s, t1 = recording.rates[r + 1].stamp_s;
+        const double alpha = std::clamp((middle - t0) / (t1 - t0), 0.0, 1.0);
+        rate = (1.0 - alpha) * rate + alpha * recording.rates[r + 1].rate_rad_s.head<2>();
+      }
+      Eigen::VectorXd next = states[j];
+      for (std::size_t k = 0; k < k_count; ++k) {
+        next(static_cast<long>(k)) = decay_[k] * next(static_cast<long>(k)) + weight_[k] * rate.x();
+        next(static_cast<long>(k_count + k)) =
+            decay_[k] * next(static_cast<long>(k_count + k)) + weight_[k] * rate.y();
+      }
+      states[j + 1] = next;
+    }
+    auto at = [&](double t) {
+      const double position = std::clamp((t - start) / step_s_, 0.0, static_cast<double>(steps));
+      const std::size_t j = std::min(static_cast<std::size_t>(position), steps - 1);
+      const double alpha = position - static_cast<double>(j);
+      return Eigen::VectorXd((1.0 - alpha) * states[j] + alpha * states[j + 1]);
+    };
+    for (std::size_t index = 0; index < recording.observations.size(); ++index) {
+      if (!predicted[index].allFinite()) continue;
+      const LensMotionObservation& o = recording.observations[index];
+      feature_deltas->push_back(recording.focal_px * (at(o.t_b_s) - at(o.t_a_s)));
+      targets->push_back(o.motion_px - predicted[index]);
+      weights->push_back(std::max(0.0, o.weight));
+    }
+  }
+
+ private:
+  double step_s_;
+  std::vector<double> decay_, weight_;
+};
+
+}  // namespace
+
+std::string StabiliserFitOptions::validate() const {
+  std::ostringstream why;
+  if (!(huber_px > 0.0)) why << "huber_px: must be positive";
+  else if (iterations < 1) why << "iterations: must be >= 1";
+  else if (!(step_s > 0.0 && step_s <= 0.01)) why << "step_s: must be in (0, 0.01] s";
+  else if (!(warm_up_s >= 0.0)) why << "warm_up_s: must be >= 0";
+  else if (!(residual_ridge >= 0.0)) why << "residual_ridge: must be >= 0";
+  else {
+    for (double tau : residual_time_constants_s)
+      if (!(tau > 0.0)) return "residual_time_constants_s: must be positive";
+    for (double rate : pan_thresholds_rad_s)
+      if (!(rate >= 0.0)) return "pan_thresholds_rad_s: must be >= 0 (0 = off)";
+  }
+  return why.str();
+}
+
+std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
+                                               const StabiliserFitRecording& recording,
+                                               double step_s, double warm_up_s) {
+  std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
+                                         Eigen::Vector2d::Constant(kNaN));
+  runOver(parameters, recording, step_s, warm_up_s,
+          [&](const LensShiftPredictor& predictor, std::size_t index) {
+            const LensMotionObservation& o = recording.observations[index];
+            predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
+          });
+  return predicted;
+}
+
+StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& recordings,
+                                  const StabiliserFitOptions& options,
+                                  const ProgressCallback& progress) {
+  const std::string problem = options.validate();
+  if (!problem.empty()) throw std::invalid_argument("fitStabiliser: " + problem);
+  for (const StabiliserFitRecording& recording : recordings) {
+    if (!(recording.focal_px > 0.0))
+      throw std::invalid_argument("fitStabiliser: " + recording.name + ": focal_px must be positive");
+    for (std::size_t k = 1; k < recording.rates.size(); ++k) {
+      if (!(recording.rates[k].stamp_s > recording.rates[k - 1].stamp_s))
+        throw std::invalid_argument("fitStabiliser: " + recording.name +
+                                    ": gyro stamps must increase (sample " + std::to_string(k) + ")");
+    }
+  }
+  StabiliserFitResult result;
+  StabiliserFitOptions physical_options = options;
+  auto log = [&](const std::string& line) { result.log.push_back(line); };
+
+  // Start: the ideal stabiliser's structure with its sign and scale from a linear fit of the
+  // gain at a few centring corners (the only linear part), then refine everything.
+  StabiliserParameters start;
+  start.stroke_x_deg = start.stroke_y_deg = 5.0;  // no saturation until the fit finds it
+  start.actuator_natural_hz = 40.0;
+  const std::vector<double> corners_hz = {0.1, 0.3, 0.6, 1.2, 2.5};
+  const std::size_t total_steps = corners_hz.size() + 3 +
+                                  options.pan_thresholds_rad_s.size() *
+                                      (options.try_circular_stroke ? 2 : 1);
+  std::size_t done = 0;
+  auto tick = [&] {
+    if (progress) progress(++done, total_steps);
+  };
+  double best_cost = std::numeric_limits<double>::infinity();
+  StabiliserParameters best = start;
+  for (double corner : corners_hz) {
+    StabiliserParameters candidate = start;
+    candidate.highpass_corner_hz = corner;
+    // Linear least squares for the gain: the lens motion is linear in it (no stroke reached).
+    Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d b = Eigen::Vector4d::Zero();
+    std::vector<std::vector<Eigen::Vector2d>> unit_responses(4);
+    for (int entry = 0; entry < 4; ++entry) {
+      StabiliserParameters unit = candidate;
+      unit.gain.setZero();
+      unit.gain(entry / 2, entry % 2) = 1.0;
+      for (const StabiliserFitRecording& recording : recordings) {
+        const auto predicted = predictLensMotion(unit, recording, options.step_s, options.warm_up_s);
+        unit_responses[static_cast<std::size_t>(entry)].insert(
+            unit_responses[static_cast<std::size_t>(entry)].end(), predicted.begin(),
+            predicted.end());
+      }
+    }
+    std::size_t k = 0;
+    for (const StabiliserFitRecording& recording : recordings) {
+      for (const LensMotionObservation& o : recording.observations) {
+        Eigen::Matrix<double, 2, 4> M;
+        for (int entry = 0; entry < 4; ++entry)
+          M.col(entry) = unit_responses[static_cast<std::size_t>(entry)][k];
+        ++k;
+        if (!M.allFinite()) continue;
+        A += o.weight * M.transpose() * M;
+        b += o.weight * M.transpose() * o.motion_px;
+      }
+    }
+    const Eigen::Vector4d g = A.ldlt().solve(b);
+    if (g.allFinite()) candidate.gain << g(0), g(1), g(2), g(3);
+    const Residuals residuals = residualsOf(candidate, recordings, physical_options);
+    const double cost = huberCost(residuals.values, options.huber_px);
+    std::ostringstream line;
+    line << "start: corner " << corner << " Hz, gain [" << g.transpose() << "], cost " << cost;
+    log(line.str());
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = candidate;
+    }
+    tick();
+  }
+  const Residuals initial = residualsOf(best, recordings, physical_options);
+  if (initial.used == 0) {
+    throw std::invalid_argument(
+        "fitStabiliser: no usable observation (each must lie inside its recording's gyro stream, "
+        "after the first " + std::to_string(options.warm_up_s) + " s)");
+  }
+
+  // A first refinement with the stroke out of reach (the gain and corner it settles need no
+  // stroke), then the stroke: the cost has no slope in a limit the model never reaches, so scan
+  // it per axis (a cost evaluation each) and let the full refinement below move it.
+  {
+    double cost = 0.0;
+    best = levenbergMarquardt(best, ParameterPacking{}, recordings, physical_options,
+                              std::max(1, options.iterations / 3), &cost);
+    std::ostringstream line;
+    line << "first refinement: corner " << best.highpass_corner_hz << " Hz, cost " << cost;
+    log(line.str());
+  }
+  const std::vector<double> strokes_deg = {0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3, 1.7, 2.3, 3.0, 5.0};
+  for (int axis = 0; axis < 2; ++axis) {
+    double axis_best = std::numeric_limits<double>::infinity();
+    StabiliserParameters scanned = best;
+    for (double stroke : strokes_deg) {
+      StabiliserParameters candidate = best;
+      (axis == 0 ? candidate.stroke_x_deg : candidate.stroke_y_deg) = stroke;
+      const double cost =
+          huberCost(residualsOf(candidate, recordings, physical_options).values, options.huber_px);
+      if (cost < axis_best) {
+        axis_best = cost;
+        scanned = candidate;
+      }
+    }
+    best = scanned;
+    std::ostringstream line;
+    line << "stroke scan: " << (axis == 0 ? "x " : "y ")
+         << (axis == 0 ? best.stroke_x_deg : best.stroke_y_deg) << " deg, cost " << axis_best;
+    log(line.str());
+  }
+  tick();
+
+  // Refine every physical parameter (box stroke, no pan detection), then try the discrete
+  // variants (pan detection thresholds, an elliptic stroke) with a short refinement each and
+  // refine the best of them fully.
+  auto describe = [](const StabiliserParameters& c, double cost) {
+    std::ostringstream line;
+    line << "pan threshold " << c.pan_detection_rate_rad_s << " rad/s, "
+         << (c.circular_stroke ? "elliptic" : "box") << " stroke: gain [" << c.gain(0, 0) << " "
+         << c.gain(0, 1) << "; " << c.gain(1, 0) << " " << c.gain(1, 1) << "], corner "
+         << c.highpass_corner_hz << " Hz, actuator " << c.actuator_natural_hz << " Hz / "
+         << c.actuator_damping << ", lag " << 1000.0 * c.sensor_lag_s << " ms, stroke "
+         << c.stroke_x_deg << " x " << c.stroke_y_deg << " deg";
+    if (c.pan_detection_rate_rad_s > 0.0) line << ", release " << c.pan_release_corner_hz << " Hz";
+    line << ", cost " << cost;
+    return line.str();
+  };
+  double refined_cost = 0.0;
+  StabiliserParameters refined = levenbergMarquardt(best, ParameterPacking{}, recordings,
+                                                    physical_options, options.iterations,
+                                                    &refined_cost);
+  log(describe(refined, refined_cost));
+  tick();
+  const int short_iterations = std::max(1, options.iterations / 5);
+  StabiliserParameters variant_best = refined;
+  double variant_cost = refined_cost;
+  for (double threshold : options.pan_thresholds_rad_s) {
+    for (bool circular : {false, true}) {
+      if (circular && !options.try_circular_stroke) continue;
+      if (threshold <= 0.0 && !circular) continue;  // the refined model itself
+      StabiliserParameters candidate = refined;
+      candidate.pan_detection_rate_rad_s = threshold;
+      candidate.circular_stroke = circular;
+      ParameterPacking packing;
+      packing.pan = threshold > 0.0;
+      double cost = 0.0;
+      candidate = levenbergMarquardt(candidate, packing, recordings, physical_options,
+                                     short_iterations, &cost);
+      log(describe(candidate, cost));
+      if (cost < variant_cost) {
+        variant_cost = cost;
+        variant_best = candidate;
+      }
+      tick();
+    }
+  }
+  // A variant must earn its extra mechanism: at least 1 % lower cost than the plain model.
+  if (variant_cost < 0.99 * refined_cost) {
+    ParameterPacking packing;
+    packing.pan = variant_best.pan_detection_rate_rad_s > 0.0;
+    refined = levenbergMarquardt(variant_best, packing, recordings, physical_options,
+                                 options.iterations, &refined_cost);
+    log("refined: " + describe(refined, refined_cost));
+  }
+
+  // The linear residual on what the physical model leaves (ridge least squares).
+  StabiliserParameters final_parameters = refined;
+  final_parameters.residual_time_constants_s.clear();
+  final_parameters.residual.resize(0, 0);
+  if (!options.residual_time_constants_s.empty()) {
+    const ResidualBank bank(options.residual_time_constants_s, options.step_s);
+    std::vector<Eigen::VectorXd> deltas;
+    std::vector<Eigen::Vector2d> targets;
+    std::vector<double> weights;
+    for (const StabiliserFitRecording& recording : recordings)
+      bank.observe(recording, options.warm_up_s, refined, &deltas, &targets, &weights);
+    const long m = 2 * static_cast<long>(options.residual_time_constants_s.size());
+    // Huber weights from the physical residuals, then ridge per output axis.
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, 2);
+    for (std::size_t k = 0; k < deltas.size(); ++k) {
+      const double norm = targets[k].norm();
+      const double w = weights[k] * (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
+      A += w * deltas[k] * deltas[k].transpose();
+      B += w * deltas[k] * targets[k].transpose();
+    }
+    const double energy = A.trace() / std::max<long>(1, m);
+    A += options.residual_ridge * std::max(energy, 1e-12) * Eigen::MatrixXd::Identity(m, m);
+    const Eigen::MatrixXd solution = A.ldlt().solve(B);  // m x 2
+    if (solution.allFinite()) {
+      final_parameters.residual_time_constants_s = options.residual_time_constants_s;
+      // The predictor multiplies by focal_px itself: the bank here already carries it.
+      final_parameters.residual = solution.transpose();
+    }
+  }
+  tick();
+
+  const Residuals none_residuals = [&] {
+    Residuals r;
+    std::vector<double> values;
+    for (const StabiliserFitRecording& recording : recordings) {
+      const auto predicted = predictLensMotion(refined, recording, options.step_s, options.warm_up_s);
+      for (std::size_t k = 0; k < predicted.size(); ++k) {
+        if (!predicted[k].allFinite()) continue;
+        const double w = std::sqrt(std::max(0.0, recording.observations[k].weight));
+        values.push_back(-w * recording.observations[k].motion_px.x());
+        values.push_back(-w * recording.observations[k].motion_px.y());
+      }
+    }
+    r.values = Eigen::Map<Eigen::VectorXd>(values.data(), static_cast<long>(values.size()));
+    return r;
+  }();
+  const Residuals physical = residualsOf(refined, recordings, physical_options);
+  const Residuals full = residualsOf(final_parameters, recordings, physical_options);
+  auto rms = [&](const Residuals& r) {
+    return weightedRms(r.values, Eigen::VectorXd::Ones(r.values.size()));
+  };
+  result.parameters = final_parameters;
+  result.observations_used = full.used;
+  result.observations_skipped = full.skipped;
+  result.rms_without_model_px = rms(none_residuals);
+  result.rms_physical_px = rms(physical);
+  result.rms_px = rms(full);
+  // A residual that makes the fit worse (it was fitted on Huber-weighted data) is dropped.
+  if (result.rms_px > result.rms_physical_px) {
+    result.parameters = refined;
+    result.parameters.residual_time_constants_s.clear();
+    result.parameters.residual.resize(0, 0);
+    result.rms_px = result.rms_physical_px;
+    log("residual bank dropped: it did not lower the residual");
+  }
+  return result;
+}
+
+}  // namespace deep_ois

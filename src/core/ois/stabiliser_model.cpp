@@ -1,0 +1,206 @@
+#include "deep_ois/core/ois/stabiliser_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace deep_ois {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDegToRad = kPi / 180.0;
+
+// The leaky integrator y' = w - c y over one step of length h for the mean rate of the step:
+// y <- decay y + weight w, exact for a rate held over the step.
+double leakDecay(double corner_rad_s, double h) { return std::exp(-corner_rad_s * h); }
+double leakWeight(double corner_rad_s, double h) {
+  return corner_rad_s > 0.0 ? -std::expm1(-corner_rad_s * h) / corner_rad_s : h;
+}
+
+// The point of the stroke nearest to `command`: per axis for a box, radially for an ellipse.
+Eigen::Vector2d limitToStroke(const Eigen::Vector2d& command, const Eigen::Vector2d& limit_px,
+                              bool circular) {
+  if (!circular) {
+    return Eigen::Vector2d(std::clamp(command.x(), -limit_px.x(), limit_px.x()),
+                           std::clamp(command.y(), -limit_px.y(), limit_px.y()));
+  }
+  const double r = std::hypot(command.x() / limit_px.x(), command.y() / limit_px.y());
+  return r > 1.0 ? Eigen::Vector2d(command / r) : command;
+}
+
+}  // namespace
+
+std::string StabiliserParameters::validate() const {
+  std::ostringstream why;
+  auto positive = [](double x) { return std::isfinite(x) && x > 0.0; };
+  if (!gain.allFinite()) {
+    why << "gain: must be finite";
+  } else if (!std::isfinite(highpass_corner_hz) || highpass_corner_hz < 0.0) {
+    why << "highpass_corner_hz: must be >= 0 (got " << highpass_corner_hz << ")";
+  } else if (!positive(actuator_natural_hz)) {
+    why << "actuator_natural_hz: must be positive (got " << actuator_natural_hz << ")";
+  } else if (!positive(actuator_damping)) {
+    why << "actuator_damping: must be positive (got " << actuator_damping << ")";
+  } else if (!std::isfinite(sensor_lag_s) || sensor_lag_s < 0.0 || sensor_lag_s > 0.1) {
+    why << "sensor_lag_s: must be in [0, 0.1] s (got " << sensor_lag_s << ")";
+  } else if (!(stroke_x_deg > 0.0 && stroke_x_deg < 45.0) ||
+             !(stroke_y_deg > 0.0 && stroke_y_deg < 45.0)) {
+    why << "stroke_x_deg, stroke_y_deg: must be in (0, 45) degrees (got " << stroke_x_deg << ", "
+        << stroke_y_deg << ")";
+  } else if (!std::isfinite(pan_detection_rate_rad_s) || pan_detection_rate_rad_s < 0.0) {
+    why << "pan_detection_rate_rad_s: must be >= 0, 0 = off (got " << pan_detection_rate_rad_s
+        << ")";
+  } else if (!positive(pan_detection_time_constant_s)) {
+    why << "pan_detection_time_constant_s: must be positive";
+  } else if (!positive(pan_release_corner_hz)) {
+    why << "pan_release_corner_hz: must be positive";
+  } else if (residual.size() != 0 &&
+             (residual.rows() != 2 ||
+              residual.cols() != 2 * static_cast<long>(residual_time_constants_s.size()) ||
+              !residual.allFinite())) {
+    why << "residual: must be a finite 2 x " << 2 * residual_time_constants_s.size()
+        << " matrix (2 x 2 per residual time constant)";
+  } else {
+    for (double tau : residual_time_constants_s) {
+      if (!positive(tau)) {
+        why << "residual_time_constants_s: must be positive (got " << tau << ")";
+        break;
+      }
+    }
+  }
+  return why.str();
+}
+
+LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, double focal_px,
+                                       double step_s, double history_s)
+    : parameters_(parameters),
+      focal_px_(focal_px),
+      step_s_(step_s),
+      actuator_x_(parameters.actuator_natural_hz, parameters.actuator_damping, step_s, 1.0),
+      actuator_y_(parameters.actuator_natural_hz, parameters.actuator_damping, step_s, 1.0) {
+  const std::string problem = parameters_.validate();
+  if (!problem.empty()) throw std::invalid_argument("stabiliser model: " + problem);
+  if (!(focal_px > 0.0) || !std::isfinite(focal_px) || !(step_s > 0.0) || !(history_s > step_s)) {
+    throw std::invalid_argument(
+        "stabiliser model: focal_px and step_s must be positive and history_s > step_s");
+  }
+  history_steps_ = static_cast<std::size_t>(std::ceil(history_s / step_s)) + 2;
+  const double corner = 2.0 * kPi * parameters_.highpass_corner_hz;
+  const double release = 2.0 * kPi * parameters_.pan_release_corner_hz;
+  decay_hold_ = leakDecay(corner, step_s);
+  weight_hold_ = leakWeight(corner, step_s);
+  decay_pan_ = leakDecay(release, step_s);
+  weight_pan_ = leakWeight(release, step_s);
+  pan_smoothing_ = -std::expm1(-step_s / parameters_.pan_detection_time_constant_s);
+  stroke_px_ = Eigen::Vector2d(focal_px * std::tan(parameters_.stroke_x_deg * kDegToRad),
+                               focal_px * std::tan(parameters_.stroke_y_deg * kDegToRad));
+  // The lens itself stops at the stroke too (the command never asks for more).
+  actuator_x_ = LensActuator(parameters_.actuator_natural_hz, parameters_.actuator_damping, step_s,
+                             stroke_px_.x());
+  actuator_y_ = LensActuator(parameters_.actuator_natural_hz, parameters_.actuator_damping, step_s,
+                             stroke_px_.y());
+  for (double tau : parameters_.residual_time_constants_s) {
+    residual_decay_.push_back(leakDecay(1.0 / tau, step_s));
+    residual_weight_.push_back(leakWeight(1.0 / tau, step_s));
+  }
+  // A fractional lag: the acted command is interpolated between the two stored around it (so the
+  // fit sees a smooth cost in the lag).
+  const double lag_steps = parameters_.sensor_lag_s / step_s;
+  lag_steps_ = static_cast<std::size_t>(std::floor(lag_steps));
+  lag_fraction_ = lag_steps - static_cast<double>(lag_steps_);
+  reset();
+  resets_ = 0;
+}
+
+void LensShiftPredictor::reset() {
+  started_ = false;
+  theta_.setZero();
+  smoothed_rate_ = 0.0;
+  panning_ = false;
+  residual_state_.assign(parameters_.residual_time_constants_s.size(), Eigen::Vector2d::Zero());
+  pending_commands_.assign(lag_steps_ + 1, Eigen::Vector2d::Zero());  // commands of the last steps
+  actuator_x_ = LensActuator(parameters_.actuator_natural_hz, parameters_.actuator_damping, step_s_,
+                             stroke_px_.x());
+  actuator_y_ = LensActuator(parameters_.actuator_natural_hz, parameters_.actuator_damping, step_s_,
+                             stroke_px_.y());
+  shifts_.clear();
+  ++resets_;
+}
+
+bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
+  if (!std::isfinite(sample.stamp_s) || !sample.rate_rad_s.allFinite()) return false;
+  if (started_ && !(sample.stamp_s > last_stamp_s_)) return false;
+  if (started_ && sample.stamp_s - last_stamp_s_ > max_gap_s) reset();
+  if (!started_) {
+    started_ = true;
+    last_stamp_s_ = sample.stamp_s;
+    last_rate_ = sample.rate_rad_s;
+    clock_s_ = sample.stamp_s;
+    shifts_.push_back(Eigen::Vector2d::Zero());
+    return true;
+  }
+  // Internal steps up to the new sample, the rate interpolated at each step's middle.
+  const double span = sample.stamp_s - last_stamp_s_;
+  while (clock_s_ + step_s_ <= sample.stamp_s + 1e-12) {
+    const double middle = clock_s_ + 0.5 * step_s_;
+    const double alpha = std::clamp((middle - last_stamp_s_) / span, 0.0, 1.0);
+    step((1.0 - alpha) * last_rate_ + alpha * sample.rate_rad_s);
+  }
+  last_stamp_s_ = sample.stamp_s;
+  last_rate_ = sample.rate_rad_s;
+  return true;
+}
+
+void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
+  const StabiliserParameters& p = parameters_;
+  const Eigen::Vector2d pan_tilt = rate_rad_s.head<2>();
+  if (p.pan_detection_rate_rad_s > 0.0) {
+    smoothed_rate_ += pan_smoothing_ * (pan_tilt.norm() - smoothed_rate_);
+    if (!panning_ && smoothed_rate_ > p.pan_detection_rate_rad_s) panning_ = true;
+    if (panning_ && smoothed_rate_ < 0.7 * p.pan_detection_rate_rad_s) panning_ = false;
+  }
+  theta_ = (panning_ ? decay_pan_ : decay_hold_) * theta_ +
+           (panning_ ? weight_pan_ : weight_hold_) * pan_tilt;
+  const Eigen::Vector2d command = limitToStroke(
+      focal_px_ * (p.gain * Eigen::Vector2d(std::tan(theta_.x()), std::tan(theta_.y()))),
+      stroke_px_, p.circular_stroke);
+  // Holds lag_steps_ + 2 commands after the push: front = lag_steps_ + 1 steps old.
+  pending_commands_.push_back(command);
+  const Eigen::Vector2d acted =
+      lag_fraction_ * pending_commands_[0] + (1.0 - lag_fraction_) * pending_commands_[1];
+  pending_commands_.pop_front();
+  Eigen::Vector2d shift(actuator_x_.advance(acted.x()), actuator_y_.advance(acted.y()));
+  if (!residual_state_.empty()) {
+    const std::size_t k_count = residual_state_.size();
+    Eigen::VectorXd features(2 * k_count);
+    for (std::size_t k = 0; k < k_count; ++k) {
+      residual_state_[k] = residual_decay_[k] * residual_state_[k] + residual_weight_[k] * pan_tilt;
+      features(static_cast<long>(k)) = residual_state_[k].x();
+      features(static_cast<long>(k_count + k)) = residual_state_[k].y();
+    }
+    shift += focal_px_ * (p.residual * features);
+  }
+  clock_s_ += step_s_;
+  shifts_.push_back(shift);
+  while (shifts_.size() > history_steps_) shifts_.pop_front();
+}
+
+bool LensShiftPredictor::covers(double t_s) const {
+  if (shifts_.empty()) return false;
+  const double oldest = clock_s_ - static_cast<double>(shifts_.size() - 1) * step_s_;
+  return t_s >= oldest - 1e-9 && t_s <= clock_s_ + 1e-9;
+}
+
+Eigen::Vector2d LensShiftPredictor::lensShiftAt(double t_s) const {
+  if (shifts_.empty()) return Eigen::Vector2d::Zero();
+  const double last = static_cast<double>(shifts_.size() - 1);
+  const double position = last - (clock_s_ - t_s) / step_s_;
+  if (!(position > 0.0)) return shifts_.front();
+  if (position >= last) return shifts_.back();
+  const std::size_t j = static_cast<std::size_t>(position);
+  const double alpha = position - static_cast<double>(j);
+  return (1.0 - alpha) * shifts_[j] + alpha * shifts_[j + 1];
+}
+
+}  // namespace deep_ois

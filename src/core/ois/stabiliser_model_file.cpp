@@ -1,0 +1,190 @@
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+namespace deep_ois {
+namespace {
+
+constexpr const char* kFormatName = "deep_ois_stabiliser_model";
+
+template <typename T>
+T required(const YAML::Node& node, const std::string& key) {
+  if (!node[key]) throw StabiliserModelFileError("missing field '" + key + "'");
+  try {
+    return node[key].as<T>();
+  } catch (const YAML::Exception&) {
+    throw StabiliserModelFileError("field '" + key + "' is malformed");
+  }
+}
+
+template <typename T>
+T optional(const YAML::Node& node, const std::string& key, T fallback) {
+  return node[key] ? required<T>(node, key) : fallback;
+}
+
+}  // namespace
+
+bool isStabiliserModelPath(const std::string& path) {
+  const std::size_t dot = path.find_last_of('.');
+  if (dot == std::string::npos) return false;
+  const std::string ext = path.substr(dot);
+  return ext == ".yaml" || ext == ".yml";
+}
+
+std::string StabiliserModelFile::toYaml() const {
+  YAML::Emitter out;
+  out.SetDoublePrecision(10);
+  out << YAML::BeginMap;
+  out << YAML::Key << "format" << YAML::Value << kFormatName;
+  out << YAML::Key << "format_version" << YAML::Value << format_version;
+  out << YAML::Key << "name" << YAML::Value << name;
+  const StabiliserParameters& p = parameters;
+  out << YAML::Key << "stabiliser" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "gain" << YAML::Value << YAML::Flow
+      << std::vector<double>{p.gain(0, 0), p.gain(0, 1), p.gain(1, 0), p.gain(1, 1)};
+  out << YAML::Key << "highpass_corner_hz" << YAML::Value << p.highpass_corner_hz;
+  out << YAML::Key << "actuator_natural_hz" << YAML::Value << p.actuator_natural_hz;
+  out << YAML::Key << "actuator_damping" << YAML::Value << p.actuator_damping;
+  out << YAML::Key << "sensor_lag_s" << YAML::Value << p.sensor_lag_s;
+  out << YAML::Key << "stroke_x_deg" << YAML::Value << p.stroke_x_deg;
+  out << YAML::Key << "stroke_y_deg" << YAML::Value << p.stroke_y_deg;
+  out << YAML::Key << "circular_stroke" << YAML::Value << p.circular_stroke;
+  out << YAML::Key << "pan_detection_rate_rad_s" << YAML::Value << p.pan_detection_rate_rad_s;
+  out << YAML::Key << "pan_detection_time_constant_s" << YAML::Value
+      << p.pan_detection_time_constant_s;
+  out << YAML::Key << "pan_release_corner_hz" << YAML::Value << p.pan_release_corner_hz;
+  out << YAML::Key << "residual_time_constants_s" << YAML::Value << YAML::Flow
+      << p.residual_time_constants_s;
+  std::vector<double> residual;
+  for (long r = 0; r < p.residual.rows(); ++r)
+    for (long c = 0; c < p.residual.cols(); ++c) residual.push_back(p.residual(r, c));
+  out << YAML::Key << "residual" << YAML::Value << YAML::Flow << residual;
+  out << YAML::EndMap;
+  out << YAML::Key << "camera" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "width" << YAML::Value << camera.width;
+  out << YAML::Key << "height" << YAML::Value << camera.height;
+  out << YAML::Key << "fx" << YAML::Value << camera.fx << YAML::Key << "fy" << YAML::Value
+      << camera.fy << YAML::Key << "cx" << YAML::Value << camera.cx << YAML::Key << "cy"
+      << YAML::Value << camera.cy;
+  out << YAML::Key << "readout_time_s" << YAML::Value << camera.readout_time_s;
+  out << YAML::Key << "frame_rate_hz" << YAML::Value << camera.frame_rate_hz;
+  out << YAML::EndMap;
+  const StabiliserTrainingRecord& t = training;
+  out << YAML::Key << "training" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "target" << YAML::Value << t.target;
+  out << YAML::Key << "data_files" << YAML::Value << t.data_files;
+  out << YAML::Key << "data_sha256" << YAML::Value << t.data_sha256;
+  out << YAML::Key << "recordings" << YAML::Value << t.recordings;
+  out << YAML::Key << "observations" << YAML::Value << t.observations;
+  out << YAML::Key << "rms_without_model_px" << YAML::Value << t.rms_without_model_px;
+  out << YAML::Key << "rms_px" << YAML::Value << t.rms_px;
+  out << YAML::Key << "held_out_rms_without_model_px" << YAML::Value
+      << t.held_out_rms_without_model_px;
+  out << YAML::Key << "held_out_rms_px" << YAML::Value << t.held_out_rms_px;
+  out << YAML::Key << "training_time_s" << YAML::Value << t.training_time_s;
+  out << YAML::EndMap;
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
+StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw StabiliserModelFileError(std::string("not YAML: ") + e.what());
+  }
+  if (!root.IsMap() || optional<std::string>(root, "format", "") != kFormatName)
+    throw StabiliserModelFileError(std::string("not a stabiliser model (format: ") + kFormatName +
+                                   " missing)");
+  StabiliserModelFile file;
+  file.format_version = required<int>(root, "format_version");
+  if (file.format_version != kFormatVersion)
+    throw StabiliserModelFileError("format_version " + std::to_string(file.format_version) +
+                                   " is not supported (this build reads " +
+                                   std::to_string(kFormatVersion) + ")");
+  file.name = optional<std::string>(root, "name", "");
+  if (!root["stabiliser"]) throw StabiliserModelFileError("missing section 'stabiliser'");
+  const YAML::Node s = root["stabiliser"];
+  StabiliserParameters& p = file.parameters;
+  const auto gain = required<std::vector<double>>(s, "gain");
+  if (gain.size() != 4) throw StabiliserModelFileError("field 'gain' must have 4 values");
+  p.gain << gain[0], gain[1], gain[2], gain[3];
+  p.highpass_corner_hz = required<double>(s, "highpass_corner_hz");
+  p.actuator_natural_hz = required<double>(s, "actuator_natural_hz");
+  p.actuator_damping = required<double>(s, "actuator_damping");
+  p.sensor_lag_s = required<double>(s, "sensor_lag_s");
+  p.stroke_x_deg = required<double>(s, "stroke_x_deg");
+  p.stroke_y_deg = required<double>(s, "stroke_y_deg");
+  p.circular_stroke = required<bool>(s, "circular_stroke");
+  p.pan_detection_rate_rad_s = required<double>(s, "pan_detection_rate_rad_s");
+  p.pan_detection_time_constant_s = required<double>(s, "pan_detection_time_constant_s");
+  p.pan_release_corner_hz = required<double>(s, "pan_release_corner_hz");
+  p.residual_time_constants_s =
+      optional<std::vector<double>>(s, "residual_time_constants_s", {});
+  const auto residual = optional<std::vector<double>>(s, "residual", {});
+  const long k = static_cast<long>(p.residual_time_constants_s.size());
+  if (static_cast<long>(residual.size()) != 4 * k)
+    throw StabiliserModelFileError("field 'residual' must have 4 values per residual time constant");
+  p.residual.resize(k > 0 ? 2 : 0, 2 * k);
+  for (long r = 0; r < p.residual.rows(); ++r)
+    for (long c = 0; c < p.residual.cols(); ++c)
+      p.residual(r, c) = residual[static_cast<std::size_t>(r * 2 * k + c)];
+  const std::string problem = p.validate();
+  if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
+  if (root["camera"]) {
+    const YAML::Node c = root["camera"];
+    CameraDescription& camera = file.camera;
+    camera.width = optional<int>(c, "width", 0);
+    camera.height = optional<int>(c, "height", 0);
+    camera.fx = optional<double>(c, "fx", 0.0);
+    camera.fy = optional<double>(c, "fy", 0.0);
+    camera.cx = optional<double>(c, "cx", 0.0);
+    camera.cy = optional<double>(c, "cy", 0.0);
+    camera.readout_time_s = optional<double>(c, "readout_time_s", 0.0);
+    camera.frame_rate_hz = optional<double>(c, "frame_rate_hz", 0.0);
+  }
+  if (root["training"]) {
+    const YAML::Node t = root["training"];
+    StabiliserTrainingRecord& record = file.training;
+    record.target = optional<std::string>(t, "target", "");
+    record.data_files = optional<std::vector<std::string>>(t, "data_files", {});
+    record.data_sha256 = optional<std::string>(t, "data_sha256", "");
+    record.recordings = optional<std::size_t>(t, "recordings", 0);
+    record.observations = optional<std::size_t>(t, "observations", 0);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    record.rms_without_model_px = optional<double>(t, "rms_without_model_px", nan);
+    record.rms_px = optional<double>(t, "rms_px", nan);
+    record.held_out_rms_without_model_px = optional<double>(t, "held_out_rms_without_model_px", nan);
+    record.held_out_rms_px = optional<double>(t, "held_out_rms_px", nan);
+    record.training_time_s = optional<double>(t, "training_time_s", 0.0);
+  }
+  return file;
+}
+
+StabiliserModelFile StabiliserModelFile::load(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw StabiliserModelFileError(path + ": cannot open the stabiliser model");
+  std::stringstream text;
+  text << in.rdbuf();
+  try {
+    return fromYaml(text.str());
+  } catch (const StabiliserModelFileError& e) {
+    throw StabiliserModelFileError(path + ": " + e.what());
+  }
+}
+
+void StabiliserModelFile::save(const std::string& path) const {
+  std::ofstream out(path);
+  if (!out) throw StabiliserModelFileError(path + ": cannot write the stabiliser model");
+  out << "# deep_ois learned stabiliser model (core/ois/stabiliser_model.h): " << name << "\n"
+      << toYaml();
+  if (!out) throw StabiliserModelFileError(path + ": write failed");
+}
+
+}  // namespace deep_ois

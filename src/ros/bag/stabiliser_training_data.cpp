@@ -1,0 +1,136 @@
+#include "deep_ois/ros/bag/stabiliser_training_data.h"
+
+#include <map>
+#include <stdexcept>
+
+#include "deep_ois/core/common/so3_and_statistics.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/messages/conversions.h"
+
+namespace deep_ois {
+namespace {
+
+// Fewer inlier tracks than this in a pair: its lens motion is left out (the prior filled it).
+constexpr int kMinimumInlierTracks = 8;
+
+}  // namespace
+
+StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
+                                                const GyroFlowParameters& gyro,
+                                                LensMotionTarget target,
+                                                const LensShiftOptions& lens_options) {
+  std::vector<BagFrame> frames;
+  const bool images = target == LensMotionTarget::kImages;
+  const BagSequence bag =
+      readBagSequence(bag_path, {}, BagReadFailure::kThrow, images ? &frames : nullptr);
+  auto fail = [&](const std::string& what) { throw std::runtime_error(bag_path + ": " + what); };
+  if (!bag.imu_problem.empty()) fail(bag.imu_problem);
+  const CameraModel& camera = *bag.camera;
+  RollingShutterConfig rs = gyro.rolling_shutter;
+  if (gyro.rotation_from_tf) {
+    if (!bag.imu_to_camera_rotation) fail(bag.imu_to_camera_problem);
+    rs.imu_to_camera_rotation = *bag.imu_to_camera_rotation;
+  }
+  const ImuSampleBuffer imu = bag.imuBuffer();
+
+  StabiliserRecordingData data;
+  StabiliserFitRecording& recording = data.recording;
+  recording.name = bag_path;
+  recording.focal_px = camera.K()(0, 0);
+  for (const ImuSample& sample : imu.samples())
+    recording.rates.push_back({sample.stamp_s, rs.imu_to_camera_rotation * sample.angular_velocity_rad_s});
+
+  std::vector<double> stamps_s;
+  // The frames' own stamps when the images are read (their order is the pairs'), else camera_info's.
+  if (images) {
+    for (const BagFrame& frame : frames) stamps_s.push_back(bag.secondsSinceBase(frame.stamp));
+  } else {
+    for (const ros::Time& stamp : bag.frame_stamps) stamps_s.push_back(bag.secondsSinceBase(stamp));
+  }
+  CameraDescription& description = data.camera;
+  description.width = camera.width();
+  description.height = camera.height();
+  description.fx = camera.K()(0, 0);
+  description.fy = camera.K()(1, 1);
+  description.cx = camera.K()(0, 2);
+  description.cy = camera.K()(1, 2);
+  description.readout_time_s = rs.readout_time_s;
+  if (stamps_s.size() >= 2) {
+    std::vector<double> intervals;
+    for (std::size_t f = 1; f < stamps_s.size(); ++f) intervals.push_back(stamps_s[f] - stamps_s[f - 1]);
+    const double interval = median(intervals);
+    if (interval > 0.0) description.frame_rate_hz = 1.0 / interval;
+  }
+
+  auto addPair = [&](double stamp_a_s, double stamp_b_s, const std::vector<Eigen::Vector2d>& s_a,
+                     const std::vector<Eigen::Vector2d>& s_b) {
+    for (int i = 0; i < rs.patch_count; ++i) {
+      LensMotionObservation o;
+      o.t_a_s = patchImuTime(rs, stamp_a_s, i);
+      o.t_b_s = patchImuTime(rs, stamp_b_s, i);
+      o.motion_px = s_b[static_cast<std::size_t>(i)] - s_a[static_cast<std::size_t>(i)];
+      recording.observations.push_back(o);
+    }
+  };
+
+  if (!images) {
+    if (bag.truths.empty()) fail("no simulator truth on /ground_truth/frame_pair");
+    for (const FramePairTruth& truth : bag.truths) {
+      if (!truth.ois_enabled) continue;
+      ++data.frame_pairs;
+      const auto s_a = unflattenPoints(truth.lens_shift_a);
+      const auto s_b = unflattenPoints(truth.lens_shift_b);
+      if (static_cast<int>(s_a.size()) != rs.patch_count ||
+          static_cast<int>(s_b.size()) != rs.patch_count) {
+        fail("the truth has " + std::to_string(s_a.size()) + " patches, the gyro flow config " +
+             std::to_string(rs.patch_count));
+      }
+      addPair(bag.secondsSinceBase(truth.previous_stamp), bag.secondsSinceBase(truth.header.stamp),
+              s_a, s_b);
+    }
+    return data;
+  }
+
+  // The images: tracks of consecutive frames, the gyro's rotations, one lens trajectory.
+  const FeatureTracker tracker;  // the offline job's defaults
+  std::vector<LensShiftPairObservation> pairs;
+  for (std::size_t f = 0; f + 1 < frames.size(); ++f) {
+    ++data.frame_pairs;
+    const RollingShutterHomographies homographies = computeRollingShutterHomographies(
+        imu, gyro.integration, rs, camera.K(), stamps_s[f], stamps_s[f + 1]);
+    if (!homographies.ok()) {
+      ++data.pairs_without_gyro;
+      continue;
+    }
+    LensShiftPairObservation pair;
+    pair.frame_a = static_cast<int>(f);
+    pair.frame_b = static_cast<int>(f + 1);
+    pair.rotations = homographies.rotations;
+    pair.matches = tracker.match(frames[f].gray, frames[f + 1].gray);
+    pairs.push_back(std::move(pair));
+  }
+  if (pairs.empty()) fail("no frame pair covered by the gyro");
+  LensShiftOptions options = lens_options;
+  options.patch_count = rs.patch_count;
+  options.readout_time_s = rs.readout_time_s;
+  const LensShiftTrajectory trajectory =
+      estimateLensShiftTrajectory(camera, stamps_s, pairs, options);
+  std::vector<double> residuals;
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    if (trajectory.pair_inliers[p] < kMinimumInlierTracks) {
+      ++data.pairs_without_tracks;
+      continue;
+    }
+    residuals.push_back(trajectory.pair_median_residual_px[p]);
+    const int a = pairs[p].frame_a, b = pairs[p].frame_b;
+    addPair(stamps_s[static_cast<std::size_t>(a)], stamps_s[static_cast<std::size_t>(b)],
+            trajectory.shift_px[static_cast<std::size_t>(a)],
+            trajectory.shift_px[static_cast<std::size_t>(b)]);
+  }
+  if (!residuals.empty()) data.median_track_residual_px = median(residuals);
+  return data;
+}
+
+}  // namespace deep_ois
