@@ -41,8 +41,13 @@ constexpr double kCalibrationSuspectPx = 0.5;
 
 // The cache of one recording's data: a text file beside the model (resume after an interruption
 // without recomputing the ground truth of finished recordings).
+// Keyed by the bag's absolute path (recordings of several cameras often share file names).
 std::string cachePath(const std::string& cache_dir, const std::string& bag, const std::string& target) {
-  return cache_dir + "/" + fs::path(bag).filename().string() + "." + target + ".txt";
+  std::string key = fs::absolute(bag).lexically_normal().string();
+  for (char& c : key) {
+    if (c == '/') c = '_';
+  }
+  return cache_dir + "/" + key + "." + target + ".txt";
 }
 
 void writeCache(const std::string& path, const std::string& bag,
@@ -155,8 +160,8 @@ int main(int argc, char** argv) {
       "Learns a camera's optical image stabiliser from its recordings (rosbags with images, IMU, "
       "camera_info and the IMU -> camera transform): the lens motion per frame pair and row patch "
       "from the images with the gyro's rotations (gyro-anchored ground truth), then the "
-      "stabiliser model fitted to it. Writes MODEL.yaml (parameters, camera, training data) and a "
-      "cache directory MODEL.yaml.cache/ (a re-run resumes from it).",
+      "stabiliser model fitted to it. Writes MODEL.yaml (parameters, camera, training data) and "
+      "keeps each recording's ground truth in a cache directory (a re-run resumes from it).",
       "Exit status: 0 done, 1 no usable recording or the fit failed, 2 usage, 3 done but some "
       "recordings could not be read or the calibration looks wrong.");
   CLI::App& app = command_line.app();
@@ -177,6 +182,11 @@ int main(int argc, char** argv) {
       ->type_name("FILE.yaml");
   app.add_option("--out", out_path, "the model to write")->required()->type_name("MODEL.yaml");
   app.add_option("--name", name, "what the model is for (default: the camera's summary)");
+  std::string cache_dir;
+  app.add_option("--cache", cache_dir,
+                 "where each recording's ground truth is kept (default MODEL.yaml.cache); a "
+                 "recording found there is not recomputed, so runs for several models can share it")
+      ->type_name("DIR");
   app.add_option("--target", target,
                  "lens motion from the 'images' (gyro-anchored ground truth) or the simulator's "
                  "'truth'")
@@ -206,7 +216,7 @@ int main(int argc, char** argv) {
   const deep_ois::LensMotionTarget lens_target = target == "truth"
                                                      ? deep_ois::LensMotionTarget::kSimulatorTruth
                                                      : deep_ois::LensMotionTarget::kImages;
-  const std::string cache_dir = out_path + ".cache";
+  if (cache_dir.empty()) cache_dir = out_path + ".cache";
   std::error_code ignored;
   fs::create_directories(cache_dir, ignored);
 
@@ -269,13 +279,17 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "train_stabiliser: no training recording could be read\n");
     return 1;
   }
+  // One camera, or a generic model across cameras (its file then names no camera, and the
+  // nodelet has nothing to compare: the parameters are in focal-length units).
+  bool one_camera = true;
   for (const auto& camera : cameras) {
     const std::string difference = cameras.front().differencesTo(camera);
     if (!difference.empty()) {
       std::fprintf(stderr,
-                   "train_stabiliser: WARNING: the recordings are not of one camera (%s): %s vs "
-                   "%s\n",
+                   "train_stabiliser: the recordings are of more than one camera (%s: %s vs %s): "
+                   "training a generic model, which records no camera\n",
                    difference.c_str(), cameras.front().summary().c_str(), camera.summary().c_str());
+      one_camera = false;
       break;
     }
   }
@@ -300,8 +314,8 @@ int main(int argc, char** argv) {
   // ---- 3. Held-out scores and the model file. ----
   deep_ois::StabiliserModelFile model;
   model.parameters = fit.parameters;
-  model.camera = cameras.front();
-  model.name = name.empty() ? model.camera.summary() : name;
+  if (one_camera) model.camera = cameras.front();
+  model.name = name.empty() ? (one_camera ? model.camera.summary() : "generic") : name;
   model.training.target = lens_target == deep_ois::LensMotionTarget::kImages
                               ? "gyro-anchored lens shift (images)"
                               : "simulator truth";

@@ -166,6 +166,10 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
       ASSERT_EQ(readGyroFlowMsg(*collected.gyro_flows[stamp], homographies, gyro_grid), "");
       ASSERT_EQ(readGyroFlowMsg(flow, homographies, compensated_grid), "");
       const cv::Size camera(static_cast<int>(frame.width), static_cast<int>(frame.height));
+      if (private_nh.param("expect_compensated_homographies", false)) {
+        // A stabiliser model's message carries its per-patch motion, not the gyro's.
+        EXPECT_NE(flow.homographies, collected.gyro_flows[stamp]->homographies);
+      }
       gyro_sum_px += geometryDistanceOfGridFlow(points_a, points_b, gyro_grid, camera);
       compensated_sum_px += geometryDistanceOfGridFlow(points_a, points_b, compensated_grid, camera);
       ++scored;
@@ -175,9 +179,12 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
   ASSERT_GE(scored, pairs - 2) << "annotated pairs without a gyro flow";
   std::printf("[ INFO     ] %d pairs; geometry distance on %d annotated pairs: gyro %.3f px, compensated %.3f px\n",
               pairs, scored, gyro_sum_px / scored, compensated_sum_px / scored);
-  // The shipped model must remove most of the uncompensated gyro flow's error on this OIS camera
-  // (measured: 1.057 -> 0.307 px; the first model, without the motion history, reached 0.756).
-  EXPECT_LT(compensated_sum_px, 0.5 * gyro_sum_px);
+  // The model must remove most of the uncompensated gyro flow's error on this OIS camera
+  // (measured with the network: 1.057 -> 0.307 px; the first network, without the motion history,
+  // reached 0.756): ~max_compensated_ratio of the gyro's error at most.
+  double max_ratio = 0.5;
+  private_nh.param("max_compensated_ratio", max_ratio, max_ratio);
+  EXPECT_LT(compensated_sum_px, max_ratio * gyro_sum_px);
 }
 
 // Runs after the test above: both nodelets report on /diagnostics what they did with the bag and
@@ -208,9 +215,15 @@ TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
   std::map<std::string, std::string>& values = latest[compensation];
   for (const auto& [key, value] : values) std::printf("[ INFO     ]   %s: %s\n", key.c_str(), value.c_str());
   const std::string model = values["model"];
-  const std::string shipped = "models/fast.pt";
+  ros::NodeHandle private_nh("~");
+  std::string shipped = "models/fast.pt";
+  private_nh.param("model_suffix", shipped, shipped);
   EXPECT_EQ(model.substr(model.size() - std::min(model.size(), shipped.size())), shipped);
-  EXPECT_EQ(values["torch threads"], "1");
+  if (shipped.size() > 3 && shipped.substr(shipped.size() - 3) == ".pt") {
+    EXPECT_EQ(values["torch threads"], "1");
+  } else {
+    EXPECT_EQ(values["model kind"], "learned stabiliser model");
+  }
   EXPECT_GE(std::stoi(values["compensated flows total"]), 28);
   EXPECT_GE(std::stoi(latest[gyro]["gyro flows total"]), 28);
   EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);

@@ -136,6 +136,8 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
     started_ = true;
     last_stamp_s_ = sample.stamp_s;
     last_rate_ = sample.rate_rad_s;
+    start_s_ = sample.stamp_s;
+    steps_ = 0;
     clock_s_ = sample.stamp_s;
     shifts_.push_back(Eigen::Vector2d::Zero());
     return true;
@@ -181,7 +183,9 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
     }
     shift += focal_px_ * (p.residual * features);
   }
-  clock_s_ += step_s_;
+  // From an integer step count: summing step_s_ on epoch-sized stamps would drift (ulp ~ 2e-7 s).
+  ++steps_;
+  clock_s_ = start_s_ + static_cast<double>(steps_) * step_s_;
   shifts_.push_back(shift);
   while (shifts_.size() > history_steps_) shifts_.pop_front();
 }
@@ -189,7 +193,8 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
 bool LensShiftPredictor::covers(double t_s) const {
   if (shifts_.empty()) return false;
   const double oldest = clock_s_ - static_cast<double>(shifts_.size() - 1) * step_s_;
-  return t_s >= oldest - 1e-9 && t_s <= clock_s_ + 1e-9;
+  // Up to the newest sample: after the last whole step (less than one step) the lens is held.
+  return t_s >= oldest - 1e-9 && t_s <= last_stamp_s_ + 1e-9;
 }
 
 Eigen::Vector2d LensShiftPredictor::lensShiftAt(double t_s) const {

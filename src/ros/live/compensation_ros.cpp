@@ -33,6 +33,7 @@ CompensationParameters loadCompensationParameters(const ros::NodeHandle& private
   if (!nh.get("model", p.model_path) || p.model_path.empty()) {
     reject(nh, "model", "is not set: give the model file (e.g. $(find deep_ois)/models/fast.pt)");
   }
+  p.require_matching_camera = nh.param("require_matching_camera", p.require_matching_camera);
   p.torch_threads = nh.param("torch_threads", p.torch_threads);
   if (p.torch_threads < 1) reject(nh, "torch_threads", "must be at least 1");
   p.image_queue_size = nh.param("image_queue_size", p.image_queue_size);
@@ -70,11 +71,15 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       private_nh_(private_nh),
       log_name_(private_nh.getNamespace()),
       params_(loadCompensationParameters(private_nh)),
-      model_(CompensationModel::load(params_.model_path)),
-      stream_(model_),
       it_(nh),
       matcher_(FlowFrameMatcherOptions{static_cast<std::size_t>(params_.image_cache_size),
                                        static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}) {
+  if (isStabiliserModelPath(params_.model_path)) {
+    stabiliser_ = std::make_unique<StabiliserFlowCompensator>(StabiliserModelFile::load(params_.model_path));
+  } else {
+    model_ = std::make_unique<CompensationModel>(CompensationModel::load(params_.model_path));
+    stream_ = std::make_unique<CompensationStream>(*model_);
+  }
   setTorchThreads(params_.torch_threads);
   // OpenCV's thread count is process-wide: the warp (map build and remaps) is the OpenCV work
   // that splits into stripes; one thread unless ~warp_threads asks for more.
@@ -82,13 +87,16 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   diagnostics_ = std::make_unique<LiveDiagnostics>(
       nh_, private_nh_, std::vector<std::string>{"gyro flows", "images", "compensated flows"}, "compensated flows",
       nh_.resolveName("image_raw"));
-  {
-    const ModelMetadata& m = model_.metadata();
-    diagnostics_->setValue("model", params_.model_path);
+  diagnostics_->setValue("model", params_.model_path);
+  if (model_) {
+    const ModelMetadata& m = model_->metadata();
     diagnostics_->setValue("model preset", m.preset);
     diagnostics_->setValue("working grid [px]", std::to_string(m.working_grid.width) + "x" +
                                                     std::to_string(m.working_grid.height));
     diagnostics_->setValue("torch threads", std::to_string(params_.torch_threads));
+  } else {
+    diagnostics_->setValue("model kind", "learned stabiliser model");
+    diagnostics_->setValue("model camera", stabiliser_->model().camera.summary());
   }
   // Live-tunable parameters; built before the lock below (it applies the values once here).
   reconfigure_ = std::make_unique<CompensationReconfigure>(
@@ -113,11 +121,18 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   flow_image_pub_ = FlowImagePublisher(nh_, "compensated_flow/image", [this] { connectCallback(); });
   // Gives up on flows whose frames stopped coming (no image callback runs then).
   expire_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), &CompensationRos::expireTimerCallback, this);
-  const ModelMetadata& m = model_.metadata();
-  ROS_INFO_NAMED("compensation", "%s: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
-                 "%d warp thread(s)", log_name_.c_str(),
-                 params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
-                 m.training.epochs, params_.torch_threads, params_.warp_threads);
+  if (model_) {
+    const ModelMetadata& m = model_->metadata();
+    ROS_INFO_NAMED("compensation", "%s: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
+                   "%d warp thread(s)", log_name_.c_str(),
+                   params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
+                   m.training.epochs, params_.torch_threads, params_.warp_threads);
+  } else {
+    const StabiliserModelFile& m = stabiliser_->model();
+    ROS_INFO_NAMED("compensation", "%s: learned stabiliser model %s ('%s', trained for %s on %zu recordings), %d warp "
+                   "thread(s)", log_name_.c_str(), params_.model_path.c_str(), m.name.c_str(),
+                   m.camera.summary().c_str(), m.training.recordings, params_.warp_threads);
+  }
 }
 
 CompensationRos::~CompensationRos() {
@@ -229,12 +244,47 @@ void CompensationRos::settle(const std::vector<Matcher::Settled>& settled) {
 }
 
 void CompensationRos::observeOnly(const GyroFlow& gyro) {
+  if (stabiliser_) {
+    stabiliser_->observe(gyro);
+    return;
+  }
   std::vector<Eigen::Matrix3d> homographies;
   cv::Mat gyro_flow;
   if (!readGyroFlowMsg(gyro, homographies, gyro_flow).empty() || !cv::checkRange(gyro_flow)) return;
   if (!last_flow_grid_ || *last_flow_grid_ != gyro_flow.size()) return;  // process() restarts it
-  stream_.observe(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+  stream_->observe(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
                   static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+}
+
+bool CompensationRos::checkStabiliserCamera(const GyroFlow& gyro) {
+  CameraDescription stream;
+  stream.width = static_cast<int>(gyro.image_width);
+  stream.height = static_cast<int>(gyro.image_height);
+  stream.fx = gyro.K[0];
+  stream.fy = gyro.K[4];
+  stream.cx = gyro.K[2];
+  stream.cy = gyro.K[5];
+  stream.readout_time_s = gyro.readout_time;
+  // No frame rate: one pair's interval is jittery and doubles when a frame is lost.
+  const std::string summary = stream.summary();
+  if (summary == checked_camera_) return camera_check_.empty();
+  checked_camera_ = summary;
+  const CameraDescription& trained = stabiliser_->model().camera;
+  camera_check_ = trained.differencesTo(stream);
+  diagnostics_->setValue("model camera check", camera_check_.empty() ? "matches" : camera_check_);
+  if (camera_check_.empty()) return true;
+  if (params_.require_matching_camera) {
+    ROS_ERROR_NAMED("compensation", "%s: the stabiliser model %s was trained for %s but the gyro flows are of %s (%s): "
+                    "refusing them (~require_matching_camera is true; train a model for this camera with "
+                    "train_stabiliser)", log_name_.c_str(), params_.model_path.c_str(), trained.summary().c_str(),
+                    summary.c_str(), camera_check_.c_str());
+  } else {
+    ROS_WARN_NAMED("compensation", "%s: the stabiliser model %s was trained for %s but the gyro flows are of %s (%s): "
+                   "compensating anyway (its units follow the focal length); set ~require_matching_camera to refuse, "
+                   "or train a model for this camera with train_stabiliser", log_name_.c_str(),
+                   params_.model_path.c_str(), trained.summary().c_str(), summary.c_str(), camera_check_.c_str());
+  }
+  return !params_.require_matching_camera;
 }
 
 double CompensationRos::lagS(const ros::Time& stamp_b) {
@@ -277,7 +327,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   }
   if (!last_flow_grid_ || *last_flow_grid_ != gyro_flow.size()) {
     // The motion history sums flows of one grid: a new grid (a reconfigured gyro flow) restarts it.
-    if (last_flow_grid_) stream_.reset();
+    if (last_flow_grid_ && stream_) stream_->reset();
     last_flow_grid_ = gyro_flow.size();
   }
   if (params_.test_processing_delay_s > 0.0) ros::WallDuration(params_.test_processing_delay_s).sleep();
@@ -290,11 +340,29 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     countDrop("gyro flow and frames of different sizes");
     return;
   }
-  const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
-                                                 static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  cv::Mat compensated;
+  std::vector<Eigen::Matrix3d> compensated_homographies;  // the stabiliser model's, else empty
+  if (stabiliser_) {
+    if (!checkStabiliserCamera(gyro)) {
+      countDrop("stabiliser model trained for another camera (~require_matching_camera)");
+      return;
+    }
+    StabiliserFlowResult result = stabiliser_->compensate(gyro);
+    if (!result.ok) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",
+                              log_name_.c_str(), gyro.header.stamp.toSec(), result.reason.c_str());
+      countDrop("stabiliser model: " + result.reason);
+      return;
+    }
+    compensated = result.flow;
+    compensated_homographies = std::move(result.homographies);
+  } else {
+    compensated = stream_->compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+                                      static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  }
   if (!cv::checkRange(compensated)) {
     // Never publish NaN: a model that diverges on this input gives no output for it.
-    stream_.reset();
+    if (stream_) stream_->reset();
     countDrop("the model output holds NaN or inf");
     return;
   }
@@ -306,6 +374,9 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     // Same grid, encoding and size as the gyro flow (readGyroFlowMsg checked the layout).
     CV_Assert(compensated.isContinuous() && msg->flow.data.size() == compensated.total() * compensated.elemSize());
     std::memcpy(msg->flow.data.data(), compensated.data, msg->flow.data.size());
+    // A stabiliser model's motion is per patch too: the message carries it (the network's stays
+    // the gyro input's, its output being only the flow).
+    if (!compensated_homographies.empty()) msg->homographies = flattenMatrices(compensated_homographies);
     compensated_pub_.publish(msg);
   }
   const cv::Size camera_size(static_cast<int>(gyro.image_width), static_cast<int>(gyro.image_height));

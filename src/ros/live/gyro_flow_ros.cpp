@@ -10,6 +10,7 @@
 
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
 
@@ -412,6 +413,17 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   metadata.distortion_model = frame.distortion_model;
   metadata.distortion = frame.distortion;
   metadata.rolling_shutter = config;
+  {
+    // The gyro stream behind the pair (for stabiliser models downstream): from one frame interval
+    // before frame a's first patch to frame b's last patch, relative to frame b's stamp.
+    const double stamp_a_s = secondsSinceBase(previous.stamp), stamp_b_s = secondsSinceBase(frame.stamp);
+    const double from_s = patchImuTime(config, stamp_a_s, 0) - (stamp_b_s - stamp_a_s);
+    const double until_s = patchImuTime(config, stamp_b_s, config.patch_count - 1);
+    for (CameraRateSample rate : cameraRates(imu_buffer_, config.imu_to_camera_rotation, from_s, until_s)) {
+      rate.stamp_s -= stamp_b_s;
+      metadata.camera_rates.push_back(rate);
+    }
+  }
   if (flow_pub_.getNumSubscribers() > 0) {
     auto msg = boost::make_shared<GyroFlow>();
     fillGyroFlowMsg(metadata, result.homographies, flow, *msg);

@@ -149,6 +149,12 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
   msg.time_offset = rs.time_offset_s;
   msg.patch_time_fraction = rs.patch_time == PatchTimeReference::kPatchCentre ? 0.5 : 0.0;
   matrixToRowMajor(rs.imu_to_camera_rotation, msg.imu_to_camera_rotation.data());
+  msg.angular_velocity_times.clear();
+  msg.angular_velocity.clear();
+  for (const CameraRateSample& rate : metadata.camera_rates) {
+    msg.angular_velocity_times.push_back(rate.stamp_s);
+    for (int k = 0; k < 3; ++k) msg.angular_velocity.push_back(rate.rate_rad_s(k));
+  }
 
   msg.flow.header = metadata.header;
   msg.flow.height = static_cast<uint32_t>(flow.rows);
@@ -160,6 +166,34 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
   for (int y = 0; y < flow.rows; ++y) {
     std::memcpy(&msg.flow.data[static_cast<std::size_t>(y) * msg.flow.step], flow.ptr(y), msg.flow.step);
   }
+}
+
+std::vector<CameraRateSample> readGyroFlowRates(const GyroFlow& msg, std::string* problem) {
+  std::vector<CameraRateSample> rates;
+  auto fail = [&](const std::string& why) {
+    if (problem) *problem = why;
+    return std::vector<CameraRateSample>{};
+  };
+  if (msg.angular_velocity.size() != 3 * msg.angular_velocity_times.size()) {
+    return fail("GyroFlow has " + std::to_string(msg.angular_velocity.size()) +
+                " angular_velocity values for " + std::to_string(msg.angular_velocity_times.size()) +
+                " times (expected 3 per time)");
+  }
+  const double stamp_s = msg.header.stamp.toSec();
+  for (std::size_t k = 0; k < msg.angular_velocity_times.size(); ++k) {
+    CameraRateSample rate;
+    rate.stamp_s = stamp_s + msg.angular_velocity_times[k];
+    rate.rate_rad_s = Eigen::Vector3d(msg.angular_velocity[3 * k], msg.angular_velocity[3 * k + 1],
+                                      msg.angular_velocity[3 * k + 2]);
+    if (!std::isfinite(rate.stamp_s) || !rate.rate_rad_s.allFinite() ||
+        (!rates.empty() && !(rate.stamp_s > rates.back().stamp_s))) {
+      return fail("GyroFlow angular velocity sample " + std::to_string(k) +
+                  " is not finite or not after the previous one");
+    }
+    rates.push_back(rate);
+  }
+  if (problem) problem->clear();
+  return rates;
 }
 
 std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& homographies,

@@ -75,6 +75,18 @@ TEST(LensShiftPredictor, FeedingFrameByFrameCarriesTheStateExactly) {
   EXPECT_LE(std::abs(end.x()), kFocalPx * std::tan(0.8 * M_PI / 180.0) + 1e-9);
 }
 
+TEST(LensShiftPredictor, AnswersUpToItsNewestSampleWhateverTheSampleTiming) {
+  // Samples off the internal 1 ms grid (a 400 Hz IMU with a 0.3 ms phase): a pair's last patch
+  // just before the newest sample must be answered (the evaluator once lost every third pair).
+  LensShiftPredictor predictor(knownStabiliser(), kFocalPx);
+  for (double t = 0.0003; t < 0.5; t += 0.0025) predictor.addRate({t, Eigen::Vector3d(0.1, 0.1, 0.0)});
+  const double newest = predictor.newestStamp();
+  EXPECT_TRUE(predictor.covers(newest - 1e-4));
+  EXPECT_TRUE(predictor.covers(newest));
+  EXPECT_FALSE(predictor.covers(newest + 1e-3));
+  EXPECT_TRUE(predictor.lensShiftAt(newest).allFinite());
+}
+
 TEST(LensShiftPredictor, AGapInTheGyroRestartsFromACentredLens) {
   LensShiftPredictor predictor(knownStabiliser(), kFocalPx);
   for (const auto& r : shake(0.0, 1.0, 2)) predictor.addRate(r);

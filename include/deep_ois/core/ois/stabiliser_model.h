@@ -75,7 +75,8 @@ class LensShiftPredictor {
   void reset();
 
   // The lens shift (pixels, x right, y down) at time t: interpolated between internal steps within
-  // the retained history. covers(t) says whether t is inside it.
+  // the retained history, held after the last step up to the newest sample (less than a step).
+  // covers(t) says whether t is inside that span.
   bool covers(double t_s) const;
   Eigen::Vector2d lensShiftAt(double t_s) const;
   double newestStamp() const { return last_stamp_s_; }
@@ -103,7 +104,9 @@ class LensShiftPredictor {
   bool started_ = false;
   double last_stamp_s_ = 0.0;
   Eigen::Vector3d last_rate_ = Eigen::Vector3d::Zero();
-  double clock_s_ = 0.0;  // time of the newest internal step
+  double start_s_ = 0.0;      // stamp of the first sample since the last reset
+  long long steps_ = 0;       // internal steps since then
+  double clock_s_ = 0.0;      // time of the newest internal step: start_s_ + steps_ * step_s_
   Eigen::Vector2d theta_ = Eigen::Vector2d::Zero();
   double smoothed_rate_ = 0.0;
   bool panning_ = false;

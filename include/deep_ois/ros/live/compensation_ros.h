@@ -20,13 +20,19 @@
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/ros/live/compensation_reconfigure.h"
+#include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
 
 namespace deep_ois {
 
 struct CompensationParameters {
-  std::string model_path;        // ~model: the model file (required)
+  // ~model: the model file (required): a network (.pt) or a learned stabiliser model (.yaml,
+  // train_stabiliser), which predicts the lens from the gyro stream with the stabiliser's state.
+  std::string model_path;
+  // ~require_matching_camera: a stabiliser model trained for another camera (size, K, readout,
+  // frame rate) is refused instead of warned about.
+  bool require_matching_camera = false;
   int torch_threads = 1;         // ~torch_threads: intra-op threads (process-wide in torch)
   // Input queues hold a second of 30 fps video: work is dropped by ~max_lag, counted and said,
   // rather than silently by a full subscriber queue.
@@ -106,6 +112,9 @@ class CompensationRos {
   void process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                const sensor_msgs::ImageConstPtr& image_b);
   bool anyOutputWanted() const;
+  // The stabiliser model's camera against the flow's (once per camera); false when it differs
+  // and ~require_matching_camera refuses it (the flow is then counted as dropped).
+  bool checkStabiliserCamera(const GyroFlow& gyro);
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
@@ -114,8 +123,15 @@ class CompensationRos {
   std::string log_name_;
   // Its live-tunable fields change (under mutex_) through dynamic_reconfigure.
   CompensationParameters params_;
-  CompensationModel model_;
-  CompensationStream stream_;  // the model over the camera's pairs, with their motion history
+  // Exactly one of: the network over the camera's pairs with their motion history, or the learned
+  // stabiliser model carrying the stabiliser's state on the gyro stream.
+  std::unique_ptr<CompensationModel> model_;
+  std::unique_ptr<CompensationStream> stream_;
+  std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
+  // The stabiliser model's camera against the stream's, checked on the first flow (and when the
+  // camera changes): empty until then, "ok" or the difference.
+  std::string camera_check_;
+  std::string checked_camera_;  // summary of the camera last checked
 
   std::mutex mutex_;
   image_transport::ImageTransport it_;

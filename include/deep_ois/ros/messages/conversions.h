@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/ois/stabiliser_model.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 
@@ -44,11 +45,19 @@ struct GyroFlowMetadata {
   std::string distortion_model;
   std::vector<double> distortion;  // CameraInfo D as received
   RollingShutterConfig rolling_shutter;
+  // The gyro stream behind the pair (GyroFlow.angular_velocity*): camera-frame rates, stamps in
+  // IMU-clock seconds relative to header.stamp.
+  std::vector<CameraRateSample> camera_rates;
 };
 
 // Fills a GyroFlow message; `flow` is CV_32FC2 on the working grid (copied into the message).
 void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::Matrix3d>& homographies,
                      const cv::Mat& flow, GyroFlow& msg);
+
+// The message's gyro stream with absolute IMU-clock stamps (header.stamp + each time), seconds;
+// empty when the publisher sent none. A malformed stream (3 values per time expected, times
+// increasing) gives an empty result and a sentence in `problem`.
+std::vector<CameraRateSample> readGyroFlowRates(const GyroFlow& msg, std::string* problem = nullptr);
 
 // The inverse of fillGyroFlowMsg for the parts consumers need: homographies (in camera pixels) and
 // a CV_32FC2 view sharing the message's flow data. Returns an empty string on success, or a

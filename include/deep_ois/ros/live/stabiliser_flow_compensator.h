@@ -1,0 +1,53 @@
+// The compensation nodelet's stabiliser-model path: a GyroFlow message in, the compensated
+// per-patch homographies and the compensated flow on the message's grid out. It carries the
+// learned stabiliser's state (core/ois/stabiliser_compensator.h) from message to message on the
+// gyro stream the messages carry (GyroFlow.angular_velocity*). Torch-free.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/ois/stabiliser_compensator.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+#include <deep_ois/GyroFlow.h>
+
+namespace deep_ois {
+
+struct StabiliserFlowResult {
+  bool ok = false;
+  std::string reason;  // why not, when !ok (a sentence for the drop tally)
+  std::vector<Eigen::Matrix3d> homographies;  // K(s_b) R K(s_a)^-1 per patch, undistorted px
+  std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;
+  cv::Mat flow;  // CV_32FC2 on the gyro flow's grid (same convention)
+};
+
+class StabiliserFlowCompensator {
+ public:
+  explicit StabiliserFlowCompensator(StabiliserModelFile model) : model_(std::move(model)) {}
+
+  // Feeds the message's gyro stream and compensates its pair. A message without a gyro stream (an
+  // older publisher) or whose stream does not cover the pair is not ok, with the reason.
+  StabiliserFlowResult compensate(const GyroFlow& msg);
+  // Feeds the message's gyro stream only (a pair without an output still moved the camera).
+  void observe(const GyroFlow& msg);
+
+  const StabiliserModelFile& model() const { return model_; }
+  int stateResets() const { return compensator_ ? compensator_->stateResets() : 0; }
+
+ private:
+  // The compensator for the message's camera (rebuilt when K changes).
+  StabiliserCompensator& compensatorFor(const GyroFlow& msg, std::string* problem);
+
+  StabiliserModelFile model_;
+  std::unique_ptr<StabiliserCompensator> compensator_;
+  Eigen::Matrix3d K_ = Eigen::Matrix3d::Zero();
+  std::unique_ptr<HomographyFlowRenderer> renderer_;
+};
+
+}  // namespace deep_ois
