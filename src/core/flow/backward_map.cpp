@@ -241,7 +241,9 @@ class GridInverse {
   static constexpr float kMarginNodes = 0.25f;
   // Half-width of the band around the border node lines sampled as inverseFlowMap does, pixels.
   static constexpr float kBorderBandPx = 1.5f;
-  enum CellWork : uchar { kInterpolate = 0, kOneStep = 1, kFullIteration = 2 };
+  // Per cell of frame b: the kink work in the low bits, and a flag for cells whose backward
+  // positions can come near the border node lines.
+  enum CellWork : uchar { kInterpolate = 0, kOneStep = 1, kFullIteration = 2, kKinkMask = 3, kNearBorder = 4 };
 
   GridInverse(const cv::Mat& flow_grid, cv::Size image_size, int iterations, BackwardMapScratch& scratch)
       : sampler_(flow_grid, image_size),
@@ -309,26 +311,22 @@ class GridInverse {
     const int camera_w = horizontal_.cols;
     const int row_next = horizontal_.rows > 1 ? 1 : 0;
     std::vector<float> map(2 * static_cast<std::size_t>(camera_w));
-    std::vector<float> column_x(2 * static_cast<std::size_t>(camera_w));
-    for (int x = 0; x < camera_w; ++x) column_x[2 * x] = static_cast<float>(x), column_x[2 * x + 1] = 0.0f;
     float* m = map.data();
     for (int y = row_begin; y < row_end; ++y) {
       // Between the two grid rows already interpolated along x: contiguous, vectorised.
       const float* top = horizontal_.ptr<float>(rows_.lower[y]);
       const float* bottom = horizontal_.ptr<float>(rows_.lower[y] + row_next);
       const float wy = rows_.weight[y], qy = static_cast<float>(y);
-      const float* cx = column_x.data();
-      for (int k = 0; k < 2 * camera_w; k += 2) {
-        m[k] = cx[k] + top[k] + wy * (bottom[k] - top[k]);
-        m[k + 1] = qy + top[k + 1] + wy * (bottom[k + 1] - top[k + 1]);
-      }
+      for (int k = 0; k < 2 * camera_w; ++k) m[k] = top[k] + wy * (bottom[k] - top[k]);
       const uchar* work = cell_work_.ptr<uchar>(std::min(rows_.lower[y], cell_work_.rows - 1));
       for (int c = 0; c < cell_work_.cols; ++c) {
-        if (work[c] == kInterpolate) continue;
+        const int kink = work[c] & kKinkMask;
+        if (kink == kInterpolate) continue;
+        const bool near_border = (work[c] & kNearBorder) != 0;
         for (int x = columns_.first_pixel[c]; x < columns_.first_pixel[c + 1]; ++x) {
           float& px = m[2 * x];
           float& py = m[2 * x + 1];
-          if (work[c] == kFullIteration) {
+          if (kink == kFullIteration) {
             reference_.invertAt(x, y, iterations_, px, py);
             continue;
           }
@@ -336,7 +334,7 @@ class GridInverse {
           sampler_.sample(px, py, u, v);
           px = static_cast<float>(x) - u;
           py = qy - v;
-          if (nearBorderNodeLine(px, py)) reference_.stepAt(x, y, px, py);
+          if (near_border && nearBorderNodeLine(px, py)) reference_.stepAt(x, y, px, py);
         }
         one_by_one += columns_.first_pixel[c + 1] - columns_.first_pixel[c];
       }
@@ -349,12 +347,13 @@ class GridInverse {
   // Each grid row of the inverse interpolated along x to camera columns once (cv::resize: the
   // working grid's pixel-centre convention), continued linearly past the outermost nodes (the
   // smooth inverse goes on there; resize holds it constant, which would cost up to a gradient times
-  // half a grid cell): the camera rows then only blend two of these.
+  // half a grid cell), stored as positions: x + d_x, and Y + d_y with Y the node row's camera row
+  // (y is linear in the rows' blend weight, so blending two of these gives y + d_y). The camera
+  // rows then only blend two of these, one vectorised lerp.
   void interpolateAlongX(int camera_w) {
     const int w = displacement_.cols, h = displacement_.rows;
     cv::resize(displacement_, horizontal_, cv::Size(camera_w, h), 0.0, 0.0, cv::INTER_LINEAR);
-    if (w < 2) return;
-    for (int gy = 0; gy < h; ++gy) {
+    for (int gy = 0; gy < h && w >= 2; ++gy) {
       const cv::Vec2f* d = displacement_.ptr<cv::Vec2f>(gy);
       cv::Vec2f* out = horizontal_.ptr<cv::Vec2f>(gy);
       for (int x = 0; x < camera_w && columns_.lower[x] == 0 && columns_.weight[x] < 0.0f; ++x) {
@@ -363,6 +362,12 @@ class GridInverse {
       for (int x = camera_w - 1; x >= 0 && columns_.lower[x] == w - 2 && columns_.weight[x] > 1.0f; --x) {
         out[x] = d[w - 2] + columns_.weight[x] * (d[w - 1] - d[w - 2]);
       }
+    }
+    const float sy = sampler_.scaleY();
+    for (int gy = 0; gy < h; ++gy) {
+      const float node_row_px = (gy + 0.5f) * sy - 0.5f;
+      cv::Vec2f* out = horizontal_.ptr<cv::Vec2f>(gy);
+      for (int x = 0; x < camera_w; ++x) out[x] += cv::Vec2f(static_cast<float>(x), node_row_px);
     }
   }
 
@@ -412,7 +417,7 @@ class GridInverse {
       const int y1 = std::clamp(cvFloor(std::max(a[1], b[1]) + margin), 0, cells_y - 1);
       for (int cy = y0; cy <= y1; ++cy) {
         uchar* cell = cell_work_.ptr<uchar>(cy);
-        for (int cx = x0; cx <= x1; ++cx) cell[cx] = std::max(cell[cx], work);
+        for (int cx = x0; cx <= x1; ++cx) cell[cx] = std::max(cell[cx], work);  // before the border flags
       }
     };
     // Kinks across x: segments along y on node column gx; across y: segments along x on node row gy.
@@ -440,6 +445,20 @@ class GridInverse {
       if (ay[0] != kInterpolate) mark(image(0, gy), image(0, gy) - beyond_x, ay[0]);
       if (ay[w - 1] != kInterpolate) mark(image(w - 1, gy), image(w - 1, gy) + beyond_x, ay[w - 1]);
     }
+    // The cells whose positions can come within kBorderBandPx of a border node line: around the
+    // border nodes' images, a cell and the band (in nodes) wide.
+    const float band = kBorderBandPx / std::min(sx, sy) + 1.0f + margin;
+    auto flag_border = [&](int gx, int gy) {
+      const cv::Vec2f p = image(gx, gy);
+      const int x0 = std::clamp(cvFloor(p[0] - band), 0, cells_x - 1), x1 = std::clamp(cvFloor(p[0] + band), 0, cells_x - 1);
+      const int y0 = std::clamp(cvFloor(p[1] - band), 0, cells_y - 1), y1 = std::clamp(cvFloor(p[1] + band), 0, cells_y - 1);
+      for (int cy = y0; cy <= y1; ++cy) {
+        uchar* cell = cell_work_.ptr<uchar>(cy);
+        for (int cx = x0; cx <= x1; ++cx) cell[cx] |= kNearBorder;
+      }
+    };
+    for (int gx = 0; gx < w; ++gx) flag_border(gx, 0), flag_border(gx, h - 1);
+    for (int gy = 0; gy < h; ++gy) flag_border(0, gy), flag_border(w - 1, gy);
   }
 
   bool nearBorderNodeLine(float px, float py) const {

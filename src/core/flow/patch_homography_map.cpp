@@ -132,12 +132,11 @@ PatchHomographyMapBuilder::PatchHomographyMapBuilder(const CameraModel& camera, 
   camera.undistortPoints(undistorted_lattice_);  // once per camera: the iterative part
   coarse_x_ = coarseIndices(static_cast<int>(lattice_x_.size()));
   coarse_y_ = coarseIndices(static_cast<int>(lattice_y_.size()));
-  for (int x = 0; x < camera.width(); ++x) {
-    // Node 1 is pixel 0: pixel x lies between nodes x / step + 1 and the next.
-    column_cell_.push_back(x / step_px_ + 1);
+  for (auto& weights : offset_weights_) weights.resize(step_px_);
+  for (int t = 0; t < step_px_; ++t) {
     float w[4];
-    cubicWeights(static_cast<float>(x % step_px_) / static_cast<float>(step_px_), w);
-    column_weight_.insert(column_weight_.end(), w, w + 4);
+    cubicWeights(static_cast<float>(t) / static_cast<float>(step_px_), w);
+    for (int j = 0; j < 4; ++j) offset_weights_[j][t] = w[j];
   }
 }
 
@@ -215,15 +214,33 @@ void PatchHomographyMapBuilder::buildRows(const std::vector<Eigen::Matrix3d>& ho
   std::vector<float> node_row(2 * static_cast<std::size_t>(nx));
   std::vector<std::vector<float>> candidate_rows(patches, std::vector<float>(2 * static_cast<std::size_t>(width)));
   std::vector<int> candidates;
+  int candidates_cell = -1;
   std::vector<double> candidate_y(patches);
   std::vector<float> out(2 * static_cast<std::size_t>(width));
   for (int y = 0; y < height; ++y) {
     const int cell = y / step_px_ + 1;  // node row 1 is pixel row 0
     float wy[4];
     cubicWeights(static_cast<float>(y % step_px_) / static_cast<float>(step_px_), wy);
-    candidates.clear();
-    for (int i = 0; i < patches; ++i) {
-      if (offset[i][cell] >= 0 && offset[i][cell + 1] >= 0) candidates.push_back(i);
+    if (cell != candidates_cell) {
+      // The patches that can be the one in this lattice cell row: their rows within half a lattice
+      // step (gaps at seams are narrower) of the positions at the cell row's nodes.
+      candidates_cell = cell;
+      candidates.clear();
+      for (int i = 0; i < patches; ++i) {
+        if (offset[i][cell] < 0 || offset[i][cell + 1] < 0) continue;
+        float lowest = std::numeric_limits<float>::infinity(), highest = -lowest;
+        for (int r = cell; r <= cell + 1; ++r) {
+          const float* values = &lattice_values[2 * static_cast<std::size_t>(offset[i][r])];
+          for (int c = 0; c < nx; ++c) lowest = std::min(lowest, values[2 * c + 1]), highest = std::max(highest, values[2 * c + 1]);
+        }
+        const double margin_px = 0.5 * step_px_ + 1.0;
+        if (highest + margin_px >= rows_.lower_px[i] && lowest - margin_px < rows_.upper_px[i]) candidates.push_back(i);
+      }
+      if (candidates.empty()) {
+        for (int i = 0; i < patches; ++i) {
+          if (offset[i][cell] >= 0 && offset[i][cell + 1] >= 0) candidates.push_back(i);
+        }
+      }
     }
     for (std::size_t k = 0; k < candidates.size(); ++k) {
       const int i = candidates[k];
@@ -236,11 +253,18 @@ void PatchHomographyMapBuilder::buildRows(const std::vector<Eigen::Matrix3d>& ho
                       wy[3] * lattice_rows[3][c];
       }
       float* row = candidates.size() == 1 ? out.data() : candidate_rows[k].data();
-      for (int x = 0; x < width; ++x) {
-        const float* n = &node_row[2 * (column_cell_[x] - 1)];
-        const float* w = &column_weight_[4 * static_cast<std::size_t>(x)];
-        row[2 * x] = w[0] * n[0] + w[1] * n[2] + w[2] * n[4] + w[3] * n[6];
-        row[2 * x + 1] = w[0] * n[1] + w[1] * n[3] + w[2] * n[5] + w[3] * n[7];
+      // Lattice cell by cell (pixels x0 .. x0 + step - 1, node 1 being pixel 0): four fixed nodes,
+      // weights by the offset in the cell, a loop the compiler vectorises.
+      const float *w0 = offset_weights_[0].data(), *w1 = offset_weights_[1].data();
+      const float *w2 = offset_weights_[2].data(), *w3 = offset_weights_[3].data();
+      for (int x0 = 0; x0 < width; x0 += step_px_) {
+        const float* n = &node_row[2 * static_cast<std::size_t>(x0 / step_px_)];
+        const int pixels = std::min(step_px_, width - x0);
+        float* r = row + 2 * x0;
+        for (int t = 0; t < pixels; ++t) {
+          r[2 * t] = w0[t] * n[0] + w1[t] * n[2] + w2[t] * n[4] + w3[t] * n[6];
+          r[2 * t + 1] = w0[t] * n[1] + w1[t] * n[3] + w2[t] * n[5] + w3[t] * n[7];
+        }
       }
     }
     if (candidates.size() > 1) {

@@ -92,10 +92,8 @@ class PatchHomographyMapBuilder {
   std::vector<int> lattice_x_, lattice_y_;            // camera pixels of the lattice columns and rows
   std::vector<Eigen::Vector2d> undistorted_lattice_;  // row-major, lattice_y_.size() x lattice_x_.size()
   std::vector<int> coarse_x_, coarse_y_;              // indices into lattice_x_ / lattice_y_
-  // Per camera column: the lattice column at or left of it, and the four cubic weights of the
-  // columns before it to two after it.
-  std::vector<int> column_cell_;
-  std::vector<float> column_weight_;
+  // The four cubic weights (nodes -1 .. 2 around a lattice cell) by a pixel's offset in its cell.
+  std::vector<float> offset_weights_[4];
 };
 
 }  // namespace deep_ois
