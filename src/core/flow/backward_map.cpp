@@ -139,9 +139,12 @@ class ReferenceFlowSampler {
 
   // The resized flow at camera pixel (x, y), in camera pixels.
   void cameraFlow(int x, int y, float& u, float& v) const {
-    const int x0 = column_lower_[x], x1 = std::min(x0 + 1, flow_grid_.cols - 1);
-    const int y0 = row_lower_[y], y1 = std::min(y0 + 1, flow_grid_.rows - 1);
-    const float a = column_weight_[x], b = row_weight_[y];
+    gridFlow(column_lower_[x], row_lower_[y], column_weight_[x], row_weight_[y], u, v);
+  }
+
+  // The grid flow between nodes (x0, y0) and the next ones at weights a, b, in camera pixels.
+  void gridFlow(int x0, int y0, float a, float b, float& u, float& v) const {
+    const int x1 = std::min(x0 + 1, flow_grid_.cols - 1), y1 = std::min(y0 + 1, flow_grid_.rows - 1);
     const cv::Vec2f* top = flow_grid_.ptr<cv::Vec2f>(y0);
     const cv::Vec2f* bottom = flow_grid_.ptr<cv::Vec2f>(y1);
     const float top_u = top[x0][0] * (1.0f - a) + top[x1][0] * a, top_v = top[x0][1] * (1.0f - a) + top[x1][1] * a;
@@ -297,7 +300,7 @@ class GridInverse {
       }
     }
     interpolateAlongX(image_size.width);
-    markKinkCells(flow_grid, std::max(kMarginNodes + 1.0f / std::min(sx, sy), kMarginNodes), scratch);
+    markKinkCells(flow_grid, kMarginNodes + 1.0f / std::min(sx, sy), scratch);
   }
 
   const cv::Mat& displacement() const { return displacement_; }
