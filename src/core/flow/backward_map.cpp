@@ -139,9 +139,12 @@ class ReferenceFlowSampler {
 
   // The resized flow at camera pixel (x, y), in camera pixels.
   void cameraFlow(int x, int y, float& u, float& v) const {
-    const int x0 = column_lower_[x], x1 = std::min(x0 + 1, flow_grid_.cols - 1);
-    const int y0 = row_lower_[y], y1 = std::min(y0 + 1, flow_grid_.rows - 1);
-    const float a = column_weight_[x], b = row_weight_[y];
+    gridFlow(column_lower_[x], row_lower_[y], column_weight_[x], row_weight_[y], u, v);
+  }
+
+  // The grid flow between nodes (x0, y0) and the next ones at weights a, b, in camera pixels.
+  void gridFlow(int x0, int y0, float a, float b, float& u, float& v) const {
+    const int x1 = std::min(x0 + 1, flow_grid_.cols - 1), y1 = std::min(y0 + 1, flow_grid_.rows - 1);
     const cv::Vec2f* top = flow_grid_.ptr<cv::Vec2f>(y0);
     const cv::Vec2f* bottom = flow_grid_.ptr<cv::Vec2f>(y1);
     const float top_u = top[x0][0] * (1.0f - a) + top[x1][0] * a, top_v = top[x0][1] * (1.0f - a) + top[x1][1] * a;
@@ -200,6 +203,20 @@ struct AxisInterpolation {
   }
 };
 
+}  // namespace
+
+// The working buffers of a map build at grid resolution, kept from frame to frame (FixedPointMap
+// holds one): fresh buffers of a few MB per frame would each be an mmap and its page faults.
+struct BackwardMapScratch {
+  cv::Mat position, flow_at_position;  // CV_32FC2 on the grid: the iteration's positions and reads
+  cv::Mat displacement;                // CV_32FC2 on the grid: p - q in camera pixels
+  cv::Mat horizontal;                  // CV_32FC2, grid rows x camera columns: d interpolated along x
+  cv::Mat kink_across_x, kink_across_y;  // CV_8U per node: 0 none, 1 kink, 2 strong kink
+  cv::Mat cell_work;                     // CV_8U per cell of frame b: GridInverse::CellWork
+};
+
+namespace {
+
 // Everything the map of one pair needs at grid resolution: the inverse at the nodes, and which grid
 // cells of frame b hold a kink of the inverse that bilinear interpolation between nodes would
 // smooth over (there the map is computed per camera pixel, as inverseFlowMap does).
@@ -208,8 +225,9 @@ struct AxisInterpolation {
 // forward flow is bilinear between grid nodes, so it kinks on node lines, by its second difference
 // there (a patch seam of the gyro flow, the coarse lattice the network's output is resized from,
 // and the border, past which the flow is held constant); interpolating across a kink of second
-// difference k errs by up to about k / 4. A cell of frame b whose corners' positions p (with a
-// little slack) reach the node line of a kink above kKinkPx is finished per camera pixel:
+// difference k errs by up to about k / 4. The cells of frame b that the image of such a node-line
+// segment (kink above kKinkPx at either end) passes through, with a margin, are finished per
+// camera pixel:
 // - one fixed-point step p <- q - flow(p) from the interpolated p, which is within k / 4 of the
 //   answer, so the step lands within (flow gradient) x k / 4 of it; within a pixel and a half of
 //   the border node lines, where inverseFlowMap's camera-resolution sampling differs from the
@@ -220,19 +238,25 @@ class GridInverse {
  public:
   static constexpr float kKinkPx = 0.01f;
   static constexpr float kStrongKinkPx = 0.1f;
-  // The positions inside a cell follow its corners' up to the inverse's curvature: a quarter node
-  // of slack covers it.
+  // Slack around a kink segment's image, in nodes: the image curve between two nodes departs from
+  // its chord by the inverse's curvature, and inverseFlowMap's camera-resolution sampling spreads a
+  // kink over one camera pixel on either side (added per camera size).
   static constexpr float kMarginNodes = 0.25f;
   // Half-width of the band around the border node lines sampled as inverseFlowMap does, pixels.
   static constexpr float kBorderBandPx = 1.5f;
-  enum CellWork : uchar { kInterpolate = 0, kOneStep = 1, kFullIteration = 2 };
+  // Per cell of frame b: the kink work in the low bits, and a flag for cells whose backward
+  // positions can come near the border node lines.
+  enum CellWork : uchar { kInterpolate = 0, kOneStep = 1, kFullIteration = 2, kKinkMask = 3, kNearBorder = 4 };
 
-  GridInverse(const cv::Mat& flow_grid, cv::Size image_size, int iterations)
+  GridInverse(const cv::Mat& flow_grid, cv::Size image_size, int iterations, BackwardMapScratch& scratch)
       : sampler_(flow_grid, image_size),
         reference_(flow_grid, image_size),
         columns_(image_size.width, flow_grid.cols),
         rows_(image_size.height, flow_grid.rows),
-        iterations_(iterations) {
+        iterations_(iterations),
+        horizontal_(scratch.horizontal),
+        displacement_(scratch.displacement),
+        cell_work_(scratch.cell_work) {
     const cv::Mat& flow = sampler_.flowPx();
     const int w = flow.cols, h = flow.rows;
     const float sx = sampler_.scaleX(), sy = sampler_.scaleY();
@@ -245,7 +269,9 @@ class GridInverse {
     // 1/32 grid pixel, which moves the flow read by at most its gradient times s/64). The last one
     // samples exactly, and being a contraction it shrinks that error by the flow gradient again.
     // Positions are kept as grid coordinates g = (p + 0.5) / s - 0.5 for cv::remap.
-    cv::Mat position(h, w, CV_32FC2), flow_at_position;
+    cv::Mat& position = scratch.position;
+    cv::Mat& flow_at_position = scratch.flow_at_position;
+    position.create(h, w, CV_32FC2);
     const float inv_sx = 1.0f / sx, inv_sy = 1.0f / sy;
     auto set_positions = [&](const cv::Mat& flow_read) {
       for (int gy = 0; gy < h; ++gy) {
@@ -273,178 +299,234 @@ class GridInverse {
         out[gx] = cv::Vec2f(-u, -v);  // p - q = -flow(p)
       }
     }
-    // Each grid row interpolated along x to camera columns once (x + d_x, and d_y): the camera rows
-    // then only blend two of these.
-    horizontal_x_.create(h, image_size.width, CV_32F);
-    horizontal_y_.create(h, image_size.width, CV_32F);
-    const int next = w > 1 ? 1 : 0;
-    for (int gy = 0; gy < h; ++gy) {
-      const cv::Vec2f* d = displacement_.ptr<cv::Vec2f>(gy);
-      float* hx = horizontal_x_.ptr<float>(gy);
-      float* hy = horizontal_y_.ptr<float>(gy);
-      for (int x = 0; x < image_size.width; ++x) {
-        const int g0 = columns_.lower[x], g1 = g0 + next;
-        const float wx = columns_.weight[x];
-        hx[x] = static_cast<float>(x) + d[g0][0] + wx * (d[g1][0] - d[g0][0]);
-        hy[x] = d[g0][1] + wx * (d[g1][1] - d[g0][1]);
-      }
-    }
-    // Kink nodes (second differences with the border continued constant), as 2-D prefix counts.
-    cv::Mat flags[4];  // across x, across y, strong across x, strong across y
-    for (cv::Mat& f : flags) f.create(h, w, CV_8U);
-    for (int gy = 0; gy < h; ++gy) {
-      const cv::Vec2f* row = flow.ptr<cv::Vec2f>(gy);
-      const cv::Vec2f* up = flow.ptr<cv::Vec2f>(std::max(gy - 1, 0));
-      const cv::Vec2f* down = flow.ptr<cv::Vec2f>(std::min(gy + 1, h - 1));
-      uchar* out[4] = {flags[0].ptr(gy), flags[1].ptr(gy), flags[2].ptr(gy), flags[3].ptr(gy)};
-      for (int gx = 0; gx < w; ++gx) {
-        const cv::Vec2f& left = row[std::max(gx - 1, 0)];
-        const cv::Vec2f& right = row[std::min(gx + 1, w - 1)];
-        const float along_x = std::max(std::abs(left[0] - 2.0f * row[gx][0] + right[0]),
-                                       std::abs(left[1] - 2.0f * row[gx][1] + right[1]));
-        const float along_y = std::max(std::abs(up[gx][0] - 2.0f * row[gx][0] + down[gx][0]),
-                                       std::abs(up[gx][1] - 2.0f * row[gx][1] + down[gx][1]));
-        out[0][gx] = along_x > kKinkPx;
-        out[1][gx] = along_y > kKinkPx;
-        out[2][gx] = along_x > kStrongKinkPx;
-        out[3][gx] = along_y > kStrongKinkPx;
-      }
-    }
-    for (int k = 0; k < 4; ++k) cv::integral(flags[k], kink_counts_[k], CV_32S);
-    const bool any_kink = kink_counts_[0].at<int>(h, w) + kink_counts_[1].at<int>(h, w) > 0;
-    // Cells of frame b (between nodes c and c + 1 per axis) whose corners' positions enclose a kink.
-    const int cells_x = std::max(1, w - 1), cells_y = std::max(1, h - 1);
-    cell_needs_pixels_ = cv::Mat::zeros(cells_y, cells_x, CV_8U);
-    if (!any_kink) return;
-    // Grid position of every node's p = q + d: node + d / s.
-    cv::Mat node_position(h, w, CV_32FC2);
-    for (int gy = 0; gy < h; ++gy) {
-      const cv::Vec2f* d = displacement_.ptr<cv::Vec2f>(gy);
-      cv::Vec2f* out = node_position.ptr<cv::Vec2f>(gy);
-      for (int gx = 0; gx < w; ++gx) out[gx] = cv::Vec2f(gx + d[gx][0] * inv_sx, gy + d[gx][1] * inv_sy);
-    }
-    for (int cy = 0; cy < cells_y; ++cy) {
-      const cv::Vec2f* upper = node_position.ptr<cv::Vec2f>(cy);
-      const cv::Vec2f* lower = node_position.ptr<cv::Vec2f>(std::min(cy + 1, h - 1));
-      for (int cx = 0; cx < cells_x; ++cx) {
-        const int next = std::min(cx + 1, w - 1);
-        const float min_gx = std::min(std::min(upper[cx][0], upper[next][0]), std::min(lower[cx][0], lower[next][0]));
-        const float max_gx = std::max(std::max(upper[cx][0], upper[next][0]), std::max(lower[cx][0], lower[next][0]));
-        const float min_gy = std::min(std::min(upper[cx][1], upper[next][1]), std::min(lower[cx][1], lower[next][1]));
-        const float max_gy = std::max(std::max(upper[cx][1], upper[next][1]), std::max(lower[cx][1], lower[next][1]));
-        // The outer half cells of frame b are extrapolated from the border cells: widen those.
-        const float left = cx == 0 ? 0.5f : 0.0f, right = cx == cells_x - 1 ? 0.5f : 0.0f;
-        const float above = cy == 0 ? 0.5f : 0.0f, below = cy == cells_y - 1 ? 0.5f : 0.0f;
-        // A kink across x (second difference along x) lies on the node's vertical line: it counts
-        // when the positions straddle that line (none when they all lie beyond the border lines,
-        // where the flow is held constant along x); along the other axis, positions beyond the
-        // border read the border nodes. Likewise for kinks across y.
-        const int straddle_x0 = std::max(cvCeil(min_gx - left - kMarginNodes), 0);
-        const int straddle_x1 = std::min(cvFloor(max_gx + right + kMarginNodes), w - 1);
-        const int straddle_y0 = std::max(cvCeil(min_gy - above - kMarginNodes), 0);
-        const int straddle_y1 = std::min(cvFloor(max_gy + below + kMarginNodes), h - 1);
-        const int span_x0 = std::clamp(cvFloor(min_gx - left - kMarginNodes), 0, w - 1);
-        const int span_x1 = std::clamp(cvCeil(max_gx + right + kMarginNodes), 0, w - 1);
-        const int span_y0 = std::clamp(cvFloor(min_gy - above - kMarginNodes), 0, h - 1);
-        const int span_y1 = std::clamp(cvCeil(max_gy + below + kMarginNodes), 0, h - 1);
-        auto count = [&](int k, int x0, int x1, int y0, int y1) {
-          if (x0 > x1 || y0 > y1) return 0;
-          const cv::Mat& prefix = kink_counts_[k];
-          return prefix.at<int>(y1 + 1, x1 + 1) - prefix.at<int>(y0, x1 + 1) - prefix.at<int>(y1 + 1, x0) +
-                 prefix.at<int>(y0, x0);
-        };
-        auto kinks = [&](int first) {
-          return count(first, straddle_x0, straddle_x1, span_y0, span_y1) +
-                 count(first + 1, span_x0, span_x1, straddle_y0, straddle_y1);
-        };
-        if (kinks(0) > 0) cell_needs_pixels_.at<uchar>(cy, cx) = kinks(2) > 0 ? kFullIteration : kOneStep;
-      }
-    }
+    interpolateAlongX(image_size.width);
+    markKinkCells(flow_grid, kMarginNodes + 1.0f / std::min(sx, sy), scratch);
   }
 
   const cv::Mat& displacement() const { return displacement_; }
 
-  // Writes the backward positions of camera rows [row_begin, row_end) through
-  // `write_row(y, map_x, map_y)`: interpolated between nodes, per camera pixel in kink cells.
-  cv::Size imageSize() const { return cv::Size(static_cast<int>(columns_.lower.size()), static_cast<int>(rows_.lower.size())); }
-
   // The backward positions (camera pixels) of camera rows [row_begin, row_end), handed row by row
-  // to `write_row(y, map_x, map_y)`: interpolated between nodes, per camera pixel in kink cells.
-  // Returns how many pixels were inverted one by one.
+  // to `write_row(y, map_xy)` (x, y interleaved): interpolated between nodes, per camera pixel in
+  // kink cells. Returns how many pixels were inverted one by one.
   template <typename WriteRow>
   std::size_t buildRows(int row_begin, int row_end, WriteRow write_row) const {
     std::size_t one_by_one = 0;
-    const int camera_w = horizontal_x_.cols;
-    const int row_next = horizontal_x_.rows > 1 ? 1 : 0;
-    std::vector<float> map_x(camera_w), map_y(camera_w);
+    const int camera_w = horizontal_.cols;
+    const int row_next = horizontal_.rows > 1 ? 1 : 0;
+    std::vector<float> map(2 * static_cast<std::size_t>(camera_w));
+    float* m = map.data();
     for (int y = row_begin; y < row_end; ++y) {
       // Between the two grid rows already interpolated along x: contiguous, vectorised.
-      const float* top_x = horizontal_x_.ptr<float>(rows_.lower[y]);
-      const float* bottom_x = horizontal_x_.ptr<float>(rows_.lower[y] + row_next);
-      const float* top_y = horizontal_y_.ptr<float>(rows_.lower[y]);
-      const float* bottom_y = horizontal_y_.ptr<float>(rows_.lower[y] + row_next);
+      const float* top = horizontal_.ptr<float>(rows_.lower[y]);
+      const float* bottom = horizontal_.ptr<float>(rows_.lower[y] + row_next);
       const float wy = rows_.weight[y], qy = static_cast<float>(y);
-      for (int x = 0; x < camera_w; ++x) {
-        map_x[x] = top_x[x] + wy * (bottom_x[x] - top_x[x]);
-        map_y[x] = qy + top_y[x] + wy * (bottom_y[x] - top_y[x]);
-      }
-      const uchar* needs_pixels = cell_needs_pixels_.ptr<uchar>(std::min(rows_.lower[y], cell_needs_pixels_.rows - 1));
-      for (int c = 0; c < cell_needs_pixels_.cols; ++c) {
-        if (needs_pixels[c] == kInterpolate) continue;
+      for (int k = 0; k < 2 * camera_w; ++k) m[k] = top[k] + wy * (bottom[k] - top[k]);
+      const uchar* work = cell_work_.ptr<uchar>(std::min(rows_.lower[y], cell_work_.rows - 1));
+      for (int c = 0; c < cell_work_.cols; ++c) {
+        const int kink = work[c] & kKinkMask;
+        if (kink == kInterpolate) continue;
+        const bool near_border = (work[c] & kNearBorder) != 0;
         for (int x = columns_.first_pixel[c]; x < columns_.first_pixel[c + 1]; ++x) {
-          if (needs_pixels[c] == kFullIteration) {
-            reference_.invertAt(x, y, iterations_, map_x[x], map_y[x]);
+          float& px = m[2 * x];
+          float& py = m[2 * x + 1];
+          if (kink == kFullIteration) {
+            reference_.invertAt(x, y, iterations_, px, py);
             continue;
           }
           float u, v;
-          sampler_.sample(map_x[x], map_y[x], u, v);
-          map_x[x] = static_cast<float>(x) - u;
-          map_y[x] = qy - v;
-          if (nearBorderNodeLine(map_x[x], map_y[x])) reference_.stepAt(x, y, map_x[x], map_y[x]);
+          sampler_.sample(px, py, u, v);
+          px = static_cast<float>(x) - u;
+          py = qy - v;
+          if (near_border && nearBorderNodeLine(px, py)) reference_.stepAt(x, y, px, py);
         }
         one_by_one += columns_.first_pixel[c + 1] - columns_.first_pixel[c];
       }
-      write_row(y, map_x.data(), map_y.data());
+      write_row(y, m);
     }
     return one_by_one;
   }
 
  private:
-  GridFlowSampler sampler_;
-  ReferenceFlowSampler reference_;
-  AxisInterpolation columns_, rows_;
-  int iterations_;
-  cv::Mat horizontal_x_, horizontal_y_;  // CV_32F, grid rows x camera columns
-  cv::Mat displacement_;       // CV_32FC2 per node: p - q in camera pixels
+  // Each grid row of the inverse interpolated along x to camera columns once (cv::resize: the
+  // working grid's pixel-centre convention), continued linearly past the outermost nodes (the
+  // smooth inverse goes on there; resize holds it constant, which would cost up to a gradient times
+  // half a grid cell), stored as positions: x + d_x, and Y + d_y with Y the node row's camera row
+  // (y is linear in the rows' blend weight, so blending two of these gives y + d_y). The camera
+  // rows then only blend two of these, one vectorised lerp.
+  void interpolateAlongX(int camera_w) {
+    const int w = displacement_.cols, h = displacement_.rows;
+    cv::resize(displacement_, horizontal_, cv::Size(camera_w, h), 0.0, 0.0, cv::INTER_LINEAR);
+    for (int gy = 0; gy < h && w >= 2; ++gy) {
+      const cv::Vec2f* d = displacement_.ptr<cv::Vec2f>(gy);
+      cv::Vec2f* out = horizontal_.ptr<cv::Vec2f>(gy);
+      for (int x = 0; x < camera_w && columns_.lower[x] == 0 && columns_.weight[x] < 0.0f; ++x) {
+        out[x] = d[0] + columns_.weight[x] * (d[1] - d[0]);
+      }
+      for (int x = camera_w - 1; x >= 0 && columns_.lower[x] == w - 2 && columns_.weight[x] > 1.0f; --x) {
+        out[x] = d[w - 2] + columns_.weight[x] * (d[w - 1] - d[w - 2]);
+      }
+    }
+    const float sy = sampler_.scaleY();
+    for (int gy = 0; gy < h; ++gy) {
+      const float node_row_px = (gy + 0.5f) * sy - 0.5f;
+      cv::Vec2f* out = horizontal_.ptr<cv::Vec2f>(gy);
+      for (int x = 0; x < camera_w; ++x) out[x] += cv::Vec2f(static_cast<float>(x), node_row_px);
+    }
+  }
+
+  // Marks the cells of frame b that a kink of the forward flow passes through (cell_work_).
+  // Kinks are the flow's second differences at the nodes, the border continued constant (so the
+  // border node lines kink by the flow's slope there). A kink across x at node (X, j) lies on the
+  // node line x = X between rows j - 1 and j + 1; its image in frame b (node + flow, grid
+  // coordinates) is marked segment by segment, each segment's bounding box widened by `margin`
+  // nodes; the segments at the border continue outwards (the flow is constant there).
+  void markKinkCells(const cv::Mat& flow_grid, float margin, BackwardMapScratch& scratch) {
+    const int w = flow_grid.cols, h = flow_grid.rows;
+    const float sx = sampler_.scaleX(), sy = sampler_.scaleY();
+    cv::Mat& across_x = scratch.kink_across_x;
+    cv::Mat& across_y = scratch.kink_across_y;
+    across_x.create(h, w, CV_8U);
+    across_y.create(h, w, CV_8U);
+    for (int gy = 0; gy < h; ++gy) {
+      const cv::Vec2f* row = flow_grid.ptr<cv::Vec2f>(gy);
+      const cv::Vec2f* up = flow_grid.ptr<cv::Vec2f>(std::max(gy - 1, 0));
+      const cv::Vec2f* down = flow_grid.ptr<cv::Vec2f>(std::min(gy + 1, h - 1));
+      uchar* ax = across_x.ptr(gy);
+      uchar* ay = across_y.ptr(gy);
+      for (int gx = 0; gx < w; ++gx) {
+        const cv::Vec2f& left = row[std::max(gx - 1, 0)];
+        const cv::Vec2f& right = row[std::min(gx + 1, w - 1)];
+        // In camera pixels (the grid flow is in grid pixels).
+        const float along_x = std::max(std::abs(left[0] - 2.0f * row[gx][0] + right[0]) * sx,
+                                       std::abs(left[1] - 2.0f * row[gx][1] + right[1]) * sy);
+        const float along_y = std::max(std::abs(up[gx][0] - 2.0f * row[gx][0] + down[gx][0]) * sx,
+                                       std::abs(up[gx][1] - 2.0f * row[gx][1] + down[gx][1]) * sy);
+        ax[gx] = static_cast<uchar>((along_x > kKinkPx) + (along_x > kStrongKinkPx));
+        ay[gx] = static_cast<uchar>((along_y > kKinkPx) + (along_y > kStrongKinkPx));
+      }
+    }
+    const int cells_x = std::max(1, w - 1), cells_y = std::max(1, h - 1);
+    cell_work_.create(cells_y, cells_x, CV_8U);
+    cell_work_.setTo(cv::Scalar::all(kInterpolate));
+    // The image in frame b of node (gx, gy), grid coordinates.
+    auto image = [&](int gx, int gy) {
+      const cv::Vec2f& f = flow_grid.at<cv::Vec2f>(gy, gx);
+      return cv::Vec2f(gx + f[0], gy + f[1]);
+    };
+    auto mark = [&](const cv::Vec2f& a, const cv::Vec2f& b, uchar work) {
+      const int x0 = std::clamp(cvFloor(std::min(a[0], b[0]) - margin), 0, cells_x - 1);
+      const int x1 = std::clamp(cvFloor(std::max(a[0], b[0]) + margin), 0, cells_x - 1);
+      const int y0 = std::clamp(cvFloor(std::min(a[1], b[1]) - margin), 0, cells_y - 1);
+      const int y1 = std::clamp(cvFloor(std::max(a[1], b[1]) + margin), 0, cells_y - 1);
+      for (int cy = y0; cy <= y1; ++cy) {
+        uchar* cell = cell_work_.ptr<uchar>(cy);
+        for (int cx = x0; cx <= x1; ++cx) cell[cx] = std::max(cell[cx], work);  // before the border flags
+      }
+    };
+    // Kinks across x: segments along y on node column gx; across y: segments along x on node row gy.
+    // Past the border nodes the line goes on to the image's edge (the flow is held constant there,
+    // so the kink along the line is too): those segments reach beyond every cell.
+    const cv::Vec2f beyond_x(static_cast<float>(w + 1), 0.0f), beyond_y(0.0f, static_cast<float>(h + 1));
+    for (int gx = 0; gx < w; ++gx) {
+      for (int gy = 0; gy + 1 < h; ++gy) {
+        const uchar work = std::max(across_x.at<uchar>(gy, gx), across_x.at<uchar>(gy + 1, gx));
+        if (work != kInterpolate) mark(image(gx, gy), image(gx, gy + 1), work);
+      }
+      if (across_x.at<uchar>(0, gx) != kInterpolate) {
+        mark(image(gx, 0), image(gx, 0) - beyond_y, across_x.at<uchar>(0, gx));
+      }
+      if (across_x.at<uchar>(h - 1, gx) != kInterpolate) {
+        mark(image(gx, h - 1), image(gx, h - 1) + beyond_y, across_x.at<uchar>(h - 1, gx));
+      }
+    }
+    for (int gy = 0; gy < h; ++gy) {
+      const uchar* ay = across_y.ptr(gy);
+      for (int gx = 0; gx + 1 < w; ++gx) {
+        const uchar work = std::max(ay[gx], ay[gx + 1]);
+        if (work != kInterpolate) mark(image(gx, gy), image(gx + 1, gy), work);
+      }
+      if (ay[0] != kInterpolate) mark(image(0, gy), image(0, gy) - beyond_x, ay[0]);
+      if (ay[w - 1] != kInterpolate) mark(image(w - 1, gy), image(w - 1, gy) + beyond_x, ay[w - 1]);
+    }
+    // The cells whose positions can come within kBorderBandPx of a border node line: around the
+    // border nodes' images, a cell and the band (in nodes) wide.
+    const float band = kBorderBandPx / std::min(sx, sy) + 1.0f + margin;
+    auto flag_border = [&](int gx, int gy) {
+      const cv::Vec2f p = image(gx, gy);
+      const int x0 = std::clamp(cvFloor(p[0] - band), 0, cells_x - 1), x1 = std::clamp(cvFloor(p[0] + band), 0, cells_x - 1);
+      const int y0 = std::clamp(cvFloor(p[1] - band), 0, cells_y - 1), y1 = std::clamp(cvFloor(p[1] + band), 0, cells_y - 1);
+      for (int cy = y0; cy <= y1; ++cy) {
+        uchar* cell = cell_work_.ptr<uchar>(cy);
+        for (int cx = x0; cx <= x1; ++cx) cell[cx] |= kNearBorder;
+      }
+    };
+    for (int gx = 0; gx < w; ++gx) flag_border(gx, 0), flag_border(gx, h - 1);
+    for (int gy = 0; gy < h; ++gy) flag_border(0, gy), flag_border(w - 1, gy);
+  }
+
   bool nearBorderNodeLine(float px, float py) const {
     return std::abs(px - border_x_[0]) < kBorderBandPx || std::abs(px - border_x_[1]) < kBorderBandPx ||
            std::abs(py - border_y_[0]) < kBorderBandPx || std::abs(py - border_y_[1]) < kBorderBandPx;
   }
 
+  GridFlowSampler sampler_;
+  ReferenceFlowSampler reference_;
+  AxisInterpolation columns_, rows_;
+  int iterations_;
+  cv::Mat& horizontal_;    // CV_32FC2, grid rows x camera columns (scratch)
+  cv::Mat& displacement_;  // CV_32FC2 per node: p - q in camera pixels (scratch)
+  cv::Mat& cell_work_;     // CellWork per cell of frame b (scratch)
   float border_x_[2], border_y_[2];  // camera positions of the first and last node lines
-  // CV_32S (h+1)x(w+1) prefix counts of kink nodes: across x, across y, strong across x, strong
-  // across y.
-  cv::Mat kink_counts_[4];
-  cv::Mat cell_needs_pixels_;  // CellWork per cell of frame b
 };
 
 }  // namespace
 
 cv::Mat inverseDisplacementOnGrid(const cv::Mat& flow_grid, cv::Size image_size, int iterations) {
   checkInputs(flow_grid, image_size, iterations, "inverseDisplacementOnGrid");
-  return GridInverse(flow_grid, image_size, iterations).displacement();
+  BackwardMapScratch scratch;
+  return GridInverse(flow_grid, image_size, iterations, scratch).displacement();
 }
 
 cv::Mat backwardMapFromGrid(const cv::Mat& flow_grid, cv::Size image_size, int iterations) {
   checkInputs(flow_grid, image_size, iterations, "backwardMapFromGrid");
   if (cameraWithinGrid(flow_grid, image_size)) return inverseFlowMap(flow_grid, image_size, iterations);
-  const GridInverse inverse(flow_grid, image_size, iterations);
+  BackwardMapScratch scratch;
+  const GridInverse inverse(flow_grid, image_size, iterations, scratch);
   cv::Mat map(image_size, CV_32FC2);
-  inverse.buildRows(0, image_size.height, [&](int y, const float* mx, const float* my) {
-    cv::Vec2f* out = map.ptr<cv::Vec2f>(y);
-    for (int x = 0; x < image_size.width; ++x) out[x] = cv::Vec2f(mx[x], my[x]);
+  inverse.buildRows(0, image_size.height, [&](int y, const float* map_xy) {
+    std::copy(map_xy, map_xy + 2 * image_size.width, map.ptr<float>(y));
   });
   return map;
+}
+
+void writeFixedPointRow(const float* map_xy, int width, short* xy, ushort* fraction) {
+  int x = 0;
+#if defined(__SSE2__)
+  // Four pixels at a time; _mm_cvtps_epi32 rounds to nearest even, as cvRound does.
+  const __m128 scale = _mm_set1_ps(static_cast<float>(kFractionSteps));
+  const __m128 low = _mm_set1_ps(-kFarOutsidePx), high = _mm_set1_ps(kFarOutsidePx);
+  const __m128i mask = _mm_set1_epi32(kFractionSteps - 1);
+  for (; x + 4 <= width; x += 4) {
+    const __m128 first = _mm_loadu_ps(map_xy + 2 * x), second = _mm_loadu_ps(map_xy + 2 * x + 4);
+    const __m128 mx = _mm_shuffle_ps(first, second, _MM_SHUFFLE(2, 0, 2, 0));
+    const __m128 my = _mm_shuffle_ps(first, second, _MM_SHUFFLE(3, 1, 3, 1));
+    const __m128i ix = _mm_cvtps_epi32(_mm_mul_ps(_mm_min_ps(_mm_max_ps(mx, low), high), scale));
+    const __m128i iy = _mm_cvtps_epi32(_mm_mul_ps(_mm_min_ps(_mm_max_ps(my, low), high), scale));
+    const __m128i whole_x = _mm_srai_epi32(ix, kFractionBits), whole_y = _mm_srai_epi32(iy, kFractionBits);
+    const __m128i packed_x = _mm_packs_epi32(whole_x, whole_x), packed_y = _mm_packs_epi32(whole_y, whole_y);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(xy + 2 * x), _mm_unpacklo_epi16(packed_x, packed_y));
+    const __m128i table = _mm_or_si128(_mm_slli_epi32(_mm_and_si128(iy, mask), kFractionBits), _mm_and_si128(ix, mask));
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(fraction + x), _mm_packs_epi32(table, table));
+  }
+#endif
+  for (; x < width; ++x) {
+    // The rounding cv::convertMaps and cv::remap's float path use.
+    const int ix = cvRound(std::clamp(map_xy[2 * x], -kFarOutsidePx, kFarOutsidePx) * kFractionSteps);
+    const int iy = cvRound(std::clamp(map_xy[2 * x + 1], -kFarOutsidePx, kFarOutsidePx) * kFractionSteps);
+    xy[2 * x] = cv::saturate_cast<short>(ix >> kFractionBits);
+    xy[2 * x + 1] = cv::saturate_cast<short>(iy >> kFractionBits);
+    fraction[x] = static_cast<ushort>((iy & (kFractionSteps - 1)) * kFractionSteps + (ix & (kFractionSteps - 1)));
+  }
 }
 
 void buildFixedPointBackwardMap(const cv::Mat& flow_grid, cv::Size image_size, int iterations, FixedPointMap& map) {
@@ -454,36 +536,12 @@ void buildFixedPointBackwardMap(const cv::Mat& flow_grid, cv::Size image_size, i
     map.pixels_inverted_one_by_one = static_cast<std::size_t>(image_size.area());
     return;
   }
-  const GridInverse inverse(flow_grid, image_size, iterations);
+  if (!map.scratch) map.scratch = std::make_shared<BackwardMapScratch>();
+  const GridInverse inverse(flow_grid, image_size, iterations, *map.scratch);
   map.xy.create(image_size, CV_16SC2);
   map.fraction.create(image_size, CV_16UC1);
-  auto write_row = [&](int y, const float* mx, const float* my) {
-    short* xy = map.xy.ptr<short>(y);
-    ushort* fraction = map.fraction.ptr<ushort>(y);
-    int x = 0;
-#if defined(__SSE2__)
-    // Four pixels at a time; _mm_cvtps_epi32 rounds to nearest even, as cvRound does.
-    const __m128 scale = _mm_set1_ps(static_cast<float>(kFractionSteps));
-    const __m128 low = _mm_set1_ps(-kFarOutsidePx), high = _mm_set1_ps(kFarOutsidePx);
-    const __m128i mask = _mm_set1_epi32(kFractionSteps - 1);
-    for (; x + 4 <= image_size.width; x += 4) {
-      const __m128i ix = _mm_cvtps_epi32(_mm_mul_ps(_mm_min_ps(_mm_max_ps(_mm_loadu_ps(mx + x), low), high), scale));
-      const __m128i iy = _mm_cvtps_epi32(_mm_mul_ps(_mm_min_ps(_mm_max_ps(_mm_loadu_ps(my + x), low), high), scale));
-      const __m128i whole_x = _mm_srai_epi32(ix, kFractionBits), whole_y = _mm_srai_epi32(iy, kFractionBits);
-      const __m128i packed_x = _mm_packs_epi32(whole_x, whole_x), packed_y = _mm_packs_epi32(whole_y, whole_y);
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(xy + 2 * x), _mm_unpacklo_epi16(packed_x, packed_y));
-      const __m128i table = _mm_or_si128(_mm_slli_epi32(_mm_and_si128(iy, mask), kFractionBits), _mm_and_si128(ix, mask));
-      _mm_storel_epi64(reinterpret_cast<__m128i*>(fraction + x), _mm_packs_epi32(table, table));
-    }
-#endif
-    for (; x < image_size.width; ++x) {
-      // The rounding cv::convertMaps and cv::remap's float path use.
-      const int ix = cvRound(std::clamp(mx[x], -kFarOutsidePx, kFarOutsidePx) * kFractionSteps);
-      const int iy = cvRound(std::clamp(my[x], -kFarOutsidePx, kFarOutsidePx) * kFractionSteps);
-      xy[2 * x] = cv::saturate_cast<short>(ix >> kFractionBits);
-      xy[2 * x + 1] = cv::saturate_cast<short>(iy >> kFractionBits);
-      fraction[x] = static_cast<ushort>((iy & (kFractionSteps - 1)) * kFractionSteps + (ix & (kFractionSteps - 1)));
-    }
+  auto write_row = [&](int y, const float* map_xy) {
+    writeFixedPointRow(map_xy, image_size.width, map.xy.ptr<short>(y), map.fraction.ptr<ushort>(y));
   };
   // One stripe per thread OpenCV may use (one unless cv::setNumThreads allows more).
   const int stripes = std::max(1, std::min(cv::getNumThreads(), image_size.height));

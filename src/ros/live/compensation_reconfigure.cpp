@@ -11,6 +11,7 @@ CompensationConfig toConfig(const CompensationLiveParameters& params) {
   CompensationConfig config = CompensationConfig::__getDefault__();
   config.color_max_flow = params.color_max_flow_px;
   config.warp_iterations = params.warp_iterations;
+  config.warp_threads = params.warp_threads;
   config.max_wait = params.max_wait_s;
   return config;
 }
@@ -24,11 +25,13 @@ std::string applyCompensationConfig(const CompensationConfig& config, Compensati
   if (config.warp_iterations < 0 || config.warp_iterations > 20) {
     return "warp_iterations must be in [0, 20], got " + std::to_string(config.warp_iterations);
   }
+  if (config.warp_threads < 1) return "warp_threads must be at least 1, got " + std::to_string(config.warp_threads);
   if (!std::isfinite(config.max_wait) || config.max_wait < 0.0) {
     return "max_wait must be >= 0 seconds, got " + std::to_string(config.max_wait);
   }
   params.color_max_flow_px = config.color_max_flow;
   params.warp_iterations = config.warp_iterations;
+  params.warp_threads = config.warp_threads;
   params.max_wait_s = config.max_wait;
   return "";
 }
@@ -52,11 +55,14 @@ void CompensationReconfigure::callback(CompensationConfig& config, uint32_t) {
   }
   const bool changed = updated.color_max_flow_px != current_.color_max_flow_px ||
                        updated.warp_iterations != current_.warp_iterations ||
+                       updated.warp_threads != current_.warp_threads ||
                        updated.max_wait_s != current_.max_wait_s;
   current_ = updated;
   if (changed) {
-    ROS_INFO_NAMED(log_name_, "%s: reconfigured: color max flow %.2f px, %d warp iterations, max wait %.3f s",
-                   log_name_.c_str(), config.color_max_flow, config.warp_iterations, config.max_wait);
+    ROS_INFO_NAMED(log_name_,
+                   "%s: reconfigured: color max flow %.2f px, %d warp iterations, %d warp thread(s), max wait %.3f s",
+                   log_name_.c_str(), config.color_max_flow, config.warp_iterations, config.warp_threads,
+                   config.max_wait);
   }
   apply_(current_);
 }

@@ -101,15 +101,19 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   // Live-tunable parameters; built before the lock below (it applies the values once here).
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
-      CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.max_wait_s},
+      CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.warp_threads,
+                                 params_.max_wait_s},
       [this](const CompensationLiveParameters& live) {
         std::lock_guard<std::mutex> lock(mutex_);
         params_.color_max_flow_px = live.color_max_flow_px;
         params_.warp_iterations = live.warp_iterations;
+        if (live.warp_threads != params_.warp_threads) cv::setNumThreads(live.warp_threads);
+        params_.warp_threads = live.warp_threads;
         params_.max_wait_s = live.max_wait_s;
         matcher_.setMaxWait(live.max_wait_s);
         diagnostics_->setValue("color_max_flow [px]", std::to_string(live.color_max_flow_px));
         diagnostics_->setValue("warp_iterations", std::to_string(live.warp_iterations));
+        diagnostics_->setValue("warp_threads", std::to_string(live.warp_threads));
       });
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };

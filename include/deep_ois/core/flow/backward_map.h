@@ -11,7 +11,11 @@
 
 #include <opencv2/core.hpp>
 
+#include <memory>
+
 namespace deep_ois {
+
+struct BackwardMapScratch;  // a build's working buffers (backward_map.cpp)
 
 // A backward map in cv::remap's fixed-point form (what cv::convertMaps gives for CV_16SC2):
 // `xy` CV_16SC2 holds floor(position) and `fraction` CV_16UC1 the 1/32-pixel fractions
@@ -23,6 +27,8 @@ struct FixedPointMap {
   cv::Mat fraction;  // CV_16UC1
   // Camera pixels inverted one by one (near kinks of the flow) rather than interpolated.
   std::size_t pixels_inverted_one_by_one = 0;
+  // The build's working buffers at grid resolution, kept from frame to frame like xy and fraction.
+  std::shared_ptr<BackwardMapScratch> scratch;
   cv::Size size() const { return xy.size(); }
 };
 
@@ -50,6 +56,11 @@ cv::Mat backwardMapFromGrid(const cv::Mat& flow_grid, cv::Size image_size, int i
 // built in cv::parallel_for_ stripes: one thread unless cv::setNumThreads allows more.
 void buildFixedPointBackwardMap(const cv::Mat& flow_grid, cv::Size image_size, int iterations,
                                 FixedPointMap& map);
+
+// One row of backward positions (x, y interleaved, camera pixels) into cv::remap's fixed-point form
+// with cv::convertMaps' rounding: `xy` gets 2 * width shorts, `fraction` width table indices. For
+// the map builders (grid flows and patch homographies).
+void writeFixedPointRow(const float* map_xy, int width, short* xy, ushort* fraction);
 
 // `image` resampled at `map`, bilinear, black outside frame a, into `warped`: a caller that
 // allocated `warped` with the image's size and type (e.g. over an outgoing message's buffer)

@@ -1,5 +1,5 @@
 // dynamic_reconfigure server of the compensation nodelet's live-tunable parameters
-// (cfg/Compensation.cfg): color_max_flow, warp_iterations, max_wait.
+// (cfg/Compensation.cfg): color_max_flow, warp_iterations, warp_threads, max_wait.
 #pragma once
 
 #include <deep_ois/CompensationConfig.h>
@@ -16,6 +16,7 @@ namespace deep_ois {
 struct CompensationLiveParameters {
   double color_max_flow_px = 0.0;  // flow magnitude at full brightness; 0 = per-frame maximum
   int warp_iterations = 3;         // fixed-point steps inverting the flow, 0-20
+  int warp_threads = 1;            // OpenCV threads of the warp (cv::setNumThreads, process-wide), >= 1
   double max_wait_s = 1.0;         // wall time a gyro flow waits for its frames
 };
 
