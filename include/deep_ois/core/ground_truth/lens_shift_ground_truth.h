@@ -22,6 +22,8 @@
 #include <vector>
 
 #include "deep_ois/core/camera/camera_model.h"
+// lensShiftHomographies, the motion the trajectory estimated here implies.
+#include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/vision/feature_tracker.h"
 
 namespace deep_ois {
@@ -79,11 +81,5 @@ LensShiftTrajectory estimateLensShiftTrajectory(const CameraModel& camera,
                                                 const std::vector<double>& frame_stamps_s,
                                                 const std::vector<LensShiftPairObservation>& pairs,
                                                 const LensShiftOptions& options);
-
-// The OIS camera's per-patch motion K(s_b,i) R_i K(s_a,i)^-1 on undistorted pixels, H[2][2] = 1.
-std::vector<Eigen::Matrix3d> lensShiftHomographies(const Eigen::Matrix3d& K,
-                                                   const std::vector<Eigen::Matrix3d>& rotations,
-                                                   const std::vector<Eigen::Vector2d>& shift_a_px,
-                                                   const std::vector<Eigen::Vector2d>& shift_b_px);
 
 }  // namespace deep_ois
