@@ -290,8 +290,17 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     countDrop("gyro flow and frames of different sizes");
     return;
   }
-  const cv::Mat compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
-                                                 static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  // A flow made with the camera's lens-shift log is already the OIS camera's motion: published as
+  // it is. The network's motion history holds gyro flows, so it restarts at the next pair without
+  // the log (as at the start of a stream) rather than mixing in lens-corrected ones.
+  cv::Mat compensated;
+  if (gyro.motion_model == GyroFlow::MOTION_GYRO_LENS_LOG) {
+    stream_.reset();
+    compensated = gyro_flow.clone();
+  } else {
+    compensated = stream_.compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+                                     static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
+  }
   if (!cv::checkRange(compensated)) {
     // Never publish NaN: a model that diverges on this input gives no output for it.
     stream_.reset();
