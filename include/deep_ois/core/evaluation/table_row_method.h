@@ -50,6 +50,10 @@ struct FramePairContext {
   // grid (grid_flow.h convention) that the nodelet publishes and the network takes as input.
   std::vector<Eigen::Matrix3d> gyro_homographies;
   cv::Mat gyro_flow_grid;
+  // The gyro flow nodelet's homographies with the camera's lens-shift log,
+  // K(s(t_b)) R K(s(t_a))^-1 per patch, when the recording has a log that covers the pair; empty
+  // otherwise (core/ois/lens_shift_homographies.h).
+  std::vector<Eigen::Matrix3d> lens_log_homographies;
   // The correspondences the pair is scored on (raw pixels). Methods other than references must
   // not use them.
   std::vector<Eigen::Vector2d> points_a_px, points_b_px;
