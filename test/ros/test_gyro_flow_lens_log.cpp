@@ -19,14 +19,16 @@ using namespace rostest_helpers;
 
 constexpr int kFrameCount = 45;
 constexpr double kImuLeadS = 0.05;
-constexpr double kLensLatencyS = 0.02;  // the log is delivered this long after the instant (stamp time)
+constexpr double kLensLatencyS =
+    0.02;  // the log is delivered this long after the instant (stamp time)
 constexpr double kLensPeriodS = 0.002;  // 500 Hz
 constexpr double kPlaybackSpeed = 3.0;
-constexpr double kGapS = 0.03;          // each gap: 15 samples lost (> ~lens_shift_max_gap 0.01 s)
+constexpr double kGapS = 0.03;  // each gap: 15 samples lost (> ~lens_shift_max_gap 0.01 s)
 
 // The lens trajectory, camera clock (seconds after the motion's reference), published-image px.
 Eigen::Vector2d trueShift(double tau_s) {
-  return {1.0 + 4.0 * std::sin(2.0 * M_PI * 3.0 * tau_s), -0.5 + 3.0 * std::cos(2.0 * M_PI * 2.0 * tau_s)};
+  return {1.0 + 4.0 * std::sin(2.0 * M_PI * 3.0 * tau_s),
+          -0.5 + 3.0 * std::cos(2.0 * M_PI * 2.0 * tau_s)};
 }
 
 // The camera convention of the .test file.
@@ -39,12 +41,15 @@ struct Convention {
   const std::string ns = kNodeletNamespace;
   double scale = 0, sign_x = 0, sign_y = 0;
   bool swap = false;
-  if (!ros::param::get(ns + "/lens_shift_scale", scale) || !ros::param::get(ns + "/lens_shift_swap_xy", swap) ||
-      !ros::param::get(ns + "/lens_shift_sign_x", sign_x) || !ros::param::get(ns + "/lens_shift_sign_y", sign_y) ||
+  if (!ros::param::get(ns + "/lens_shift_scale", scale) ||
+      !ros::param::get(ns + "/lens_shift_swap_xy", swap) ||
+      !ros::param::get(ns + "/lens_shift_sign_x", sign_x) ||
+      !ros::param::get(ns + "/lens_shift_sign_y", sign_y) ||
       !ros::param::get(ns + "/lens_shift_time_offset", c.time_offset_s)) {
     return ::testing::AssertionFailure() << "the .test file must set the lens_shift_* convention";
   }
-  Eigen::Matrix2d P = swap ? (Eigen::Matrix2d() << 0, 1, 1, 0).finished() : Eigen::Matrix2d::Identity();
+  Eigen::Matrix2d P =
+      swap ? (Eigen::Matrix2d() << 0, 1, 1, 0).finished() : Eigen::Matrix2d::Identity();
   P.row(0) *= sign_x;
   P.row(1) *= sign_y;
   c.matrix = scale * P;
@@ -54,7 +59,9 @@ struct Convention {
 // WARN lines of the nodelet's manager that say a pair fell back for want of the lens log.
 class RosoutCounter {
  public:
-  RosoutCounter() { sub_ = ros::NodeHandle().subscribe("/rosout", 1000, &RosoutCounter::callback, this); }
+  RosoutCounter() {
+    sub_ = ros::NodeHandle().subscribe("/rosout", 1000, &RosoutCounter::callback, this);
+  }
   int count() {
     std::lock_guard<std::mutex> lock(mutex_);
     return count_;
@@ -66,7 +73,8 @@ class RosoutCounter {
 
  private:
   void callback(const rosgraph_msgs::LogConstPtr& log) {
-    if (log->level != rosgraph_msgs::Log::WARN || log->msg.find("lens-shift log") == std::string::npos ||
+    if (log->level != rosgraph_msgs::Log::WARN ||
+        log->msg.find("lens-shift log") == std::string::npos ||
         log->msg.find("does not cover") == std::string::npos) {
       return;
     }
@@ -105,12 +113,15 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
     const ros::Time stamp = motion.reference_stamp + ros::Duration(0, 2500000) * k;
     StreamEvent event;
     event.publish_key_s = motion.tau(stamp) - kImuLeadS;
-    event.imu = makeImu(stamp, kImuFrame, R_cam_imu.transpose() * motion.cameraRate(motion.tau(stamp)));
+    event.imu =
+        makeImu(stamp, kImuFrame, R_cam_imu.transpose() * motion.cameraRate(motion.tau(stamp)));
     events.push_back(event);
   }
   // Two gaps, starting 10 ms into the readout of frames 20 and 25 (camera clock).
   std::vector<std::pair<double, double>> gaps;
-  for (int j : {20, 25}) gaps.emplace_back(motion.tau(frame_stamps[j]) + 0.01, motion.tau(frame_stamps[j]) + 0.01 + kGapS);
+  for (int j : {20, 25})
+    gaps.emplace_back(motion.tau(frame_stamps[j]) + 0.01,
+                      motion.tau(frame_stamps[j]) + 0.01 + kGapS);
   std::vector<double> logged_taus;  // camera clock
   const Eigen::Matrix2d to_logged = convention.matrix.inverse();
   for (int k = 0; k * kLensPeriodS <= end_tau_s; ++k) {
@@ -146,8 +157,10 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
   harness.publishStaticTransform(R_cam_imu);
   ASSERT_TRUE(harness.waitForNodelet(30.0));
   const ros::WallTime lens_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
-  while (harness.lensShiftSubscribers() == 0 && ros::WallTime::now() < lens_deadline) ros::WallDuration(0.05).sleep();
-  ASSERT_GT(harness.lensShiftSubscribers(), 0u) << "the nodelet does not subscribe " << kLensShiftTopic;
+  while (harness.lensShiftSubscribers() == 0 && ros::WallTime::now() < lens_deadline)
+    ros::WallDuration(0.05).sleep();
+  ASSERT_GT(harness.lensShiftSubscribers(), 0u)
+      << "the nodelet does not subscribe " << kLensShiftTopic;
   harness.play(events, kPlaybackSpeed);
 
   const ros::Time last_stamp = frame_stamps.back();
@@ -163,7 +176,9 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
   // bracket part of the interval it needs, from patch 0 of frame a to the last patch of frame b.
   auto covered = [&](double t0, double t1) {
     for (std::size_t k = 0; k + 1 < logged_taus.size(); ++k) {
-      if (logged_taus[k + 1] - logged_taus[k] > max_gap_s && logged_taus[k + 1] > t0 && logged_taus[k] < t1) return false;
+      if (logged_taus[k + 1] - logged_taus[k] > max_gap_s && logged_taus[k + 1] > t0 &&
+          logged_taus[k] < t1)
+        return false;
     }
     return true;
   };
@@ -180,13 +195,15 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
     EXPECT_FALSE(seen[j]) << "published twice";
     seen[j] = true;
     const ros::Time stamp_a = frame_stamps[j - 1], stamp_b = frame_stamps[j];
-    EXPECT_TRUE(metadataAndFlowMatch(*msg, stamp_a, timing, K, R_cam_imu, grid_width_px, grid_height_px));
+    EXPECT_TRUE(
+        metadataAndFlowMatch(*msg, stamp_a, timing, K, R_cam_imu, grid_width_px, grid_height_px));
     const double interval_s = (stamp_b - stamp_a).toSec();
     // Patch capture times on the camera clock: the IMU patch time minus the camera-to-IMU offset.
     std::vector<Eigen::Matrix3d> gyro_only, with_lens;
     for (int i = 0; i < timing.patch_count; ++i) {
       const double tau_a_imu = timing.patchTau(motion, stamp_a, i);
-      const Eigen::Matrix3d R = motion.cameraRotationChange(tau_a_imu, tau_a_imu + interval_s).transpose();
+      const Eigen::Matrix3d R =
+          motion.cameraRotationChange(tau_a_imu, tau_a_imu + interval_s).transpose();
       const double tau_a = tau_a_imu - timing.time_offset_s, tau_b = tau_a + interval_s;
       Eigen::Matrix3d K_a = K, K_b = K;
       K_a.block<2, 1>(0, 2) += trueShift(tau_a);
@@ -196,7 +213,8 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
       with_lens.push_back(H_lens / H_lens(2, 2));
     }
     const double t0 = timing.patchTau(motion, stamp_a, 0) - timing.time_offset_s;
-    const double t1 = timing.patchTau(motion, stamp_b, timing.patch_count - 1) - timing.time_offset_s;
+    const double t1 =
+        timing.patchTau(motion, stamp_b, timing.patch_count - 1) - timing.time_offset_s;
     const std::vector<Eigen::Matrix3d> actual = homographiesOf(*msg);
     if (covered(t0, t1)) {
       ++with_log;
@@ -219,9 +237,9 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
   EXPECT_GE(with_log, kFrameCount - 10);
   // Both gaps fall within one throttle period (2 s) of playback: one warning says it.
   EXPECT_EQ(warnings.count(), 1) << warnings.lines();
-  std::cout << "[ INFO     ] " << with_log << " pairs with the lens log (worst corner error " << worst_px
-            << " px), " << fallbacks << " fell back to the gyro alone, " << warnings.count()
-            << " warning(s):\n"
+  std::cout << "[ INFO     ] " << with_log << " pairs with the lens log (worst corner error "
+            << worst_px << " px), " << fallbacks << " fell back to the gyro alone, "
+            << warnings.count() << " warning(s):\n"
             << warnings.lines();
 }
 

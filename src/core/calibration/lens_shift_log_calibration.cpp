@@ -68,7 +68,8 @@ MapFit fitMap(const std::vector<Eigen::Vector2d>& q, const std::vector<Eigen::Ve
 
 std::string LensShiftLogCalibrationOptions::validate() const {
   if (patch_count < 1) return "patch_count must be at least 1";
-  if (!(max_abs_time_offset_s >= 0.0) || max_abs_time_offset_s > 10.0) return "max_abs_time_offset_s must be in [0, 10] s";
+  if (!(max_abs_time_offset_s >= 0.0) || max_abs_time_offset_s > 10.0)
+    return "max_abs_time_offset_s must be in [0, 10] s";
   if (!(search_step_s > 0.0)) return "search_step_s must be positive";
   if (!(max_gap_s > 0.0)) return "max_gap_s must be positive";
   if (min_tracks_per_patch < 1) return "min_tracks_per_patch must be at least 1";
@@ -76,7 +77,8 @@ std::string LensShiftLogCalibrationOptions::validate() const {
   return {};
 }
 
-LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const CameraImuCalibration& calibration,
+LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data,
+                                              const CameraImuCalibration& calibration,
                                               const std::vector<LensShiftLogSample>& log,
                                               const LensShiftLogCalibrationOptions& options) {
   const std::string invalid = options.validate();
@@ -101,7 +103,8 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
   const CameraModel& camera = data.camera;
   std::vector<Observation> observations;
   for (const CalibrationPair& pair : data.pairs) {
-    const double stamp_a = data.frame_stamps_s.at(pair.frame_a), stamp_b = data.frame_stamps_s.at(pair.frame_b);
+    const double stamp_a = data.frame_stamps_s.at(pair.frame_a),
+                 stamp_b = data.frame_stamps_s.at(pair.frame_b);
     const RollingShutterHomographies H =
         computeRollingShutterHomographies(gyro, integration, config, camera.K(), stamp_a, stamp_b);
     if (!H.ok()) continue;
@@ -109,8 +112,9 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
     for (const FeatureMatch& match : pair.matches) {
       const Eigen::Vector2d a_raw(match.point_a_px.x, match.point_a_px.y);
       const int patch = patchIndexOfRow(a_raw.y(), camera.height(), options.patch_count);
-      patches[patch].tracks.emplace_back(camera.undistort(a_raw),
-                                         camera.undistort(Eigen::Vector2d(match.point_b_px.x, match.point_b_px.y)));
+      patches[patch].tracks.emplace_back(
+          camera.undistort(a_raw),
+          camera.undistort(Eigen::Vector2d(match.point_b_px.x, match.point_b_px.y)));
     }
     for (int i = 0; i < options.patch_count; ++i) {
       Observation& o = patches[i];
@@ -130,14 +134,17 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
   const double range = options.max_abs_time_offset_s;
   std::vector<Observation> usable;
   for (const Observation& o : observations) {
-    if (raw.covers(o.t_a_s - range, o.t_a_s + range) && raw.covers(o.t_b_s - range, o.t_b_s + range)) {
+    if (raw.covers(o.t_a_s - range, o.t_a_s + range) &&
+        raw.covers(o.t_b_s - range, o.t_b_s + range)) {
       usable.push_back(o);
     }
   }
   if (usable.size() < 20) {
-    result.problem = "only " + std::to_string(usable.size()) + " of " + std::to_string(observations.size()) +
-                     " row-patch observations are covered by the lens-shift log over the whole offset search "
-                     "range (+-" + std::to_string(range) + " s); at least 20 are needed";
+    result.problem =
+        "only " + std::to_string(usable.size()) + " of " + std::to_string(observations.size()) +
+        " row-patch observations are covered by the lens-shift log over the whole offset search "
+        "range (+-" +
+        std::to_string(range) + " s); at least 20 are needed";
     return result;
   }
   // The fit of the convention to shift differences d (one per usable observation); `result`
@@ -159,7 +166,9 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
       return q;
     };
     std::vector<char> all(usable.size(), 1);
-    auto cost = [&](double tau, const std::vector<char>& use) { return fitMap(loggedDifferences(tau), d, use).cost; };
+    auto cost = [&](double tau, const std::vector<char>& use) {
+      return fitMap(loggedDifferences(tau), d, use).cost;
+    };
 
     // ---- Offset: grid search, outliers out at the best, then a parabola through the minimum. ----
     const int steps = static_cast<int>(std::floor(range / options.search_step_s));
@@ -188,7 +197,8 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
     // bracket (the cost is smooth: linear interpolation of a dense log).
     double tau = best_tau;
     for (double h = options.search_step_s; h > 1e-6; h *= 0.5) {
-      const double c0 = cost(tau - h, inliers), c1 = cost(tau, inliers), c2 = cost(tau + h, inliers);
+      const double c0 = cost(tau - h, inliers), c1 = cost(tau, inliers),
+                   c2 = cost(tau + h, inliers);
       if (c0 < c1 && c0 <= c2) {
         tau -= h;
       } else if (c2 < c1) {
@@ -235,8 +245,9 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
     result.observations = static_cast<int>(std::count(inliers.begin(), inliers.end(), 1));
     result.residual_rms_px = std::sqrt(fit.cost);
     if (result.lens_motion_rms_px < 3.0 * result.residual_rms_px) {
-      result.problem = "the lens barely moved (shift differences " + std::to_string(result.lens_motion_rms_px) +
-                       " px RMS against " + std::to_string(result.residual_rms_px) +
+      result.problem = "the lens barely moved (shift differences " +
+                       std::to_string(result.lens_motion_rms_px) + " px RMS against " +
+                       std::to_string(result.residual_rms_px) +
                        " px residual): record hand-held shake with the OIS on";
       return result;
     }
@@ -255,7 +266,8 @@ LensShiftLogCalibration calibrateLensShiftLog(const CalibrationData& data, const
   for (const LensShiftLogSample& sample : log) shifted.add(sample);
   d.clear();
   for (const Observation& o : usable) {
-    d.push_back(shiftDifference(o, shifted.covers(o.t_a_s, o.t_a_s) ? shifted.shiftAt(o.t_a_s) : Eigen::Vector2d::Zero()));
+    d.push_back(shiftDifference(
+        o, shifted.covers(o.t_a_s, o.t_a_s) ? shifted.shiftAt(o.t_a_s) : Eigen::Vector2d::Zero()));
   }
   return fitConvention(d);
 }

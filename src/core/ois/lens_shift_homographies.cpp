@@ -28,15 +28,16 @@ double patchCameraTime(const RollingShutterConfig& config, double frame_stamp_s,
   return patchImuTime(config, frame_stamp_s, patch_index) - config.time_offset_s;
 }
 
-LensLogInterval lensLogInterval(const RollingShutterConfig& config, double stamp_a_s, double stamp_b_s) {
-  return {patchCameraTime(config, stamp_a_s, 0), patchCameraTime(config, stamp_b_s, config.patch_count - 1)};
+LensLogInterval lensLogInterval(const RollingShutterConfig& config, double stamp_a_s,
+                                double stamp_b_s) {
+  return {patchCameraTime(config, stamp_a_s, 0),
+          patchCameraTime(config, stamp_b_s, config.patch_count - 1)};
 }
 
-std::optional<std::vector<Eigen::Matrix3d>> lensLogHomographies(const Eigen::Matrix3d& K,
-                                                                const std::vector<Eigen::Matrix3d>& rotations,
-                                                                const LensShiftLog& log,
-                                                                const RollingShutterConfig& config,
-                                                                double stamp_a_s, double stamp_b_s) {
+std::optional<std::vector<Eigen::Matrix3d>> lensLogHomographies(
+    const Eigen::Matrix3d& K, const std::vector<Eigen::Matrix3d>& rotations,
+    const LensShiftLog& log, const RollingShutterConfig& config, double stamp_a_s,
+    double stamp_b_s) {
   if (static_cast<int>(rotations.size()) != config.patch_count) {
     throw std::invalid_argument("lensLogHomographies: one rotation per row patch needed");
   }

@@ -9,7 +9,8 @@
 namespace deep_ois {
 
 Eigen::Matrix2d LensShiftLogConvention::matrix() const {
-  Eigen::Matrix2d P = swap_xy ? (Eigen::Matrix2d() << 0, 1, 1, 0).finished() : Eigen::Matrix2d::Identity();
+  Eigen::Matrix2d P =
+      swap_xy ? (Eigen::Matrix2d() << 0, 1, 1, 0).finished() : Eigen::Matrix2d::Identity();
   P.row(0) *= sign_x;
   P.row(1) *= sign_y;
   return scale * P;
@@ -20,7 +21,8 @@ Eigen::Vector2d LensShiftLogConvention::toImagePx(const Eigen::Vector2d& logged)
 }
 
 std::string LensShiftLogConvention::validate() const {
-  if (!std::isfinite(scale) || scale <= 0.0) return "scale must be a positive number of pixels per logged unit";
+  if (!std::isfinite(scale) || scale <= 0.0)
+    return "scale must be a positive number of pixels per logged unit";
   if (sign_x != 1.0 && sign_x != -1.0) return "sign_x must be +1 or -1";
   if (sign_y != 1.0 && sign_y != -1.0) return "sign_y must be +1 or -1";
   if (!std::isfinite(time_offset_s) || std::abs(time_offset_s) > 10.0) {
@@ -29,7 +31,8 @@ std::string LensShiftLogConvention::validate() const {
   return {};
 }
 
-LensShiftLog::LensShiftLog(double max_gap_s, const LensShiftLogConvention& convention) : max_gap_s_(max_gap_s) {
+LensShiftLog::LensShiftLog(double max_gap_s, const LensShiftLogConvention& convention)
+    : max_gap_s_(max_gap_s) {
   if (!std::isfinite(max_gap_s) || max_gap_s <= 0.0) {
     throw std::invalid_argument("LensShiftLog: max_gap must be a positive number of seconds");
   }
@@ -43,7 +46,8 @@ void LensShiftLog::setConvention(const LensShiftLogConvention& convention) {
 }
 
 LensShiftAddResult LensShiftLog::add(const LensShiftLogSample& sample) {
-  if (!std::isfinite(sample.stamp_s) || !sample.logged.allFinite()) return {"non-finite stamp or shift"};
+  if (!std::isfinite(sample.stamp_s) || !sample.logged.allFinite())
+    return {"non-finite stamp or shift"};
   if (sample.covariance && !sample.covariance->allFinite()) return {"non-finite covariance"};
   if (!samples_.empty() && !(sample.stamp_s > samples_.back().stamp_s)) {
     std::ostringstream why;
@@ -57,13 +61,15 @@ LensShiftAddResult LensShiftLog::add(const LensShiftLogSample& sample) {
 }
 
 std::ptrdiff_t LensShiftLog::lastAtOrBefore(double t_s) const {
-  const auto after = std::upper_bound(samples_.begin(), samples_.end(), t_s,
-                                      [this](double t, const LensShiftLogSample& s) { return t < cameraTime(s); });
+  const auto after =
+      std::upper_bound(samples_.begin(), samples_.end(), t_s,
+                       [this](double t, const LensShiftLogSample& s) { return t < cameraTime(s); });
   return (after - samples_.begin()) - 1;
 }
 
 bool LensShiftLog::covers(double t0_s, double t1_s) const {
-  if (samples_.empty() || !(t0_s <= t1_s) || !std::isfinite(t0_s) || !std::isfinite(t1_s)) return false;
+  if (samples_.empty() || !(t0_s <= t1_s) || !std::isfinite(t0_s) || !std::isfinite(t1_s))
+    return false;
   const std::ptrdiff_t first = lastAtOrBefore(t0_s);
   if (first < 0) return false;
   // Every interval from the sample at or before t0 to the first sample at or after t1.

@@ -11,20 +11,25 @@ namespace deep_ois {
 namespace sim {
 
 std::string LensLogConfig::validate() const {
-  if (!std::isfinite(rate_hz) || rate_hz <= 0.0 || rate_hz > 100000.0) return "rate_hz: must be in (0, 100000]";
-  if (!std::isfinite(latency_s) || latency_s < 0.0 || latency_s > 5.0) return "latency_s: must be in [0, 5] s";
+  if (!std::isfinite(rate_hz) || rate_hz <= 0.0 || rate_hz > 100000.0)
+    return "rate_hz: must be in (0, 100000]";
+  if (!std::isfinite(latency_s) || latency_s < 0.0 || latency_s > 5.0)
+    return "latency_s: must be in [0, 5] s";
   if (!std::isfinite(noise_px) || noise_px < 0.0) return "noise_px: must be non-negative";
-  if (!std::isfinite(quantisation) || quantisation < 0.0) return "quantisation: must be non-negative";
-  if (!(dropout_probability >= 0.0 && dropout_probability < 1.0)) return "dropout_probability: must be in [0, 1)";
+  if (!std::isfinite(quantisation) || quantisation < 0.0)
+    return "quantisation: must be non-negative";
+  if (!(dropout_probability >= 0.0 && dropout_probability < 1.0))
+    return "dropout_probability: must be in [0, 1)";
   if (!std::isfinite(gap_rate_hz) || gap_rate_hz < 0.0) return "gap_rate_hz: must be non-negative";
-  if (!std::isfinite(gap_duration_s) || gap_duration_s < 0.0) return "gap_duration_s: must be non-negative";
+  if (!std::isfinite(gap_duration_s) || gap_duration_s < 0.0)
+    return "gap_duration_s: must be non-negative";
   const std::string problem = convention.validate();
   return problem.empty() ? "" : "convention: " + problem;
 }
 
-std::vector<LoggedLensSample> simulateLensLog(const LensLogConfig& config,
-                                              const std::function<Eigen::Vector2d(double)>& true_shift_px,
-                                              double t0_s, double t1_s, std::uint32_t seed) {
+std::vector<LoggedLensSample> simulateLensLog(
+    const LensLogConfig& config, const std::function<Eigen::Vector2d(double)>& true_shift_px,
+    double t0_s, double t1_s, std::uint32_t seed) {
   const std::string problem = config.validate();
   if (!problem.empty()) throw std::invalid_argument("lens log: " + problem);
   // Separate streams: the noise of a sample does not depend on whether gaps are configured.
@@ -51,7 +56,8 @@ std::vector<LoggedLensSample> simulateLensLog(const LensLogConfig& config,
   const Eigen::Matrix2d to_logged = config.convention.matrix().inverse();
   // The noise in logged units: image-pixel noise through the inverse map.
   const double noise_logged = config.noise_px / config.convention.scale;
-  const double variance = noise_logged * noise_logged + config.quantisation * config.quantisation / 12.0;
+  const double variance =
+      noise_logged * noise_logged + config.quantisation * config.quantisation / 12.0;
   std::vector<LoggedLensSample> log;
   const double dt = 1.0 / config.rate_hz;
   for (long k = 0;; ++k) {
@@ -60,8 +66,10 @@ std::vector<LoggedLensSample> simulateLensLog(const LensLogConfig& config,
     const double noise_x = gaussian(noise_rng), noise_y = gaussian(noise_rng);
     const bool dropped = uniform01(drop_rng) < config.dropout_probability;
     if (dropped || in_gap(t)) continue;
-    Eigen::Vector2d logged = to_logged * true_shift_px(t) + noise_logged * Eigen::Vector2d(noise_x, noise_y);
-    if (config.quantisation > 0.0) logged = (logged / config.quantisation).array().round() * config.quantisation;
+    Eigen::Vector2d logged =
+        to_logged * true_shift_px(t) + noise_logged * Eigen::Vector2d(noise_x, noise_y);
+    if (config.quantisation > 0.0)
+      logged = (logged / config.quantisation).array().round() * config.quantisation;
     LoggedLensSample out;
     out.sample.stamp_s = t - config.convention.time_offset_s;
     out.sample.logged = logged;

@@ -25,7 +25,8 @@ TEST(LensShiftLogConvention, ScaleSwapAndSigns) {
   c.scale = 0.5;
   c.swap_xy = true;
   c.sign_x = -1.0;
-  EXPECT_MATRIX_NEAR(Eigen::Vector2d(-0.5 * 4.0, 0.5 * 2.0), c.toImagePx(Eigen::Vector2d(2.0, 4.0)), 1e-12);
+  EXPECT_MATRIX_NEAR(Eigen::Vector2d(-0.5 * 4.0, 0.5 * 2.0), c.toImagePx(Eigen::Vector2d(2.0, 4.0)),
+                     1e-12);
   c.sign_y = 0.5;
   EXPECT_NE(c.validate().find("sign_y"), std::string::npos);
   c.sign_y = 1.0;
@@ -42,7 +43,7 @@ TEST(LensShiftLog, InterpolatesLinearlyWithConventionAndOffset) {
   LensShiftLog log(0.02, c);
   for (int k = 0; k <= 10; ++k) ASSERT_TRUE(log.add(sample(0.005 * k, k, -k)).accepted());
   EXPECT_TRUE(log.covers(0.1, 0.15));
-  EXPECT_FALSE(log.covers(0.099, 0.12));  // before the first sample (camera clock)
+  EXPECT_FALSE(log.covers(0.099, 0.12));   // before the first sample (camera clock)
   EXPECT_FALSE(log.covers(0.12, 0.1501));  // after the last
   // Camera time 0.1125 = logged 0.0125 = sample 2.5.
   EXPECT_MATRIX_NEAR(Eigen::Vector2d(5.0, -5.0), log.shiftAt(0.1125), 1e-9);
@@ -54,7 +55,8 @@ TEST(LensShiftLog, InterpolatesLinearlyWithConventionAndOffset) {
 
 TEST(LensShiftLog, GapLongerThanMaxIsNotCovered) {
   LensShiftLog log(0.012);
-  for (double t : {0.0, 0.005, 0.010, 0.015, 0.040, 0.045, 0.050}) ASSERT_TRUE(log.add(sample(t, t, 0)).accepted());
+  for (double t : {0.0, 0.005, 0.010, 0.015, 0.040, 0.045, 0.050})
+    ASSERT_TRUE(log.add(sample(t, t, 0)).accepted());
   EXPECT_TRUE(log.covers(0.001, 0.014));
   EXPECT_FALSE(log.covers(0.001, 0.020));  // spans the 25 ms gap
   EXPECT_FALSE(log.covers(0.030, 0.030));  // inside the gap
@@ -100,7 +102,8 @@ TEST(LensLogHomographies, MatchTheLensShiftModelAtPatchTimes) {
   ASSERT_TRUE(H.has_value());
   for (int i = 0; i < 4; ++i) {
     const double t_a = 0.05 + 0.02 * (i + 0.5) / 4, t_b = 0.0833 + 0.02 * (i + 0.5) / 4;
-    const Eigen::Matrix3d expected = lensShiftHomographies(K, {rotations[i]}, {truth(t_a)}, {truth(t_b)}).front();
+    const Eigen::Matrix3d expected =
+        lensShiftHomographies(K, {rotations[i]}, {truth(t_a)}, {truth(t_b)}).front();
     EXPECT_MATRIX_NEAR(expected, (*H)[i], 1e-9);
   }
   // A pair reaching past the log's end is not covered.

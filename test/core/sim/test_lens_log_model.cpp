@@ -35,10 +35,12 @@ TEST(LensLogModel, ConventionLatencyNoiseAndDropouts) {
     EXPECT_NEAR(s.arrival_s, t_camera + config.latency_s, 1e-12);
     // On the quantisation grid (logged units).
     for (int k = 0; k < 2; ++k) {
-      EXPECT_NEAR(s.sample.logged[k] / config.quantisation, std::round(s.sample.logged[k] / config.quantisation), 1e-9);
+      EXPECT_NEAR(s.sample.logged[k] / config.quantisation,
+                  std::round(s.sample.logged[k] / config.quantisation), 1e-9);
     }
     ASSERT_TRUE(s.sample.covariance.has_value());
-    const double error = (config.convention.toImagePx(s.sample.logged) - trajectory(t_camera)).norm();
+    const double error =
+        (config.convention.toImagePx(s.sample.logged) - trajectory(t_camera)).norm();
     worst_px = std::max(worst_px, error);
     sum_sq += error * error;
   }
@@ -65,7 +67,8 @@ TEST(LensLogModel, GapsAreLongerThanTheMaxGap) {
   config.gap_duration_s = 0.1;
   const std::vector<LoggedLensSample> log = simulateLensLog(config, trajectory, 0.0, 20.0, 7);
   int gaps = 0;
-  for (std::size_t k = 1; k < log.size(); ++k) gaps += log[k].sample.stamp_s - log[k - 1].sample.stamp_s > 0.05;
+  for (std::size_t k = 1; k < log.size(); ++k)
+    gaps += log[k].sample.stamp_s - log[k - 1].sample.stamp_s > 0.05;
   EXPECT_GE(gaps, 8);  // ~20 expected (Poisson, 1 per second; overlapping ones merge)
   EXPECT_LE(gaps, 35);
 

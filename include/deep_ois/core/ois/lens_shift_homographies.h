@@ -30,16 +30,16 @@ struct LensLogInterval {
   double begin_s;
   double end_s;
 };
-LensLogInterval lensLogInterval(const RollingShutterConfig& config, double stamp_a_s, double stamp_b_s);
+LensLogInterval lensLogInterval(const RollingShutterConfig& config, double stamp_a_s,
+                                double stamp_b_s);
 
 // The per-patch homographies of the pair (stamp_a_s, stamp_b_s) (camera-clock seconds, on the
 // log's time base after its time offset) with the lens shift interpolated from `log` at each
 // patch's capture time in both frames, and `rotations` the gyro's R_b_a per patch
 // (RollingShutterHomographies::rotations). Empty when the log does not cover the pair.
-std::optional<std::vector<Eigen::Matrix3d>> lensLogHomographies(const Eigen::Matrix3d& K,
-                                                                const std::vector<Eigen::Matrix3d>& rotations,
-                                                                const LensShiftLog& log,
-                                                                const RollingShutterConfig& config,
-                                                                double stamp_a_s, double stamp_b_s);
+std::optional<std::vector<Eigen::Matrix3d>> lensLogHomographies(
+    const Eigen::Matrix3d& K, const std::vector<Eigen::Matrix3d>& rotations,
+    const LensShiftLog& log, const RollingShutterConfig& config, double stamp_a_s,
+    double stamp_b_s);
 
 }  // namespace deep_ois

@@ -31,10 +31,10 @@ namespace deep_ois {
 // (or a sensor mounted upside down): sign_x = sign_y = -1. A log on the sensor's native
 // (landscape) axes and a portrait stream: swap_xy = true plus a sign.
 struct LensShiftLogConvention {
-  double scale = 1.0;      // published-image pixels per logged unit (> 0)
-  bool swap_xy = false;    // the logged x is the image's y and vice versa (applied before signs)
-  double sign_x = 1.0;     // +1 or -1, on the image x after the swap
-  double sign_y = 1.0;     // +1 or -1, on the image y after the swap
+  double scale = 1.0;    // published-image pixels per logged unit (> 0)
+  bool swap_xy = false;  // the logged x is the image's y and vice versa (applied before signs)
+  double sign_x = 1.0;   // +1 or -1, on the image x after the swap
+  double sign_y = 1.0;   // +1 or -1, on the image y after the swap
   double time_offset_s = 0.0;  // added to logged stamps to get camera-clock seconds
 
   // The 2x2 matrix scale * P above.
@@ -47,8 +47,8 @@ struct LensShiftLogConvention {
 
 // One logged sample, as the camera gave it (the convention is applied on query).
 struct LensShiftLogSample {
-  double stamp_s = 0.0;        // logged stamp, seconds (the log's clock)
-  Eigen::Vector2d logged;      // logged x, y (the log's units)
+  double stamp_s = 0.0;    // logged stamp, seconds (the log's clock)
+  Eigen::Vector2d logged;  // logged x, y (the log's units)
   // Covariance of `logged`, the log's units squared; empty when the camera does not say.
   std::optional<Eigen::Matrix2d> covariance;
 };
@@ -98,7 +98,9 @@ class LensShiftLog {
  private:
   // Index of the last sample whose camera-clock stamp is <= t_s; -1 when none.
   std::ptrdiff_t lastAtOrBefore(double t_s) const;
-  double cameraTime(const LensShiftLogSample& s) const { return s.stamp_s + convention_.time_offset_s; }
+  double cameraTime(const LensShiftLogSample& s) const {
+    return s.stamp_s + convention_.time_offset_s;
+  }
 
   double max_gap_s_;
   LensShiftLogConvention convention_;

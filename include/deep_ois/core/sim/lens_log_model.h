@@ -17,13 +17,13 @@ namespace deep_ois {
 namespace sim {
 
 struct LensLogConfig {
-  bool enabled = true;          // publish a log (only for OIS cameras: a non-OIS twin has none)
-  double rate_hz = 200.0;       // samples per second (camera2 OisSample rate of recent phones)
+  bool enabled = true;     // publish a log (only for OIS cameras: a non-OIS twin has none)
+  double rate_hz = 200.0;  // samples per second (camera2 OisSample rate of recent phones)
   // Delivery delay: a sample is recorded this long after the instant it describes (camera2
   // delivers a frame's samples with its capture result). Seconds.
   double latency_s = 0.033;
-  double noise_px = 0.02;       // white noise per sample and axis, published-image pixels
-  double quantisation = 1.0 / 32.0;  // step of the logged numbers, logged units (0 = none)
+  double noise_px = 0.02;             // white noise per sample and axis, published-image pixels
+  double quantisation = 1.0 / 32.0;   // step of the logged numbers, logged units (0 = none)
   double dropout_probability = 0.01;  // each sample is lost with this probability
   // Longer outages (a paused stream, a full queue): Poisson rate per second and length, seconds.
   double gap_rate_hz = 0.0;
@@ -43,9 +43,9 @@ struct LoggedLensSample {
 // The log over [t0_s, t1_s] (camera clock) of the lens trajectory `true_shift_px` (camera clock ->
 // published-image pixels). Same seed, same log; arrivals are non-decreasing in sample order.
 // Throws std::invalid_argument with the validate() sentence.
-std::vector<LoggedLensSample> simulateLensLog(const LensLogConfig& config,
-                                              const std::function<Eigen::Vector2d(double)>& true_shift_px,
-                                              double t0_s, double t1_s, std::uint32_t seed);
+std::vector<LoggedLensSample> simulateLensLog(
+    const LensLogConfig& config, const std::function<Eigen::Vector2d(double)>& true_shift_px,
+    double t0_s, double t1_s, std::uint32_t seed);
 
 }  // namespace sim
 }  // namespace deep_ois
