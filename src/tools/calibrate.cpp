@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "deep_ois/core/calibration/calibration_yaml.h"
+#include "deep_ois/core/calibration/lens_shift_log_calibration.h"
 #include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
 #include "deep_ois/ros/bag/calibration_bag_reader.h"
@@ -55,7 +56,8 @@ constexpr char kDescription[] =
 
 int main(int argc, char** argv) {
   std::string bag_path, out_path, rotation_text, ois = "off";
-  bool quiet = false, no_bias = false;
+  bool quiet = false, no_bias = false, lens_shift = false;
+  deep_ois::LensShiftLogCalibrationOptions lens_options;
   deep_ois::CalibrationBagOptions bag_options;
   deep_ois::CalibrationOptions options;
   deep_ois::ToolCommandLine command_line(
@@ -95,6 +97,16 @@ int main(int argc, char** argv) {
           ""))
       ->type_name("tf|r00,r01,...,r22");
   app.add_flag("--no-bias", no_bias, "hold the gyro bias at zero");
+  app.add_flag("--lens-shift", lens_shift,
+               "also estimate the camera's lens-shift log convention (clock offset, scale, axis "
+               "swap, signs) against the images; the bag needs the log (docs/lens_shift_logs.md)");
+  command_line
+      .addNumber("--lens-shift-max-offset", lens_options.max_abs_time_offset_s,
+                 "the lens log's clock offset is searched in [-this, +this], seconds")
+      ->type_name("SECONDS");
+  app.add_option("--lens-shift-topic", bag_options.topics.lens_shift_log, "lens-shift log topic")
+      ->capture_default_str()
+      ->type_name("TOPIC");
   command_line
       .addNumber("--max-offset", options.max_abs_time_offset_s,
                  "the time offset is searched in [-this, +this], seconds")
@@ -189,12 +201,39 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "  - %s\n", refusal.c_str());
       return 1;
     }
+    std::string lens_yaml;
+    if (lens_shift) {
+      const deep_ois::LensShiftLogCalibration lens =
+          deep_ois::calibrateLensShiftLog(bag.data, c, bag.lens_shift_log, lens_options);
+      const deep_ois::LensShiftLogConvention& lc = lens.convention;
+      std::printf("  lens-shift log (%zu samples on %s): %d row-patch observations, shift differences %.3f px RMS, "
+                  "residual %.3f px RMS\n",
+                  bag.lens_shift_log.size(), bag_options.topics.lens_shift_log.c_str(), lens.observations,
+                  lens.lens_motion_rms_px, lens.residual_rms_px);
+      if (!lens.ok) {
+        std::fprintf(stderr, "calibrate: refused, %s not written: lens-shift log: %s\n", out_path.c_str(),
+                     lens.problem.c_str());
+        return 1;
+      }
+      std::printf("    time offset %+.3f ms (camera = log stamp + it), scale %.4f, swap_xy %s, signs %+g %+g "
+                  "(free fit off this form by %.1f %%)\n",
+                  lc.time_offset_s * 1e3, lc.scale, lc.swap_xy ? "true" : "false", lc.sign_x, lc.sign_y,
+                  100.0 * lens.snap_error);
+      std::ostringstream yaml;
+      yaml << std::setprecision(9) << "# The camera's lens-shift log convention, estimated against the images ("
+           << lens.observations << " row-patch observations, residual " << std::setprecision(3)
+           << lens.residual_rms_px << " px RMS).\n"
+           << std::setprecision(9) << "lens_shift_scale: " << lc.scale << "\nlens_shift_swap_xy: "
+           << (lc.swap_xy ? "true" : "false") << "\nlens_shift_sign_x: " << lc.sign_x
+           << ".0\nlens_shift_sign_y: " << lc.sign_y << ".0\nlens_shift_time_offset: " << lc.time_offset_s << "\n";
+      lens_yaml = yaml.str();
+    }
     deep_ois::CalibrationProvenance provenance;
     provenance.source = bag_path;
     provenance.imu_frame_id = bag.imu_frame_id;
     provenance.camera_frame_id = bag.camera_frame_id;
     provenance.lens_shift = options.lens_shift;
-    deep_ois::writeTextFile(out_path, deep_ois::calibrationYaml(result, provenance));
+    deep_ois::writeTextFile(out_path, deep_ois::calibrationYaml(result, provenance) + lens_yaml);
     std::printf("wrote %s\nequivalent static transform:\n  %s\n", out_path.c_str(),
                 deep_ois::staticTransformCommand(c.imu_to_camera_rotation, bag.imu_frame_id,
                                                  bag.camera_frame_id)

@@ -47,6 +47,15 @@ int main(int argc, char** argv) {
   app.add_option("--frame-stamps", frame_stamps, "override the frame stamp list of the layout")
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
+  app.add_option("--lens-shift", files.lens_shift_csv,
+                 "the camera's lens-shift log, rows t,x,y[,cxx,cxy,cyy] (s on the frames' clock, "
+                 "shift as logged; docs/lens_shift_logs.md); default: lens_shift.txt of the layout "
+                 "when present")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE");
+  app.add_option("--lens-shift-topic", options.lens_shift_topic, "lens-shift log topic (deep_ois/LensShiftSample)")
+      ->capture_default_str()
+      ->type_name("TOPIC");
   app.add_option("--images", images, "override the image folder of the layout")
       ->check(deep_ois::existingDirectory())
       ->type_name("DIR");
@@ -112,6 +121,7 @@ int main(int argc, char** argv) {
     files.gyro_csv = layout.gyro_csv;
     files.frame_stamps = layout.frame_stamps;
     files.images_dir = layout.images_dir;
+    if (files.lens_shift_csv.empty()) files.lens_shift_csv = layout.lens_shift_csv;
   }
   if (!gyro.empty()) files.gyro_csv = gyro;
   if (!frame_stamps.empty()) files.frame_stamps = frame_stamps;
@@ -133,11 +143,11 @@ int main(int argc, char** argv) {
         deep_ois::writePhoneRecordingBag(files, out, options, progress);
     std::printf(
         "convert_recording: %s: %d frames (indices %d..%d, %d missing) %dx%d %s, stamps %u.%09u .. "
-        "%u.%09u s, %d IMU messages, %.1f s%s\n",
+        "%u.%09u s, %d IMU messages, %d lens-shift samples, %.1f s%s\n",
         out.c_str(), stats.frames, stats.first_frame_index, stats.last_frame_index,
         stats.skipped_frame_indices, stats.width_px, stats.height_px, stats.encoding.c_str(),
         stats.first_frame_stamp.sec, stats.first_frame_stamp.nsec, stats.last_frame_stamp.sec,
-        stats.last_frame_stamp.nsec, stats.imu_messages, bar ? bar->elapsedSeconds() : 0.0,
+        stats.last_frame_stamp.nsec, stats.imu_messages, stats.lens_shift_messages, bar ? bar->elapsedSeconds() : 0.0,
         stats.dropped_uncovered_frames > 0
             ? ("; dropped " + std::to_string(stats.dropped_uncovered_frames) +
                " frames the gyro does not cover")

@@ -162,6 +162,8 @@ int main(int argc, char** argv) {
     standard.solver.patch_count = options.gyro.rolling_shutter.patch_count;
     deep_ois::EvaluationRunner runner(options);
     runner.addMethods(deep_ois::standardAlignmentMethods(standard));
+    // The camera's own lens log, when the recordings have one: the exact OIS motion, no network.
+    if (deep_ois::recordingsHaveLensShiftLog(options)) runner.addMethod(deep_ois::gyroLensLogMethod());
     // The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow, over
     // each recording's pairs in order with the motion history, as the nodelet runs it.
 #ifdef DEEP_OIS_WITH_TORCH

@@ -89,11 +89,11 @@ int main(int argc, char** argv) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     std::printf(
         "simulate: %s: %s, OIS %s, seed %u, %d frames %dx%d, %d frame pairs with %d "
-        "correspondences, %d IMU samples, %d lens-shift samples, %.1f s%s\n",
+        "correspondences, %d IMU samples, %d lens-shift samples (truth), %d logged by the camera, %.1f s%s\n",
         out_path.c_str(), deep_ois::sim::toString(config.category),
         config.ois.enabled ? "on" : "off", seed, stats.frames, config.sensor.width_px,
         config.sensor.height_px, stats.frame_pairs, stats.correspondences, stats.imu_messages,
-        stats.lens_shift_messages, elapsed,
+        stats.lens_shift_messages, stats.lens_shift_log_messages, elapsed,
         stats.interrupted ? " (interrupted: the bag holds the frames written so far)" : "");
     return stats.interrupted ? 130 : 0;
   } catch (const std::exception& e) {

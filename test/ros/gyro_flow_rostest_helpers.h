@@ -8,6 +8,7 @@
 #pragma once
 
 #include <deep_ois/GyroFlow.h>
+#include <deep_ois/LensShiftSample.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -37,6 +38,7 @@ constexpr char kColorTopic[] = "/deep_ois/gyro_flow/color";
 constexpr char kImuTopic[] = "/sensors/imu";
 constexpr char kImageTopic[] = "/camera/image_raw";
 constexpr char kInfoTopic[] = "/camera/camera_info";
+constexpr char kLensShiftTopic[] = "/camera/lens_shift";  // the camera's lens log (remapped in .test)
 constexpr char kImuFrame[] = "imu_link";
 constexpr char kCameraFrame[] = "camera_optical_frame";
 
@@ -303,6 +305,7 @@ struct StreamEvent {
   sensor_msgs::ImuPtr imu;            // set for IMU events
   sensor_msgs::ImagePtr image;        // set, with info, for camera events
   sensor_msgs::CameraInfoPtr info;
+  LensShiftSamplePtr lens;            // set for lens-shift log events
 };
 
 inline void sortByPublishKey(std::vector<StreamEvent>& events) {
@@ -372,6 +375,7 @@ class GyroFlowHarness {
     imu_pub_ = nh.advertise<sensor_msgs::Imu>(kImuTopic, 4000);
     image_pub_ = nh.advertise<sensor_msgs::Image>(kImageTopic, 200);
     info_pub_ = nh.advertise<sensor_msgs::CameraInfo>(kInfoTopic, 200);
+    lens_pub_ = nh.advertise<LensShiftSample>(kLensShiftTopic, 4000);
     flow_sub_ = nh.subscribe(kFlowTopic, 1000, &GyroFlowHarness::flowCallback, this);
     if (subscribe_color) color_sub_ = nh.subscribe(kColorTopic, 1000, &GyroFlowHarness::colorCallback, this);
   }
@@ -425,6 +429,7 @@ class GyroFlowHarness {
       const ros::WallTime now = ros::WallTime::now();
       if (due > now) (due - now).sleep();
       if (event.imu) imu_pub_.publish(event.imu);
+      if (event.lens) lens_pub_.publish(event.lens);
       if (event.image) {
         image_pub_.publish(event.image);
         info_pub_.publish(event.info);
@@ -448,6 +453,7 @@ class GyroFlowHarness {
   }
 
   std::size_t imageSubscribers() const { return image_pub_.getNumSubscribers(); }
+  std::size_t lensShiftSubscribers() const { return lens_pub_.getNumSubscribers(); }
 
   std::vector<GyroFlowConstPtr> flows() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -468,7 +474,7 @@ class GyroFlowHarness {
     colors_.push_back(msg);
   }
 
-  ros::Publisher tf_pub_, imu_pub_, image_pub_, info_pub_;
+  ros::Publisher tf_pub_, imu_pub_, image_pub_, info_pub_, lens_pub_;
   ros::Subscriber flow_sub_, color_sub_;
   std::mutex mutex_;
   std::vector<GyroFlowConstPtr> flows_;

@@ -1,3 +1,4 @@
+#include <deep_ois/LensShiftSample.h>
 // The phone recording converter (convert_recording): a tiny hand-made recording written to a temp
 // folder, its malformed variants, and the real cc9pro recording when ../shared is present.
 #include <gtest/gtest.h>
@@ -181,6 +182,56 @@ TEST_F(TinyRecording, WritesTheTopicsOfARobotRecording) {
   EXPECT_LT((*sequence.imu_to_camera_rotation - cc9proImuToCameraRotation()).norm(), 1e-12);
   EXPECT_EQ(sequence.frame_stamps.size(), 4u);
   EXPECT_EQ(sequence.imu_samples.size(), 180u);
+}
+
+// A lens-shift CSV beside the gyro (lens_shift.txt of the layout): header, comment, rows with and
+// without covariance; written as deep_ois/LensShiftSample on the frames' clock plus the clock
+// offset, within the gyro's window around the frames; a malformed row names file and line.
+TEST_F(TinyRecording, LensShiftCsvBecomesTheLensShiftTopic) {
+  {
+    std::ofstream lens(dir_ + "/lens_shift.txt");
+    lens << "t_s,x,y\n# OisSample rows\n";
+    for (int k = 0; k < 250; ++k) {
+      lens << std::setprecision(18) << (kStartUs + 4000LL * k) * 1e-6 << "," << 0.25 * k << "," << -0.5 * k;
+      if (k % 2 == 1) lens << ",0.01,0.002,0.03";
+      lens << "\n";
+    }
+  }
+  files_ = cc9proLayout(dir_);
+  files_.camera_info = dir_ + "/camera.yaml";
+  ASSERT_EQ(files_.lens_shift_csv, dir_ + "/lens_shift.txt");
+  options_.clock_offset_s = 10.0;
+  const PhoneRecordingBagStats stats = writePhoneRecordingBag(files_, bag_path_, options_);
+  // Window [-200.06, 899.88] ms after the start: rows at 0, 4, .. 896 ms -> 225 rows.
+  EXPECT_EQ(stats.lens_shift_messages, 225);
+  rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+  int k = 0;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery("/camera/lens_shift"))) {
+    const auto sample = m.instantiate<LensShiftSample>();
+    ASSERT_TRUE(sample);
+    // Within the nanosecond: the CSV holds double seconds.
+    EXPECT_LE(std::abs((sample->header.stamp - fromMicroseconds(kStartUs + 4000LL * k + 10000000LL)).toNSec()), 1);
+    EXPECT_EQ(sample->header.frame_id, "camera_optical_frame");
+    EXPECT_DOUBLE_EQ(sample->x, 0.25 * k);
+    EXPECT_DOUBLE_EQ(sample->y, -0.5 * k);
+    if (k % 2 == 1) {
+      EXPECT_DOUBLE_EQ(sample->covariance[0], 0.01);
+      EXPECT_DOUBLE_EQ(sample->covariance[1], 0.002);
+      EXPECT_DOUBLE_EQ(sample->covariance[2], 0.002);
+      EXPECT_DOUBLE_EQ(sample->covariance[3], 0.03);
+    } else {
+      EXPECT_EQ(sample->covariance[0], -1.0);
+    }
+    ++k;
+  }
+  EXPECT_EQ(k, 225);
+  bag.close();
+
+  std::ofstream(dir_ + "/lens_shift.txt") << "t,x,y\n1.0,2,3\n1.1,2\n";
+  EXPECT_NE(conversionError().find("lens_shift.txt:3: expected 3 comma-separated fields"), std::string::npos)
+      << conversionError();
+  std::ofstream(dir_ + "/lens_shift.txt") << "1.0,2,3\n0.9,2,3\n";
+  EXPECT_NE(conversionError().find("lens_shift.txt:2"), std::string::npos) << conversionError();
 }
 
 TEST_F(TinyRecording, MonoImagesOffsetsTopicsAndFrames) {

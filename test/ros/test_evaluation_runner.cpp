@@ -4,6 +4,8 @@
 // without simulator truth. No roscore needed.
 #include <gtest/gtest.h>
 
+#include <iostream>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -206,6 +208,35 @@ TEST(EvaluationRunner, TwinsScoreOnlyTheNonOisGyroRowAndABrokenBagCostsOnlyItsel
   // The OIS problem: the gyro misses on the OIS camera and not on its twin.
   EXPECT_LT(table.mean(kGyroNonOisMethod, "RE"), 0.5 * table.mean(kGyroOisMethod, "RE"));
   EXPECT_NE(report.markdown().find("**not scored**: " + missing), std::string::npos);
+}
+
+// The "gyro + lens log" row: offered only when a bag holds the camera's lens log (the OIS bag, not
+// its twin); every pair covered; on the OIS camera it does what the twin's gyro does, where the
+// uncompensated gyro misses by pixels.
+TEST(EvaluationRunner, LensLogRowOnTheOisCameraMatchesTheTwinsGyro) {
+  const std::string ois = writeBag("eval_lens_ois", true, 0.5), twin = writeBag("eval_lens_twin", false, 0.5);
+  EXPECT_TRUE(recordingsHaveLensShiftLog(optionsFor({twin, ois})));
+  EXPECT_FALSE(recordingsHaveLensShiftLog(optionsFor({twin})));
+  EvaluationOptions without_log = optionsFor({ois});
+  without_log.gyro.use_lens_shift_log = false;
+  EXPECT_FALSE(recordingsHaveLensShiftLog(without_log));
+
+  EvaluationOptions options = optionsFor({ois, twin});
+  EvaluationRunner runner(options);
+  runner.addMethods(gyroMethods());
+  runner.addMethod(gyroLensLogMethod());
+  const EvaluationReport report = runner.run();
+  const EvaluationTable& table = report.table;
+  const std::size_t pairs = report.recordings[0].pairs_scored;
+  ASSERT_GE(pairs, 10u);
+  EXPECT_EQ(table.count(kGyroLensLogMethod, "RE"), pairs);
+  EXPECT_EQ(report.failure_reasons.count(kGyroLensLogMethod), 0u) << "a pair the log did not cover";
+  const double lens = table.mean(kGyroLensLogMethod, "RE"), twin_gyro = table.mean(kGyroNonOisMethod, "RE"),
+               ois_gyro = table.mean(kGyroOisMethod, "RE");
+  std::cout << "[ measured ] " << pairs << " pairs: gyro + lens log " << lens << " px, twin's gyro " << twin_gyro
+            << " px, OIS gyro uncompensated " << ois_gyro << " px\n";
+  EXPECT_LT(lens, 0.5 * ois_gyro);
+  EXPECT_LT(lens, 1.2 * twin_gyro);
 }
 
 // Writes an annotation file; returns its path.

@@ -11,6 +11,7 @@ const char* const kIdentityMethod = "identity";
 const char* const kGyroNonOisMethod = "gyro, non-OIS camera";
 const char* const kGyroOisMethod = "gyro, OIS camera (uncompensated)";
 const char* const kGyroMethod = "gyro";
+const char* const kGyroLensLogMethod = "gyro + lens log";
 const char* const kGlobalFundamentalMethod = "global F ground truth";
 const char* const kFundamentalMixturesMethod = "Fundamental Mixtures ground truth";
 
@@ -86,6 +87,15 @@ std::vector<AlignmentMethod> gyroMethods() {
   return {gyroMethod(kGyroNonOisMethod, kNonOisCameraPairs | kNonOisTwinPairs),
           gyroMethod(kGyroOisMethod, kOisCameraPairs),
           gyroMethod(kGyroMethod, kUnspecifiedCameraPairs)};
+}
+
+AlignmentMethod gyroLensLogMethod() {
+  return {kGyroLensLogMethod, kOisCameraPairs, [](const FramePairContext& pair) {
+            if (pair.lens_log_homographies.empty()) {
+              return AlignmentEstimate::failed("the recording's lens-shift log does not cover the pair");
+            }
+            return AlignmentEstimate::patchHomographies(pair.lens_log_homographies);
+          }};
 }
 
 std::vector<AlignmentMethod> featureHomographyMethods(const FeatureHomographyOptions& options) {

@@ -114,6 +114,50 @@ std::vector<ImuSample> loadGyroCsv(const std::string& path) {
   return parseGyroCsv(in, path);
 }
 
+std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::string& source_name) {
+  static const char* const kFieldNames[] = {"t (s)", "x", "y", "cxx", "cxy", "cyy"};
+  std::vector<LensShiftLogSample> samples;
+  std::string text;
+  int line = 0;
+  int previous_line = 0;
+  while (std::getline(in, text)) {
+    ++line;
+    const std::string trimmed = trim(text);
+    if (trimmed.empty() || trimmed.front() == '#') continue;
+    if (samples.empty() && previous_line == 0 && std::isalpha(static_cast<unsigned char>(trimmed.front()))) {
+      previous_line = -1;  // the header; only one
+      continue;
+    }
+    std::vector<std::string> fields;
+    std::stringstream row(text);
+    std::string field;
+    while (std::getline(row, field, ',')) fields.push_back(field);
+    if (trimmed.back() == ',') fields.emplace_back();
+    if (fields.size() != 3 && fields.size() != 6) {
+      throw RecordingFormatError(source_name, line,
+                                 "expected 3 comma-separated fields t,x,y (or 6 with the covariance "
+                                 "cxx,cxy,cyy), got " + std::to_string(fields.size()));
+    }
+    double values[6] = {0, 0, 0, 0, 0, 0};
+    for (std::size_t k = 0; k < fields.size(); ++k) values[k] = parseNumber(fields[k], kFieldNames[k], source_name, line);
+    LensShiftLogSample sample;
+    sample.stamp_s = values[0];
+    sample.logged = Eigen::Vector2d(values[1], values[2]);
+    if (fields.size() == 6) sample.covariance = (Eigen::Matrix2d() << values[3], values[4], values[4], values[5]).finished();
+    if (!samples.empty()) checkIncreasing(sample.stamp_s, samples.back().stamp_s, previous_line, source_name, line);
+    samples.push_back(sample);
+    previous_line = line;
+  }
+  if (in.bad()) throw RecordingFormatError(source_name, line + 1, "read error");
+  if (samples.empty()) throw RecordingFormatError(source_name, 0, "no lens-shift samples");
+  return samples;
+}
+
+std::vector<LensShiftLogSample> loadLensShiftCsv(const std::string& path) {
+  std::ifstream in = openOrThrow(path);
+  return parseLensShiftCsv(in, path);
+}
+
 std::vector<double> parseFrameStamps(std::istream& in, const std::string& source_name) {
   std::vector<double> stamps;
   std::string text;

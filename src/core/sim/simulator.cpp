@@ -67,5 +67,11 @@ std::vector<LensShiftSample> Simulator::lensShiftSamples() const {
   return samples;
 }
 
+std::vector<LoggedLensSample> Simulator::lensShiftLog() const {
+  if (!config_.ois.enabled || !config_.lens_log.enabled) return {};
+  const double end = frameStamp(frame_count_ - 1) + config_.sensor.readout_time_s + config_.sensor.exposure_time_s;
+  return simulateLensLog(config_.lens_log, [this](double t) { return ois_->lensShift(t); }, -0.05, end, subSeed(6));
+}
+
 }  // namespace sim
 }  // namespace deep_ois

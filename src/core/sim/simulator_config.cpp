@@ -16,7 +16,7 @@ namespace sim {
 std::string SimulatorConfig::validate() const {
   const std::pair<const char*, std::string> sections[] = {
       {"sensor", sensor.validate()}, {"motion", motion.validate()}, {"ois", ois.validate()},
-      {"imu", imu.validate()},       {"scene", scene.validate()},
+      {"imu", imu.validate()},       {"scene", scene.validate()}, {"lens_log", lens_log.validate()},
   };
   for (const auto& [name, problem] : sections) {
     if (!problem.empty()) return std::string(name) + ": " + problem;
@@ -130,7 +130,7 @@ void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
     }
     if (!root.IsMap()) throw std::runtime_error("top level must be a mapping");
     static const char* kSections[] = {"category", "sensor", "motion", "ois", "imu",
-                                      "scene", "ground_truth", "frames"};
+                                      "scene", "ground_truth", "lens_log", "frames"};
     for (const auto& entry : root) {
       const std::string key = entry.first.as<std::string>();
       if (std::find(std::begin(kSections), std::end(kSections), key) == std::end(kSections)) {
@@ -237,6 +237,23 @@ void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
         .read("min_correspondences", gt.min_correspondences)
         .read("max_correspondences", gt.max_correspondences)
         .read("lens_shift_rate_hz", gt.lens_shift_rate_hz)
+        .finish();
+
+    LensLogConfig& ll = config.lens_log;
+    SectionReader(root, "lens_log")
+        .read("enabled", ll.enabled)
+        .read("rate_hz", ll.rate_hz)
+        .read("latency_s", ll.latency_s)
+        .read("noise_px", ll.noise_px)
+        .read("quantisation", ll.quantisation)
+        .read("dropout_probability", ll.dropout_probability)
+        .read("gap_rate_hz", ll.gap_rate_hz)
+        .read("gap_duration_s", ll.gap_duration_s)
+        .read("scale", ll.convention.scale)
+        .read("swap_xy", ll.convention.swap_xy)
+        .read("sign_x", ll.convention.sign_x)
+        .read("sign_y", ll.convention.sign_y)
+        .read("time_offset_s", ll.convention.time_offset_s)
         .finish();
 
     SectionReader(root, "frames")

@@ -1,5 +1,6 @@
 #include "deep_ois/ros/bag/bag_sequence.h"
 
+#include <deep_ois/LensShiftSample.h>
 #include <ros/exception.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
@@ -50,7 +51,8 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
     // such ties arbitrarily and hop between the two chunks, decompressing each chunk about twice
     // (measured on the simulator's bz2 bags); the bag caches one decompressed chunk.
     rosbag::View others(bag, rosbag::TopicQuery({topics.camera_info, topics.imu,
-                                                 topics.frame_pair_truth, std::string("/tf_static")}));
+                                                 topics.frame_pair_truth, topics.lens_shift_log,
+                                                 std::string("/tf_static")}));
     std::unique_ptr<rosbag::View> images;
     if (frames) images = std::make_unique<rosbag::View>(bag, rosbag::TopicQuery(topics.image));
     rosbag::View::iterator other = others.begin(), image_it;
@@ -107,6 +109,17 @@ BagSequence readBagSequence(const std::string& path, const BagSequenceTopics& to
           sequence.camera_frame_id = info->header.frame_id;
         }
         sequence.frame_stamps.push_back(info->header.stamp);
+      } else if (m.getTopic() == topics.lens_shift_log) {
+        const auto lens = m.instantiate<LensShiftSample>();
+        if (!lens) fail(topics.lens_shift_log + ": not a deep_ois/LensShiftSample");
+        LensShiftLogSample sample;
+        sample.stamp_s = (lens->header.stamp - sequence.time_base).toSec();
+        sample.logged = Eigen::Vector2d(lens->x, lens->y);
+        if (lens->covariance[0] >= 0.0) {
+          sample.covariance = (Eigen::Matrix2d() << lens->covariance[0], lens->covariance[1], lens->covariance[2],
+                               lens->covariance[3]).finished();
+        }
+        sequence.lens_shift_log.push_back(sample);
       } else if (m.getTopic() == topics.frame_pair_truth) {
         const auto truth = m.instantiate<FramePairTruth>();
         if (truth) sequence.truths.push_back(*truth);

@@ -25,6 +25,7 @@ CalibrationBag readCalibrationBag(const std::string& path, const CalibrationBagO
   out.camera_frame_id = sequence.camera_frame_id;
   out.tf_imu_to_camera_rotation = sequence.imu_to_camera_rotation;
   if (!sequence.truths.empty()) out.simulated_ois_enabled = sequence.truths.front().ois_enabled;
+  out.lens_shift_log = sequence.lens_shift_log;
 
   const FeatureTracker tracker(options.corners, options.klt);
   const cv::Size camera_size(out.data.camera.width(), out.data.camera.height());

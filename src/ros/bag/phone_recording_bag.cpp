@@ -2,6 +2,7 @@
 
 #include <camera_calibration_parsers/parse.h>
 #include <cv_bridge/cv_bridge.h>
+#include <deep_ois/LensShiftSample.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/image_encodings.h>
@@ -113,6 +114,7 @@ PhoneRecordingFiles cc9proLayout(const std::string& directory) {
   files.gyro_csv = directory + "/gyro.txt";
   files.frame_stamps = directory + "/framestamp.txt";
   files.images_dir = directory + "/frames";
+  if (std::ifstream(directory + "/lens_shift.txt").good()) files.lens_shift_csv = directory + "/lens_shift.txt";
   return files;
 }
 
@@ -133,6 +135,8 @@ PhoneRecordingBagStats writePhoneRecordingBag(const PhoneRecordingFiles& files, 
   const std::vector<double> stamps_s = loadFrameStamps(files.frame_stamps);
   std::vector<FrameImageFile> images = listFrameImages(files.images_dir);
   sensor_msgs::CameraInfo info = loadCameraInfo(files.camera_info);
+  const std::vector<LensShiftLogSample> lens_log =
+      files.lens_shift_csv.empty() ? std::vector<LensShiftLogSample>{} : loadLensShiftCsv(files.lens_shift_csv);
   // Numbering first, as a whole: image files numbered from 1 against a stamp list whose line 0
   // is frame 0 would otherwise pair every image with the previous frame's stamp, unnoticed until
   // the last image finds no line.
@@ -256,6 +260,22 @@ PhoneRecordingBagStats writePhoneRecordingBag(const PhoneRecordingFiles& files, 
     }
     for (; next_imu < imu.size(); ++next_imu) {
       bag.write(options.imu_topic, imu[next_imu].header.stamp, imu[next_imu]);
+    }
+    // The lens log (a bag's index orders the messages by time, whatever the write order).
+    for (const LensShiftLogSample& sample : lens_log) {
+      if (sample.stamp_s < first_frame_s - options.imu_margin_s) continue;
+      if (sample.stamp_s > last_frame_s + options.imu_margin_s) break;
+      LensShiftSample msg;
+      msg.header.stamp = toRosTime(sample.stamp_s, options.clock_offset_s);
+      msg.header.frame_id = options.camera_frame_id;
+      msg.x = sample.logged.x();
+      msg.y = sample.logged.y();
+      msg.covariance = {-1.0, 0.0, 0.0, 0.0};
+      if (sample.covariance) {
+        for (int i = 0; i < 4; ++i) msg.covariance[i] = (*sample.covariance)(i / 2, i % 2);
+      }
+      bag.write(options.lens_shift_topic, msg.header.stamp, msg);
+      ++stats.lens_shift_messages;
     }
     stats.imu_messages = static_cast<int>(imu.size());
     stats.width_px = static_cast<int>(info.width);

@@ -344,9 +344,17 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     countDrop("gyro flow and frames of different sizes");
     return;
   }
+  // A flow made with the camera's lens-shift log is already the OIS camera's motion: published as
+  // it is. The network's motion history holds gyro flows, so it restarts at the next pair without
+  // the log (as at the start of a stream) rather than mixing in lens-corrected ones; a stabiliser
+  // model keeps following the gyro stream.
   cv::Mat compensated;
   std::vector<Eigen::Matrix3d> compensated_homographies;  // the stabiliser model's, else empty
-  if (stabiliser_) {
+  if (gyro.motion_model == GyroFlow::MOTION_GYRO_LENS_LOG) {
+    if (stream_) stream_->reset();
+    if (stabiliser_) stabiliser_->observe(gyro);
+    compensated = gyro_flow.clone();
+  } else if (stabiliser_) {
     if (!checkStabiliserCamera(gyro)) {
       countDrop("stabiliser model trained for another camera (~require_matching_camera)");
       return;

@@ -113,6 +113,20 @@ GyroFlowParameters loadGyroFlowParameters(const ParameterSource& nh) {
   if (p.image_queue_size < 1 || p.imu_queue_size < 1) {
     reject(nh, "image_queue_size/imu_queue_size", "must be at least 1");
   }
+
+  p.use_lens_shift_log = nh.param("use_lens_shift_log", true);
+  LensShiftLogConvention& lens = p.lens_shift_convention;
+  lens.scale = nh.param("lens_shift_scale", 1.0);
+  lens.swap_xy = nh.param("lens_shift_swap_xy", false);
+  lens.sign_x = nh.param("lens_shift_sign_x", 1.0);
+  lens.sign_y = nh.param("lens_shift_sign_y", 1.0);
+  lens.time_offset_s = nh.param("lens_shift_time_offset", 0.0);
+  const std::string lens_problem = lens.validate();
+  if (!lens_problem.empty()) reject(nh, "lens_shift_" + lens_problem.substr(0, lens_problem.find(' ')), lens_problem);
+  p.lens_shift_max_gap_s = positiveSeconds(nh, "lens_shift_max_gap", 0.02);
+  p.lens_shift_wait_timeout_s = positiveSeconds(nh, "lens_shift_wait_timeout", 0.2);
+  p.lens_shift_queue_size = nh.param("lens_shift_queue_size", 1000);
+  if (p.lens_shift_queue_size < 1) reject(nh, "lens_shift_queue_size", "must be at least 1");
   return p;
 }
 

@@ -11,6 +11,7 @@
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
+#include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
 
@@ -43,7 +44,8 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       log_name_(private_nh.getNamespace()),
       params_(loadGyroFlowParameters(private_nh)),
       it_(nh),
-      imu_buffer_(params_.imu_buffer_duration_s) {
+      imu_buffer_(params_.imu_buffer_duration_s),
+      lens_log_(params_.lens_shift_max_gap_s, params_.lens_shift_convention) {
   if (params_.rotation_from_tf) {
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_, nh_);
   }
@@ -85,6 +87,7 @@ GyroFlowRos::~GyroFlowRos() {
   imu_sub_.shutdown();
   camera_sub_.shutdown();
   info_sub_.shutdown();
+  lens_sub_.shutdown();
 }
 
 void GyroFlowRos::connectCallback() {
@@ -96,6 +99,7 @@ void GyroFlowRos::connectCallback() {
     imu_sub_.shutdown();
     camera_sub_.shutdown();
     info_sub_.shutdown();
+    lens_sub_.shutdown();
     resetState("");  // a later subscriber starts from fresh data
   } else if (wanted && !subscribed) {
     const image_transport::TransportHints hints("raw", ros::TransportHints(), private_nh_);
@@ -113,6 +117,10 @@ void GyroFlowRos::connectCallback() {
     }
     imu_sub_ = nh_.subscribe("imu", params_.imu_queue_size, &GyroFlowRos::imuCallback, this,
                              ros::TransportHints().tcpNoDelay());
+    if (params_.use_lens_shift_log) {
+      lens_sub_ = nh_.subscribe("lens_shift", params_.lens_shift_queue_size, &GyroFlowRos::lensShiftCallback,
+                                this, ros::TransportHints().tcpNoDelay());
+    }
   }
 }
 
@@ -130,6 +138,7 @@ void GyroFlowRos::resetState(const std::string& why) {
     ROS_WARN_NAMED("gyro_flow", "%s: %s: clearing IMU buffer and frame history", log_name_.c_str(), why.c_str());
   }
   imu_buffer_.clear();
+  lens_log_.clear();
   pending_frames_.clear();
   previous_.reset();
   // The IMU-to-camera rotation is kept (it is keyed by the two frame ids): the mount is rigid, and
@@ -178,6 +187,42 @@ void GyroFlowRos::handleImu(const sensor_msgs::ImuConstPtr& imu) {
     return;
   }
   imu_frame_id_ = frame_id;
+  processPendingFrames();
+}
+
+void GyroFlowRos::lensShiftCallback(const LensShiftSampleConstPtr& sample) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  runGuarded("gyro_flow", log_name_, lens_sub_.getTopic(), errors_, [&] { handleLensShift(sample); });
+  reportSkips();
+}
+
+void GyroFlowRos::handleLensShift(const LensShiftSampleConstPtr& sample) {
+  checkRosTimeJump();
+  last_lens_arrival_ = ros::Time::now();
+  secondsSinceBase(sample->header.stamp);  // sets the time base on the first message
+  LensShiftLogSample logged;
+  logged.stamp_s = (sample->header.stamp - *time_base_).toSec();
+  logged.logged = Eigen::Vector2d(sample->x, sample->y);
+  if (sample->covariance[0] >= 0.0) {
+    logged.covariance = (Eigen::Matrix2d() << sample->covariance[0], sample->covariance[1],
+                         sample->covariance[2], sample->covariance[3]).finished();
+  }
+  // A log that starts over (a bag loop, a camera restart) replaces the old one.
+  if (!lens_log_.empty() &&
+      logged.stamp_s < lens_log_.samples().back().stamp_s - params_.time_jump_reset_s) {
+    ROS_WARN_NAMED("gyro_flow", "%s: stamps on %s jumped backwards by %.3f s: clearing the lens-shift log",
+                   log_name_.c_str(), lens_sub_.getTopic().c_str(),
+                   lens_log_.samples().back().stamp_s - logged.stamp_s);
+    lens_log_.clear();
+  }
+  const LensShiftAddResult added = lens_log_.add(logged);
+  if (!added.accepted()) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: dropping lens-shift sample on %s: %s",
+                            log_name_.c_str(), lens_sub_.getTopic().c_str(), added.reason.c_str());
+    return;
+  }
+  // Bounded memory: as much history as the IMU buffer keeps.
+  lens_log_.dropBefore(lens_log_.newestStampS() - params_.imu_buffer_duration_s);
   processPendingFrames();
 }
 
@@ -280,7 +325,10 @@ void GyroFlowRos::cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info
 void GyroFlowRos::processPendingFrames() {
   while (!pending_frames_.empty()) {
     const Frame& frame = pending_frames_.front();
-    if (previous_ && processFrame(frame) == Outcome::kWaitForImu) return;
+    if (previous_) {
+      const Outcome outcome = processFrame(frame);
+      if (outcome == Outcome::kWaitForImu || outcome == Outcome::kWaitForLensLog) return;
+    }
     // Published or dropped, this frame is the earlier frame of the next pair.
     if (previous_) {
       recent_intervals_s_.push_back((frame.stamp - previous_->stamp).toSec());
@@ -399,11 +447,30 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     skipPair("flow spanning " + std::to_string(spans) + " frame intervals (published)");
   }
 
+  // The lens log, when the camera has one: wait while it may still come (a phone delivers it with
+  // the capture result, after the frame), then use it if it covers the pair, else the gyro alone.
+  // The wait is bounded per frame, so a log on a wrong clock delays pairs but never drops them.
+  std::vector<Eigen::Matrix3d> homographies = result.homographies;
+  bool with_lens_log = false;
+  if (params_.use_lens_shift_log && !lens_log_.empty()) {
+    lens_log_.setConvention(params_.lens_shift_convention);
+    const LensLogInterval needed =
+        lensLogInterval(config, secondsSinceBase(previous.stamp), secondsSinceBase(frame.stamp));
+    const ros::Time now = ros::Time::now();
+    const double waited_s = (now - frame.received).toSec();
+    const double lens_quiet_s = (now - last_lens_arrival_).toSec();
+    if (lens_log_.newestStampS() < needed.end_s &&
+        waited_s < params_.lens_shift_wait_timeout_s && lens_quiet_s < params_.lens_shift_wait_timeout_s) {
+      return Outcome::kWaitForLensLog;
+    }
+    with_lens_log = lensLogHomographiesFor(previous, frame, config, result.rotations, homographies);
+  }
+
   if (!renderer_ || !renderer_->compatible(frame.camera, params_.grid_size, config.patch_count)) {
     renderer_ = std::make_unique<HomographyFlowRenderer>(frame.camera, params_.grid_size, config.patch_count);
   }
   cv::Mat flow;
-  renderer_->render(result.homographies, flow);
+  renderer_->render(homographies, flow);
 
   GyroFlowMetadata metadata;
   metadata.header.stamp = frame.stamp;
@@ -426,7 +493,8 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   }
   if (flow_pub_.getNumSubscribers() > 0) {
     auto msg = boost::make_shared<GyroFlow>();
-    fillGyroFlowMsg(metadata, result.homographies, flow, *msg);
+    fillGyroFlowMsg(metadata, homographies, flow, *msg);
+    msg->motion_model = with_lens_log ? GyroFlow::MOTION_GYRO_LENS_LOG : GyroFlow::MOTION_GYRO;
     flow_pub_.publish(msg);
   }
   if (color_pub_.getNumSubscribers() > 0) {
@@ -439,6 +507,37 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   diagnostics_->latency((ros::Time::now() - frame.stamp).toSec());
   ++flows_in_window_;
   return Outcome::kPublished;
+}
+
+bool GyroFlowRos::lensLogHomographiesFor(const Frame& previous, const Frame& frame, const RollingShutterConfig& config,
+                                         const std::vector<Eigen::Matrix3d>& rotations,
+                                         std::vector<Eigen::Matrix3d>& homographies) {
+  const double stamp_a_s = secondsSinceBase(previous.stamp), stamp_b_s = secondsSinceBase(frame.stamp);
+  const std::optional<std::vector<Eigen::Matrix3d>> lens =
+      lensLogHomographies(frame.camera.K(), rotations, lens_log_, config, stamp_a_s, stamp_b_s);
+  if (lens) {
+    homographies = *lens;
+    ++lens_log_pairs_;
+    diagnostics_->setValue("pairs with the lens-shift log", std::to_string(lens_log_pairs_));
+    // The next pair starts at this frame: older samples are not needed any more.
+    lens_log_.dropBefore(lensLogInterval(config, stamp_a_s, stamp_b_s).begin_s);
+    return true;
+  }
+  ++lens_fallback_pairs_;
+  diagnostics_->setValue("pairs the lens-shift log did not cover", std::to_string(lens_fallback_pairs_));
+  const LensLogInterval needed = lensLogInterval(config, stamp_a_s, stamp_b_s);
+  const std::string why = lens_log_.newestStampS() < needed.end_s    ? "the log stopped before the pair's last row"
+                          : lens_log_.oldestStampS() > needed.begin_s ? "the log starts after the pair's first row"
+                                                                      : "a gap longer than ~lens_shift_max_gap " +
+                                                                            std::to_string(params_.lens_shift_max_gap_s) + " s";
+  ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                          "%s: the lens-shift log on %s does not cover frames %.6f -> %.6f (%s): gyro "
+                          "homographies without the lens for this pair (motion_model '%s'; %zu such pair(s) since "
+                          "start, %zu with the log)",
+                          log_name_.c_str(), lens_sub_.getTopic().c_str(), previous.stamp.toSec(),
+                          frame.stamp.toSec(), why.c_str(),
+                          GyroFlow::MOTION_GYRO.c_str(), lens_fallback_pairs_, lens_log_pairs_);
+  return false;
 }
 
 void GyroFlowRos::skipPair(const std::string& reason) {

@@ -22,6 +22,7 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
@@ -69,6 +70,9 @@ struct Recording {
   ImuSampleBuffer imu{1.0};
   RollingShutterConfig rolling_shutter;
   std::unique_ptr<HomographyFlowRenderer> flow_renderer;
+  // The camera's lens-shift log with the gyro flow config's convention; empty without one.
+  std::optional<LensShiftLog> lens_log;
+  std::size_t lens_log_refused = 0;  // samples the log refused (out of order, duplicate, non-finite)
   double reading_s = 0.0;  // wall time of loadRecording
 };
 
@@ -105,6 +109,12 @@ std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& p
     recording->rolling_shutter.imu_to_camera_rotation = *sequence.imu_to_camera_rotation;
   }
   recording->imu = sequence.imuBuffer();
+  if (options.gyro.use_lens_shift_log && !sequence.lens_shift_log.empty()) {
+    recording->lens_log.emplace(options.gyro.lens_shift_max_gap_s, options.gyro.lens_shift_convention);
+    for (const LensShiftLogSample& sample : sequence.lens_shift_log) {
+      if (!recording->lens_log->add(sample).accepted()) ++recording->lens_log_refused;
+    }
+  }
   recording->flow_renderer = std::make_unique<HomographyFlowRenderer>(
       camera, options.gyro.grid_size, recording->rolling_shutter.patch_count);
   recording->reading_s = secondsSince(started);
@@ -112,6 +122,14 @@ std::unique_ptr<Recording> loadRecording(std::size_t index, const std::string& p
 }
 
 }  // namespace
+
+bool recordingsHaveLensShiftLog(const EvaluationOptions& options) {
+  if (!options.gyro.use_lens_shift_log) return false;
+  for (const std::string& path : options.bags) {
+    if (indexedCount(path, options.topics.lens_shift_log) > 0) return true;
+  }
+  return false;
+}
 
 std::string EvaluationOptions::validate() const {
   if (bags.empty()) return "bags: at least one bag is needed";
@@ -201,6 +219,13 @@ EvaluationReport EvaluationRunner::run() {
       auto fail = [&](const std::string& what) {
         throw std::runtime_error(recording.path + ": " + what);
       };
+
+      if (recording.lens_log_refused > 0) {
+        report.errors.push_back(recording.path + ": " + std::to_string(recording.lens_log_refused) + " of " +
+                                std::to_string(sequence.lens_shift_log.size()) + " samples on " +
+                                options_.topics.lens_shift_log +
+                                " refused (out of order, duplicate or non-finite); the rest is used");
+      }
 
       // ---- The pairs to score. ----
       std::vector<PairToScore> pairs;
@@ -334,6 +359,13 @@ EvaluationReport EvaluationRunner::run() {
         context.rolling_shutter = &recording.rolling_shutter;
         context.stamp_a_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns));
         context.stamp_b_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns));
+        if (recording.lens_log) {
+          std::optional<std::vector<Eigen::Matrix3d>> lens = lensLogHomographies(
+              camera.K(), gyro.rotations, *recording.lens_log, recording.rolling_shutter,
+              sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns)),
+              sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns)));
+          if (lens) context.lens_log_homographies = std::move(*lens);
+        }
         recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
         context.points_a_px = pair.points_a_px;
         context.points_b_px = pair.points_b_px;

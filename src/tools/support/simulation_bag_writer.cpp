@@ -3,6 +3,7 @@
 #include <cv_bridge/cv_bridge.h>
 #include <deep_ois/FramePairTruth.h>
 #include <deep_ois/LensShift.h>
+#include <deep_ois/LensShiftSample.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/distortion_models.h>
@@ -73,6 +74,23 @@ SimulationBagStats writeSimulationBag(const sim::Simulator& simulator, const std
     stream.push_back({shift.header.stamp, [&bag, &topics, &stats, shift] {
                         bag.write(topics.lens_shift, shift.header.stamp, shift);
                         ++stats.lens_shift_messages;
+                      }});
+  }
+  // The camera's lens log: header stamp on the log's clock, bag time when it was delivered.
+  for (const sim::LoggedLensSample& logged : simulator.lensShiftLog()) {
+    LensShiftSample sample;
+    sample.header.stamp = toRosTime(epoch, logged.sample.stamp_s);
+    sample.header.frame_id = config.camera_frame_id;
+    sample.x = logged.sample.logged.x();
+    sample.y = logged.sample.logged.y();
+    sample.covariance = {-1.0, 0.0, 0.0, 0.0};
+    if (logged.sample.covariance) {
+      for (int i = 0; i < 4; ++i) sample.covariance[i] = (*logged.sample.covariance)(i / 2, i % 2);
+    }
+    const ros::Time arrival = toRosTime(epoch, logged.arrival_s);
+    stream.push_back({arrival, [&bag, &topics, &stats, sample, arrival] {
+                        bag.write(topics.lens_shift_log, arrival, sample);
+                        ++stats.lens_shift_log_messages;
                       }});
   }
   std::stable_sort(stream.begin(), stream.end(),

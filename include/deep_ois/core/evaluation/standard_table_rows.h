@@ -20,6 +20,7 @@ extern const char* const kIdentityMethod;    // "identity"
 extern const char* const kGyroNonOisMethod;  // "gyro, non-OIS camera"
 extern const char* const kGyroOisMethod;     // "gyro, OIS camera (uncompensated)"
 extern const char* const kGyroMethod;        // "gyro" (recordings whose OIS state is not given)
+extern const char* const kGyroLensLogMethod;  // "gyro + lens log" (OIS cameras that log their lens)
 extern const char* const kGlobalFundamentalMethod;    // "global F ground truth"
 extern const char* const kFundamentalMixturesMethod;  // "Fundamental Mixtures ground truth"
 
@@ -40,6 +41,10 @@ AlignmentMethod identityMethod();
 // for its own pairs: non-OIS (annotated non-OIS recordings and the simulator's twins), OIS camera,
 // and unspecified.
 std::vector<AlignmentMethod> gyroMethods();
+// The gyro flow nodelet's homographies with the camera's lens-shift log (OIS camera pairs); a pair
+// the log does not cover is a failure (scored as identity and counted). Not among the standard
+// rows: the evaluate tool adds it when a recording has a log.
+AlignmentMethod gyroLensLogMethod();
 // "<DETECTOR> + <ESTIMATOR>" for SIFT, ORB, AKAZE x RANSAC, MAGSAC; the two estimators of one
 // detector share its features and matches (computed once per pair, each frame described once).
 std::vector<AlignmentMethod> featureHomographyMethods(const FeatureHomographyOptions& options);

@@ -60,6 +60,10 @@ struct FramePairContext {
   const RollingShutterConfig* rolling_shutter = nullptr;
   double stamp_a_s = 0.0, stamp_b_s = 0.0;
   std::vector<Eigen::Matrix3d> gyro_rotations;
+  // The gyro flow nodelet's homographies with the camera's lens-shift log,
+  // K(s(t_b)) R K(s(t_a))^-1 per patch, when the recording has a log that covers the pair; empty
+  // otherwise (core/ois/lens_shift_homographies.h).
+  std::vector<Eigen::Matrix3d> lens_log_homographies;
   // The correspondences the pair is scored on (raw pixels). Methods other than references must
   // not use them.
   std::vector<Eigen::Vector2d> points_a_px, points_b_px;

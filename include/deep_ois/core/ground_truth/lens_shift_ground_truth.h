@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "deep_ois/core/camera/camera_model.h"
+// lensShiftHomographies, the motion the trajectory estimated here implies.
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/vision/feature_tracker.h"
 

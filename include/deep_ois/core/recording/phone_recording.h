@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/ois/lens_shift_log.h"
 
 namespace deep_ois {
 
@@ -30,6 +31,15 @@ class RecordingFormatError : public std::runtime_error {
 // `source_name` only labels error messages. Throws RecordingFormatError.
 std::vector<ImuSample> parseGyroCsv(std::istream& in, const std::string& source_name);
 std::vector<ImuSample> loadGyroCsv(const std::string& path);
+
+// The camera's lens-shift log (docs/lens_shift_logs.md), rows `t,x,y` or `t,x,y,cxx,cxy,cyy`: the
+// sample time in seconds on the frames' clock (Android: OisSample.getTimestampNanos() / 1e9, the
+// SENSOR_TIMESTAMP clock), the shift as logged (OisSample.getXshift(), getYshift(): pixels of the
+// active array) and optionally its covariance (logged units squared). A first line that starts
+// with a letter is a header; blank lines and lines starting with '#' are skipped. Stamps must be
+// finite and strictly increasing. Throws RecordingFormatError.
+std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::string& source_name);
+std::vector<LensShiftLogSample> loadLensShiftCsv(const std::string& path);
 
 // Frame stamps, one start-of-frame time in seconds per line; line i (0-based) is frame i, so blank
 // lines are allowed only at the end. Stamps must be finite and strictly increasing. Throws

@@ -43,6 +43,10 @@ class Simulator {
   // IMU samples covering every frame pair with margin (IMU clock).
   const std::vector<ImuMeasurement>& imu() const { return imu_; }
   std::vector<LensShiftSample> lensShiftSamples() const;
+  // The camera's own lens-shift log (config.lens_log) over the same span as lensShiftSamples;
+  // empty for a camera without OIS or with lens_log.enabled false. The same seed gives the same
+  // log; a twin with OIS off has none.
+  std::vector<LoggedLensSample> lensShiftLog() const;
 
   const SimCamera& camera() const { return *camera_; }
   const Scene& scene() const { return scene_; }

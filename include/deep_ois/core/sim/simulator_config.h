@@ -6,6 +6,7 @@
 
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/imu_model.h"
+#include "deep_ois/core/sim/lens_log_model.h"
 #include "deep_ois/core/sim/ois_model.h"
 #include "deep_ois/core/sim/scene.h"
 #include "deep_ois/core/sim/sim_camera.h"
@@ -28,6 +29,8 @@ struct SimulatorConfig {
   ImuConfig imu;
   SceneConfig scene;
   GroundTruthConfig ground_truth;
+  // The camera's own lens-shift log (published beside the truth; OIS cameras only).
+  LensLogConfig lens_log;
   // Frame ids of the bag (the IMU and the camera optical frame).
   std::string imu_frame_id = "imu_link";
   std::string camera_frame_id = "camera_optical_frame";
@@ -38,7 +41,7 @@ struct SimulatorConfig {
 };
 
 // Reads a YAML file whose sections mirror SimulatorConfig (category, sensor, motion, ois, imu,
-// scene, ground_truth, frames), then each overlay file over it in order (e.g. a stabiliser module
+// scene, ground_truth, lens_log, frames), then each overlay file over it in order (e.g. a stabiliser module
 // and a camera of config/simulator/modules/ over a category file): keys a file holds replace the
 // values before it, missing keys keep them (or the defaults). Throws std::runtime_error with
 // "<file>: <section.field>: <problem>" for an unknown key, a wrong type or an invalid value.

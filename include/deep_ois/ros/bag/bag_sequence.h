@@ -13,6 +13,7 @@
 
 #include "deep_ois/core/camera/camera_model.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/ois/lens_shift_log.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
 
 namespace deep_ois {
@@ -22,6 +23,7 @@ struct BagSequenceTopics {
   std::string camera_info = "/camera/camera_info";
   std::string imu = "/imu/data";
   std::string frame_pair_truth = "/ground_truth/frame_pair";
+  std::string lens_shift_log = "/camera/lens_shift";  // the camera's own lens log, if it has one
 };
 
 // What readBagSequence does when a message cannot be read part-way through an indexed bag (a
@@ -50,6 +52,9 @@ struct BagSequence {
   // Empty when imu_samples is not; otherwise "no IMU messages on <topic> ...", as above.
   std::string imu_problem;
   std::vector<FramePairTruth> truths;  // empty for a real recording
+  // The camera's lens-shift log (deep_ois/LensShiftSample) in bag order, stamps in seconds since
+  // time_base on the log's clock, values as logged; empty when the bag has none.
+  std::vector<LensShiftLogSample> lens_shift_log;
   // kKeepPrefix only: empty when the whole bag was read; otherwise a sentence naming the bag,
   // where reading stopped and why. The fields above then hold the messages before that point.
   std::string read_error;

@@ -31,6 +31,9 @@ struct CalibrationBag {
   std::string tf_problem;  // why tf_imu_to_camera_rotation is empty (BagSequence::imu_to_camera_problem)
   // Ground truth of a simulator bag: whether its OIS was on (empty for a real recording).
   std::optional<bool> simulated_ois_enabled;
+  // The camera's lens-shift log (topics.lens_shift_log) as logged, stamps on the bag's time base;
+  // empty when the bag has none.
+  std::vector<LensShiftLogSample> lens_shift_log;
   std::size_t frames = 0;
   double tracking_seconds = 0.0;  // wall time of corner detection + KLT
 };

@@ -17,10 +17,13 @@ struct PhoneRecordingFiles {
   std::string frame_stamps;  // line i (0-based) = stamp of frame i, seconds, same clock as the gyro
   std::string images_dir;    // frame images, the file name ending in the frame index
   std::string camera_info;   // ROS camera calibration file (YAML or INI, camera_calibration_parsers)
+  // Optional: the camera's lens-shift log, rows t,x,y[,cxx,cxy,cyy] on the frames' clock
+  // (parseLensShiftCsv in core/recording/phone_recording.h; docs/lens_shift_logs.md).
+  std::string lens_shift_csv;
 };
 
-// The cc9pro layout under `directory`: gyro.txt, framestamp.txt, frames/. The intrinsics are not
-// part of that layout (camera_info stays empty).
+// The cc9pro layout under `directory`: gyro.txt, framestamp.txt, frames/, and lens_shift.txt when
+// that file exists. The intrinsics are not part of that layout (camera_info stays empty).
 PhoneRecordingFiles cc9proLayout(const std::string& directory);
 
 // R_cam_imu of the Xiaomi CC9 Pro recording: the proper form of the authors' (wy, wx, wz) axis swap
@@ -32,6 +35,7 @@ struct PhoneRecordingBagOptions {
   std::string camera_info_topic = "/camera/camera_info";
   std::string imu_topic = "/imu/data";
   std::string tf_static_topic = "/tf_static";
+  std::string lens_shift_topic = "/camera/lens_shift";  // deep_ois/LensShiftSample, with a lens log
   std::string camera_frame_id = "camera_optical_frame";
   std::string imu_frame_id = "imu_link";
   // R_cam_imu: a gyro vector v in the IMU frame is R * v in the camera optical frame.
@@ -60,6 +64,7 @@ struct PhoneRecordingBagStats {
   int skipped_frame_indices = 0;  // indices between first and last without an image
   int dropped_uncovered_frames = 0;  // images left out: outside the gyro log (drop_uncovered_frames)
   int imu_messages = 0;
+  int lens_shift_messages = 0;
   int width_px = 0;
   int height_px = 0;
   std::string encoding;  // rgb8 or mono8
@@ -75,6 +80,9 @@ struct PhoneRecordingBagStats {
 //    velocity as recorded (IMU frame), orientation covariance[0] = -1 (none), gyro covariance
 //    all zero (unknown), no accelerometer (linear_acceleration_covariance[0] = -1).
 //  - tf_static_topic: imu_frame_id -> camera_frame_id from imu_to_camera_rotation, latched.
+//  - lens_shift_topic (with files.lens_shift_csv): deep_ois/LensShiftSample per row inside the
+//    frames' span +- imu_margin_s, stamp + clock_offset_s, values as logged (covariance[0] = -1
+//    when the CSV has none).
 // `progress(frames_done, frames_total)` is called after each frame. Throws RecordingFormatError
 // naming the file (and line) for malformed or inconsistent inputs: all but the image contents are
 // checked before the bag is created; an image that cannot be decoded or does not fit removes the

@@ -10,6 +10,7 @@
 
 #include "deep_ois/core/gyro/orientation_integrator.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/lens_shift_log.h"
 
 namespace deep_ois {
 
@@ -35,6 +36,15 @@ struct GyroFlowParameters {
   int max_image_pixels = 3840 * 2160;
   int image_queue_size = 30;  // a second of 30 fps: a stalled thread does not lose frames
   int imu_queue_size = 2000;
+
+  // The camera's own lens-shift log (topic `lens_shift`, deep_ois/LensShiftSample): a pair it
+  // covers gets K(s(t_b)) R K(s(t_a))^-1 per patch instead of K R K^-1. See docs/lens_shift_logs.md.
+  bool use_lens_shift_log = true;
+  LensShiftLogConvention lens_shift_convention;  // ~lens_shift_scale, _swap_xy, _sign_x/y, _time_offset
+  double lens_shift_max_gap_s = 0.02;            // a longer gap between samples is not bridged
+  // How long a frame may wait for lens samples that cover it while the log is live, seconds.
+  double lens_shift_wait_timeout_s = 0.2;
+  int lens_shift_queue_size = 1000;
 };
 
 // Reads every parameter with its default. Throws std::invalid_argument with a message naming the

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <deep_ois/GyroFlow.h>
+#include <deep_ois/LensShiftSample.h>
 #include <image_transport/image_transport.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -21,6 +22,7 @@
 #include "deep_ois/core/common/drop_tally.h"
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/ois/lens_shift_log.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/gyro_flow_reconfigure.h"
@@ -29,7 +31,8 @@
 namespace deep_ois {
 
 // Topics (relative to the node handle): subscribes `imu`, `image_raw` + `camera_info`
-// (image_transport, transport chosen by ~image_transport); publishes `gyro_flow`
+// (image_transport, transport chosen by ~image_transport) and, with ~use_lens_shift_log, the
+// camera's lens-shift log `lens_shift` (deep_ois/LensShiftSample); publishes `gyro_flow`
 // (deep_ois/GyroFlow) and `gyro_flow/color` (rgb8). Inputs are subscribed only while an output
 // has a subscriber.
 //
@@ -59,12 +62,14 @@ class GyroFlowRos {
 
   void connectCallback();
   void imuCallback(const sensor_msgs::ImuConstPtr& imu);
+  void lensShiftCallback(const LensShiftSampleConstPtr& sample);
   // `image` is null with ~use_camera_info_only: the CameraInfo alone describes the frame.
   void cameraCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
   void cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info);
   void waitingTimerCallback(const ros::WallTimerEvent&);
   // The callbacks' work, inside runGuarded.
   void handleImu(const sensor_msgs::ImuConstPtr& imu);
+  void handleLensShift(const LensShiftSampleConstPtr& sample);
   void handleFrame(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
   // The watchdog: says, per window, why nothing was published (once when the input stopped).
   void checkProgress();
@@ -72,8 +77,13 @@ class GyroFlowRos {
   // Pairs pending frames with the previous frame as far as the IMU data allows.
   void processPendingFrames();
   // Publishes the gyro flow from previous_ to `frame`; false when IMU data is not there yet.
-  enum class Outcome { kPublished, kWaitForImu, kDropped };
+  enum class Outcome { kPublished, kWaitForImu, kWaitForLensLog, kDropped };
   Outcome processFrame(const Frame& frame);
+  // The pair's homographies from the lens log when it covers the pair (true), else false after
+  // counting and warning (throttled) why the pair falls back to the gyro alone.
+  bool lensLogHomographiesFor(const Frame& previous, const Frame& frame, const RollingShutterConfig& config,
+                              const std::vector<Eigen::Matrix3d>& rotations,
+                              std::vector<Eigen::Matrix3d>& homographies);
   // Counts a frame pair that gives no flow, with the reason (also the watchdog's latest problem).
   void skipPair(const std::string& reason);
   // The throttled warning of every pair skipped since the last one.
@@ -100,6 +110,7 @@ class GyroFlowRos {
   ros::Subscriber imu_sub_;
   image_transport::CameraSubscriber camera_sub_;
   ros::Subscriber info_sub_;  // instead of camera_sub_ with ~use_camera_info_only
+  ros::Subscriber lens_sub_;  // the camera's lens-shift log, with ~use_lens_shift_log
   std::string image_topic_, info_topic_;  // resolved input topics, for messages
   ros::Publisher flow_pub_;
   image_transport::Publisher color_pub_;
@@ -113,6 +124,11 @@ class GyroFlowRos {
   ImuSampleBuffer imu_buffer_;
   std::string imu_frame_id_;  // frame of every sample in imu_buffer_
   std::deque<Frame> pending_frames_;
+  // Lens-shift samples as logged (stamps in seconds since time_base_, on the log's clock).
+  LensShiftLog lens_log_;
+  ros::Time last_lens_arrival_;       // ROS time the latest lens sample was handled
+  std::size_t lens_log_pairs_ = 0;    // pairs published with the lens log since start
+  std::size_t lens_fallback_pairs_ = 0;  // pairs with a log that did not cover them (gyro alone)
   std::optional<Frame> previous_;
   std::unique_ptr<HomographyFlowRenderer> renderer_;  // rebuilt when camera or grid changes
   std::optional<Eigen::Matrix3d> cached_rotation_;     // tf rotation for cached_rotation_frames_

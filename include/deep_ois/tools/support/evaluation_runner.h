@@ -44,6 +44,10 @@ struct EvaluationOptions {
   std::string validate() const;
 };
 
+// True when a bag holds the camera's lens-shift log (topics.lens_shift_log) and the gyro flow config
+// uses it (use_lens_shift_log): the "gyro + lens log" row then has pairs to score.
+bool recordingsHaveLensShiftLog(const EvaluationOptions& options);
+
 class EvaluationRunner {
  public:
   // Throws std::invalid_argument when the options are invalid.

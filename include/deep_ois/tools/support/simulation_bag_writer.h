@@ -19,6 +19,8 @@ struct SimulationBagTopics {
   std::string tf_static = "/tf_static";              // IMU -> camera optical frame, latched
   std::string frame_pair_truth = "/ground_truth/frame_pair";  // deep_ois/FramePairTruth
   std::string lens_shift = "/ground_truth/lens_shift";        // deep_ois/LensShift
+  // The camera's own lens log (deep_ois/LensShiftSample), recorded at its arrival time.
+  std::string lens_shift_log = "/camera/lens_shift";
 };
 
 struct SimulationBagStats {
@@ -26,6 +28,7 @@ struct SimulationBagStats {
   int frame_pairs = 0;
   int imu_messages = 0;
   int lens_shift_messages = 0;
+  int lens_shift_log_messages = 0;
   int correspondences = 0;
   bool interrupted = false;  // stopped early by `stop`; the bag holds every frame written so far
 };
