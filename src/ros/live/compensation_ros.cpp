@@ -11,6 +11,7 @@
 
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/backward_map.h"
+#include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/ros/live/callback_guard.h"
@@ -350,6 +351,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   // model keeps following the gyro stream.
   cv::Mat compensated;
   std::vector<Eigen::Matrix3d> compensated_homographies;  // the stabiliser model's, else empty
+  CameraModel compensated_camera;                         // the camera they refer to
   if (gyro.motion_model == GyroFlow::MOTION_GYRO_LENS_LOG) {
     if (stream_) stream_->reset();
     if (stabiliser_) stabiliser_->observe(gyro);
@@ -368,6 +370,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     }
     compensated = result.flow;
     compensated_homographies = std::move(result.homographies);
+    compensated_camera = result.camera;
   } else {
     compensated = stream_->compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
                                       static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
@@ -403,7 +406,17 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   if (!want_aligned && !want_ghost) return;
   try {
     // The flow inverted on its grid; per camera pixel only the map's interpolation and the remaps.
-    buildFixedPointBackwardMap(compensated, camera_size, params_.warp_iterations, warp_map_);
+    if (!compensated_homographies.empty()) {
+      // Per-patch homographies (a stabiliser model): the map straight from them, no flow inversion.
+      if (!patch_map_builder_ || !(patch_map_builder_->camera() == compensated_camera) ||
+          patch_map_builder_->patchCount() != static_cast<int>(compensated_homographies.size())) {
+        patch_map_builder_ = std::make_unique<PatchHomographyMapBuilder>(
+            compensated_camera, static_cast<int>(compensated_homographies.size()));
+      }
+      patch_map_builder_->build(compensated_homographies, warp_map_);
+    } else {
+      buildFixedPointBackwardMap(compensated, camera_size, params_.warp_iterations, warp_map_);
+    }
     const std_msgs::Header& header = image_b->header;
     cv::Mat aligned;
     if (want_aligned) {

@@ -96,6 +96,7 @@ StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) 
     renderer_ = std::make_unique<HomographyFlowRenderer>(camera, gyro_flow.size(), rs.patch_count);
   renderer_->render(compensation.homographies, result.flow);
   result.homographies = compensation.homographies;
+  result.camera = camera;
   result.shift_a_px = compensation.shift_a_px;
   result.shift_b_px = compensation.shift_b_px;
   result.ok = true;

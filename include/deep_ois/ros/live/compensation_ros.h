@@ -15,6 +15,7 @@
 #include <string>
 
 #include "deep_ois/core/flow/backward_map.h"
+#include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/common/drop_tally.h"
 #include "deep_ois/core/flow/flow_frame_matcher.h"
 #include "deep_ois/net/compensation_model.h"
@@ -143,7 +144,9 @@ class CompensationRos {
   image_transport::Publisher ghost_pub_;
   FlowImagePublisher flow_image_pub_;  // compensated_flow/image: the flow as a plain 32FC2 image
 
-  FixedPointMap warp_map_;  // the backward map of the current pair (buffers reused per frame)
+  FixedPointMap warp_map_;
+  // Builds warp_map_ from a stabiliser model's per-patch homographies (per camera).
+  std::unique_ptr<PatchHomographyMapBuilder> patch_map_builder_;  // the backward map of the current pair (buffers reused per frame)
   ros::WallTimer expire_timer_;
 
   Matcher matcher_;

@@ -25,6 +25,7 @@ struct StabiliserFlowResult {
   std::vector<Eigen::Matrix3d> homographies;  // K(s_b) R K(s_a)^-1 per patch, undistorted px
   std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;
   cv::Mat flow;  // CV_32FC2 on the gyro flow's grid (same convention)
+  CameraModel camera;  // the message's camera (K, distortion, size) the homographies refer to
 };
 
 class StabiliserFlowCompensator {
