@@ -63,6 +63,11 @@ std::string CalibrationOptions::validate() const {
     why << "min_pairs must be >= 1 and min_tracks_per_pair >= 3";
   } else if (!(min_excitation_rate_rad_s >= 0.0)) {
     why << "min_excitation_rate_rad_s must be >= 0";
+  } else if (!(systematic_time_offset_s >= 0.0) || !(systematic_readout_time_s >= 0.0) ||
+             !(systematic_rotation_rad >= 0.0) || !(systematic_gyro_bias_rad_s >= 0.0) ||
+             !std::isfinite(systematic_time_offset_s + systematic_readout_time_s + systematic_rotation_rad +
+                            systematic_gyro_bias_rad_s)) {
+    why << "the systematic_* uncertainties must be finite and >= 0";
   } else if (!(max_time_offset_sigma_s > 0.0) || !(max_readout_time_sigma_s > 0.0) ||
              !(max_rotation_sigma_rad > 0.0) || !(max_gyro_bias_sigma_rad_s > 0.0)) {
     why << "the max_*_sigma limits must be positive";
@@ -862,9 +867,24 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
       const ParameterMatrix sandwich = small_sample * H_inverse * meat * H_inverse;
       sandwich_variance = sandwich_variance.cwiseMax(sandwich.diagonal());
     }
+    ParameterVector statistical = ParameterVector::Zero();
+    for (int i = 0; i < kParameterCount; ++i) {
+      if (active[i]) statistical(i) = std::sqrt(std::max({covariance(i, i), sandwich_variance(i), 0.0}));
+    }
+    result.statistical.time_offset_s = statistical(kOffset);
+    result.statistical.readout_time_s = statistical(kReadout);
+    result.statistical.gyro_bias_rad_s = statistical.segment<3>(kBias);
+    result.statistical.rotation_rad = statistical.segment<3>(kRotation);
+    // What the recording shares as a whole (module comment of the systematic_* options), added
+    // in quadrature: independent of the statistical part, which only sees what varies.
+    ParameterVector systematic;
+    systematic(kOffset) = options.systematic_time_offset_s;
+    systematic(kReadout) = options.systematic_readout_time_s;
+    systematic.segment<3>(kBias).setConstant(options.systematic_gyro_bias_rad_s);
+    systematic.segment<3>(kRotation).setConstant(options.systematic_rotation_rad);
     ParameterVector sigma = ParameterVector::Zero();
     for (int i = 0; i < kParameterCount; ++i) {
-      if (active[i]) sigma(i) = std::sqrt(std::max({covariance(i, i), sandwich_variance(i), 0.0}));
+      if (active[i]) sigma(i) = std::hypot(statistical(i), systematic(i));
     }
     calibration.time_offset_sigma_s = sigma(kOffset);
     calibration.readout_time_sigma_s = sigma(kReadout);
