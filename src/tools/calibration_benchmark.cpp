@@ -118,8 +118,13 @@ void printCoverage(const std::string& label, const std::vector<Row>& rows) {
       return buffer;
     }
   } offset, readout, rotation, bias;
+  int bags = 0, rotation_bags = 0;  // bags whose three rotation axes are all within 1 sigma
   for (const Row& row : rows) {
     if (!row.estimated) continue;
+    if (row.rotation_sigma_axes_deg.minCoeff() > 0.0) {
+      ++bags;
+      rotation_bags += (row.rotation_error_axes_deg.cwiseAbs().array() <= row.rotation_sigma_axes_deg.array()).all();
+    }
     offset.add(row.offset_error_ms, row.offset_sigma_ms);
     readout.add(row.readout_error_ms, row.readout_sigma_ms);
     for (int k = 0; k < 3; ++k) {
@@ -129,9 +134,10 @@ void printCoverage(const std::string& label, const std::vector<Row>& rows) {
   }
   if (offset.n + readout.n + rotation.n + bias.n == 0) return;
   std::printf("coverage of the reported sigma, %s (|error| <= 1 sigma, <= 2 sigma; a Gaussian gives 68 %%, 95 %%):\n"
-              "  offset %s\n  readout %s\n  rotation per axis %s\n  bias per axis %s\n",
+              "  offset %s\n  readout %s\n  rotation per axis %s; all three axes within 1 sigma: %d/%d bags\n"
+              "  bias per axis %s\n",
               label.c_str(), offset.text("ms").c_str(), readout.text("ms").c_str(), rotation.text("deg").c_str(),
-              bias.text("mrad/s").c_str());
+              rotation_bags, bags, bias.text("mrad/s").c_str());
 }
 
 void writeCsvHeader(std::ostream& csv) {
