@@ -11,7 +11,9 @@
 # about all three axes facing a scene 4 m away or more), OIS and twin (protocol/manifest.txt);
 # and runtime/: one 10 s pair at the standard 360x270 (config/simulator/RE.yaml with a known
 # calibration), for timing calibrate (runtime/manifest.txt).
-#   bash scripts/make_calibration_bags.sh [DIR] [COUNT=24] [DURATION=5]
+# SEED picks the calibrations (and the simulations' seeds); another seed gives an independent set,
+# e.g. to check on fresh bags a figure chosen on the default one.
+#   bash scripts/make_calibration_bags.sh [DIR] [COUNT=24] [DURATION=5] [SEED=7]
 #   rosrun deep_ois calibration_benchmark --manifest DIR/manifest.txt
 #   rosrun deep_ois calibration_benchmark --manifest DIR/protocol/manifest.txt
 # Re-running skips bags that already exist (delete them to regenerate).
@@ -22,24 +24,25 @@ source "$repo/scripts/ros_env.sh"
 out="${1:-$build_dir/calib_bags}"
 count="${2:-24}"
 duration="${3:-5}"
+seed="${4:-7}"
 mkdir -p "$out"
 
 jobs_file="$(mktemp)"
 trap 'rm -f "$jobs_file"' EXIT
 
-# One set: COUNT configs from BASE (seed 7, so every set has the same calibrations), each simulated
+# One set: COUNT configs from BASE (SEED, so every set has the same calibrations), each simulated
 # with OIS and as its twin for SECONDS, queued in $jobs_file and listed in DIR/manifest.txt.
 add_set() {
   local base="$1" dir="$2" seconds="$3" i ois name bag
   mkdir -p "$dir"
-  rosrun deep_ois make_calibration_configs --base "$base" --count "$count" --seed 7 --out "$dir" |
+  rosrun deep_ois make_calibration_configs --base "$base" --count "$count" --seed "$seed" --out "$dir" |
     tee "$dir/truth.txt"
   : >"$dir/manifest.txt"
   for ((i = 0; i < count; ++i)); do
     name="$(printf 'cal_%02d' "$i")"
     for ois in off on; do
       bag="${name}_$([ "$ois" = on ] && echo ois || echo nonois).bag"
-      echo "$dir/$name.yaml $((500 + i)) $seconds $ois $dir/$bag" >>"$jobs_file"
+      echo "$dir/$name.yaml $((500 + i + 100 * (seed - 7))) $seconds $ois $dir/$bag" >>"$jobs_file"
       echo "$bag $name.yaml" >>"$dir/manifest.txt"
     done
   done

@@ -176,16 +176,30 @@ int main(int argc, char** argv) {
                 result.initial_median_residual_px);
     std::printf("  refined in %d iterations: median residual %.3f px, %.1f %% inliers\n",
                 result.iterations, result.median_residual_px, 100.0 * result.inlier_fraction);
-    std::printf("  time offset     %+9.3f ms  +- %.3f ms%s\n", c.time_offset_s * 1e3,
-                c.time_offset_sigma_s * 1e3, options.estimate_time_offset ? "" : " (held)");
-    std::printf("  readout time    %9.3f ms  +- %.3f ms%s\n", c.readout_time_s * 1e3,
-                c.readout_time_sigma_s * 1e3, options.estimate_readout_time ? "" : " (held)");
+    // The 1-sigma printed is the honest one (statistical, inflated, plus the systematic part that
+    // every recording shares); the statistical part in brackets is what the refusals judge.
+    std::printf("  time offset     %+9.3f ms  +- %.3f ms (statistical %.3f)%s\n", c.time_offset_s * 1e3,
+                c.time_offset_sigma_s * 1e3, result.statistical.time_offset_s * 1e3,
+                options.estimate_time_offset ? "" : " (held)");
+    std::printf("  readout time    %9.3f ms  +- %.3f ms (statistical %.3f)%s\n", c.readout_time_s * 1e3,
+                c.readout_time_sigma_s * 1e3, result.statistical.readout_time_s * 1e3,
+                options.estimate_readout_time ? "" : " (held)");
     std::printf("  gyro bias       [%+.5f %+.5f %+.5f] rad/s  +- %.5f%s\n", c.gyro_bias_rad_s(0),
                 c.gyro_bias_rad_s(1), c.gyro_bias_rad_s(2), c.gyro_bias_sigma_rad_s.maxCoeff(),
                 options.estimate_gyro_bias ? "" : " (held)");
-    std::printf("  R_cam_imu       +- (%.3f %.3f %.3f) deg about camera x y z%s\n",
+    std::printf("  R_cam_imu       +- (%.3f %.3f %.3f) deg about camera x y z (statistical %.3f %.3f %.3f)%s\n",
                 c.rotation_sigma_rad(0) * kRadToDeg, c.rotation_sigma_rad(1) * kRadToDeg,
-                c.rotation_sigma_rad(2) * kRadToDeg, options.estimate_rotation ? "" : " (held)");
+                c.rotation_sigma_rad(2) * kRadToDeg, result.statistical.rotation_rad(0) * kRadToDeg,
+                result.statistical.rotation_rad(1) * kRadToDeg, result.statistical.rotation_rad(2) * kRadToDeg,
+                options.estimate_rotation ? "" : " (held)");
+    // A readout this close to 0 is usually a global shutter, whose readout is known: estimated
+    // from a recording with little motion, the offset and readout can slide together along
+    // their ridge by a millisecond at a 1-sigma of 0.2-0.3 ms (docs/calibration_uncertainty.md).
+    if (options.estimate_readout_time && c.readout_time_s < 2e-3) {
+      std::printf("  note: readout %.3f ms is near 0: if this is a global-shutter camera, hold it (--readout 0); "
+                  "the time offset is then more reliable (docs/calibration_uncertainty.md)\n",
+                  c.readout_time_s * 1e3);
+    }
     printMatrix(c.imu_to_camera_rotation);
     if (bag.tf_imu_to_camera_rotation) {
       std::printf(

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -42,6 +43,12 @@ struct Row {
   // reported 1-sigma about each, for the coverage count.
   Eigen::Vector3d rotation_error_axes_deg = Eigen::Vector3d::Zero(), rotation_sigma_axes_deg = Eigen::Vector3d::Zero();
   double bias_error_mrad_s = 0;
+  // Per IMU axis, for the coverage count.
+  Eigen::Vector3d bias_error_axes_mrad_s = Eigen::Vector3d::Zero(), bias_sigma_axes_mrad_s = Eigen::Vector3d::Zero();
+  // The statistical part of each reported 1-sigma (CalibrationResult::statistical).
+  double offset_statistical_ms = 0, readout_statistical_ms = 0;
+  Eigen::Vector3d rotation_statistical_axes_deg = Eigen::Vector3d::Zero();
+  Eigen::Vector3d bias_statistical_axes_mrad_s = Eigen::Vector3d::Zero();
   double median_residual_px = 0;
   double tracking_s = 0, estimation_s = 0;
 };
@@ -88,27 +95,75 @@ void printSummary(const std::string& label, const std::vector<Row>& all) {
       all.empty() ? 0.0 : tracking / all.size(), all.empty() ? 0.0 : estimation / all.size());
 }
 
-// How often the reported 1-sigma (and 2-sigma) covers the actual error, per quantity, over every
-// bag with an estimate (refused ones included); the rotation counted per camera axis (3 per bag).
-void printCoverage(const std::vector<Row>& rows) {
-  int n = 0, offset1 = 0, offset2 = 0, readout1 = 0, readout2 = 0, axes = 0, rotation1 = 0, rotation2 = 0;
+// How often the reported 1-sigma (and 2-sigma) covers the actual error, and the median reported
+// 1-sigma (how wide the interval is), per quantity, over every bag with an estimate (refused ones
+// included) of one lens kind; the rotation and the bias counted per axis (3 per bag). A held
+// quantity (sigma 0) is not counted.
+void printCoverage(const std::string& label, const std::vector<Row>& rows) {
+  struct Count {
+    int n = 0, one = 0, two = 0;
+    std::vector<double> sigmas;
+    void add(double error, double sigma) {
+      if (!(sigma > 0.0)) return;
+      ++n;
+      one += std::abs(error) <= sigma;
+      two += std::abs(error) <= 2.0 * sigma;
+      sigmas.push_back(sigma);
+    }
+    std::string text(const char* unit) const {
+      if (n == 0) return "held";
+      char buffer[160];
+      std::snprintf(buffer, sizeof(buffer), "%d/%d (%.0f %%), %d/%d, median 1-sigma %.3f %s", one, n,
+                    100.0 * one / n, two, n, deep_ois::median(sigmas), unit);
+      return buffer;
+    }
+  } offset, readout, rotation, bias;
+  int bags = 0, rotation_bags = 0;  // bags whose three rotation axes are all within 1 sigma
   for (const Row& row : rows) {
     if (!row.estimated) continue;
-    ++n;
-    offset1 += std::abs(row.offset_error_ms) <= row.offset_sigma_ms;
-    offset2 += std::abs(row.offset_error_ms) <= 2.0 * row.offset_sigma_ms;
-    readout1 += std::abs(row.readout_error_ms) <= row.readout_sigma_ms;
-    readout2 += std::abs(row.readout_error_ms) <= 2.0 * row.readout_sigma_ms;
+    if (row.rotation_sigma_axes_deg.minCoeff() > 0.0) {
+      ++bags;
+      rotation_bags += (row.rotation_error_axes_deg.cwiseAbs().array() <= row.rotation_sigma_axes_deg.array()).all();
+    }
+    offset.add(row.offset_error_ms, row.offset_sigma_ms);
+    readout.add(row.readout_error_ms, row.readout_sigma_ms);
     for (int k = 0; k < 3; ++k) {
-      ++axes;
-      rotation1 += std::abs(row.rotation_error_axes_deg(k)) <= row.rotation_sigma_axes_deg(k);
-      rotation2 += std::abs(row.rotation_error_axes_deg(k)) <= 2.0 * row.rotation_sigma_axes_deg(k);
+      rotation.add(row.rotation_error_axes_deg(k), row.rotation_sigma_axes_deg(k));
+      bias.add(row.bias_error_axes_mrad_s(k), row.bias_sigma_axes_mrad_s(k));
     }
   }
-  if (n == 0) return;
-  std::printf("\ncoverage of the reported sigma (|error| <= 1 sigma, <= 2 sigma; a Gaussian gives 68 %%, 95 %%): "
-              "offset %d/%d, %d/%d; readout %d/%d, %d/%d; rotation per axis %d/%d, %d/%d\n",
-              offset1, n, offset2, n, readout1, n, readout2, n, rotation1, axes, rotation2, axes);
+  if (offset.n + readout.n + rotation.n + bias.n == 0) return;
+  std::printf("coverage of the reported sigma, %s (|error| <= 1 sigma, <= 2 sigma; a Gaussian gives 68 %%, 95 %%):\n"
+              "  offset %s\n  readout %s\n  rotation per axis %s; all three axes within 1 sigma: %d/%d bags\n"
+              "  bias per axis %s\n",
+              label.c_str(), offset.text("ms").c_str(), readout.text("ms").c_str(), rotation.text("deg").c_str(),
+              rotation_bags, bags, bias.text("mrad/s").c_str());
+}
+
+void writeCsvHeader(std::ostream& csv) {
+  csv << "bag,ois,ok,true_offset_ms,offset_error_ms,offset_sigma_ms,true_readout_ms,readout_error_ms,"
+         "readout_sigma_ms,true_mount,found_mount,rotation_error_deg,rotation_sigma_deg,bias_error_mrad_s,"
+         "median_residual_px,tracking_s,estimation_s,offset_statistical_ms,readout_statistical_ms";
+  for (const char* quantity : {"rotation_error_deg", "rotation_sigma_deg", "rotation_statistical_deg",
+                               "bias_error_mrad_s", "bias_sigma_mrad_s", "bias_statistical_mrad_s"}) {
+    for (const char* axis : {"x", "y", "z"}) csv << "," << quantity << "_" << axis;
+  }
+  csv << "\n";
+}
+
+// One line per bag, written as soon as the bag is done (a long run keeps what it finished).
+void writeCsvRow(std::ostream& csv, const Row& r) {
+  csv << r.bag << "," << r.ois << "," << r.ok << "," << r.true_offset_ms << "," << r.offset_error_ms << ","
+      << r.offset_sigma_ms << "," << r.true_readout_ms << "," << r.readout_error_ms << "," << r.readout_sigma_ms
+      << "," << r.true_mount << "," << r.found_mount << "," << r.rotation_error_deg << "," << r.rotation_sigma_deg
+      << "," << r.bias_error_mrad_s << "," << r.median_residual_px << "," << r.tracking_s << "," << r.estimation_s
+      << "," << r.offset_statistical_ms << "," << r.readout_statistical_ms;
+  for (const Eigen::Vector3d* values :
+       {&r.rotation_error_axes_deg, &r.rotation_sigma_axes_deg, &r.rotation_statistical_axes_deg,
+        &r.bias_error_axes_mrad_s, &r.bias_sigma_axes_mrad_s, &r.bias_statistical_axes_mrad_s}) {
+    for (int k = 0; k < 3; ++k) csv << "," << (*values)(k);
+  }
+  csv << std::endl;
 }
 
 }  // namespace
@@ -157,6 +212,11 @@ int main(int argc, char** argv) {
   }
   if (entries.empty()) return command_line.usageError(manifest_path + " lists no bags");
 
+  std::unique_ptr<std::ofstream> csv;
+  if (!csv_path.empty()) {
+    csv = std::make_unique<std::ofstream>(csv_path);
+    writeCsvHeader(*csv);
+  }
   std::vector<Row> rows;
   std::printf(
       "| bag | OIS | offset ms | error ms (1-sigma) | readout ms | error ms (1-sigma) | mount | "
@@ -201,6 +261,12 @@ int main(int argc, char** argv) {
       row.rotation_sigma_axes_deg = c.rotation_sigma_rad * kRadToDeg;
       const Eigen::Vector3d true_bias = truth.imu.gyro_initial_bias_vector_rad_s.value_or(Eigen::Vector3d::Zero());
       row.bias_error_mrad_s = (c.gyro_bias_rad_s - true_bias).norm() * 1e3;
+      row.bias_error_axes_mrad_s = (c.gyro_bias_rad_s - true_bias) * 1e3;
+      row.bias_sigma_axes_mrad_s = c.gyro_bias_sigma_rad_s * 1e3;
+      row.offset_statistical_ms = result.statistical.time_offset_s * 1e3;
+      row.readout_statistical_ms = result.statistical.readout_time_s * 1e3;
+      row.rotation_statistical_axes_deg = result.statistical.rotation_rad * kRadToDeg;
+      row.bias_statistical_axes_mrad_s = result.statistical.gyro_bias_rad_s * 1e3;
       row.median_residual_px = result.median_residual_px;
       row.tracking_s = bag.tracking_seconds;
       row.estimation_s = result.seconds;
@@ -216,6 +282,7 @@ int main(int argc, char** argv) {
         row.rotation_sigma_deg, row.bias_error_mrad_s, row.median_residual_px,
         row.ok ? "ok" : ("refused: " + row.reason).c_str());
     std::fflush(stdout);
+    if (csv) writeCsvRow(*csv, row);
     rows.push_back(row);
   }
 
@@ -228,25 +295,12 @@ int main(int argc, char** argv) {
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   printSummary("non-OIS", fixed_lens);
   printSummary("OIS", ois);
-  printCoverage(rows);
+  std::printf("\n");
+  printCoverage("non-OIS", fixed_lens);
+  printCoverage("OIS", ois);
+  printCoverage("all", rows);
 
-  if (!csv_path.empty()) {
-    std::ofstream csv(csv_path);
-    csv << "bag,ois,ok,true_offset_ms,offset_error_ms,offset_sigma_ms,true_readout_ms,readout_"
-           "error_ms,"
-           "readout_sigma_ms,true_mount,found_mount,rotation_error_deg,rotation_sigma_deg,bias_"
-           "error_mrad_s,"
-           "median_residual_px,tracking_s,estimation_s\n";
-    for (const Row& r : rows) {
-      csv << r.bag << "," << r.ois << "," << r.ok << "," << r.true_offset_ms << ","
-          << r.offset_error_ms << "," << r.offset_sigma_ms << "," << r.true_readout_ms << ","
-          << r.readout_error_ms << "," << r.readout_sigma_ms << "," << r.true_mount << ","
-          << r.found_mount << "," << r.rotation_error_deg << "," << r.rotation_sigma_deg << ","
-          << r.bias_error_mrad_s << "," << r.median_residual_px << "," << r.tracking_s << ","
-          << r.estimation_s << "\n";
-    }
-    if (!csv) std::fprintf(stderr, "calibration_benchmark: cannot write %s\n", csv_path.c_str());
-  }
+  if (csv && !*csv) std::fprintf(stderr, "calibration_benchmark: cannot write %s\n", csv_path.c_str());
   const bool all_estimated =
       std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.estimated; });
   return all_estimated ? 0 : 1;

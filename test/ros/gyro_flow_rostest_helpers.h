@@ -11,6 +11,7 @@
 #include <deep_ois/LensShiftSample.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
@@ -419,6 +420,13 @@ class GyroFlowHarness {
            << "; publishers of gyro_flow " << flow_sub_.getNumPublishers();
   }
 
+  // With use_sim_time: play() also drives /clock, as `rosbag play --clock` does, at
+  // origin + publish key before each event. Until play() starts, ROS time stays 0.
+  void driveClock(const ros::Time& origin) {
+    clock_pub_ = ros::NodeHandle().advertise<rosgraph_msgs::Clock>("/clock", 100);
+    clock_origin_ = origin;
+  }
+
   // Publishes the events in order, `speed` times faster than their publish keys.
   void play(const std::vector<StreamEvent>& events, double speed) {
     if (events.empty()) return;
@@ -428,6 +436,11 @@ class GyroFlowHarness {
       const ros::WallTime due = start + ros::WallDuration((event.publish_key_s - first_key_s) / speed);
       const ros::WallTime now = ros::WallTime::now();
       if (due > now) (due - now).sleep();
+      if (clock_pub_) {
+        rosgraph_msgs::Clock clock;
+        clock.clock = clock_origin_ + ros::Duration(event.publish_key_s);
+        clock_pub_.publish(clock);
+      }
       if (event.imu) imu_pub_.publish(event.imu);
       if (event.lens) lens_pub_.publish(event.lens);
       if (event.image) {
@@ -474,7 +487,8 @@ class GyroFlowHarness {
     colors_.push_back(msg);
   }
 
-  ros::Publisher tf_pub_, imu_pub_, image_pub_, info_pub_, lens_pub_;
+  ros::Publisher tf_pub_, imu_pub_, image_pub_, info_pub_, lens_pub_, clock_pub_;
+  ros::Time clock_origin_;
   ros::Subscriber flow_sub_, color_sub_;
   std::mutex mutex_;
   std::vector<GyroFlowConstPtr> flows_;

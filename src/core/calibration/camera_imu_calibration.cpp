@@ -63,6 +63,13 @@ std::string CalibrationOptions::validate() const {
     why << "min_pairs must be >= 1 and min_tracks_per_pair >= 3";
   } else if (!(min_excitation_rate_rad_s >= 0.0)) {
     why << "min_excitation_rate_rad_s must be >= 0";
+  } else if (!(systematic_time_offset_s >= 0.0) || !(systematic_readout_time_s >= 0.0) ||
+             !(systematic_rotation_rad >= 0.0) || !(systematic_gyro_bias_rad_s >= 0.0) ||
+             !std::isfinite(systematic_time_offset_s + systematic_readout_time_s + systematic_rotation_rad +
+                            systematic_gyro_bias_rad_s)) {
+    why << "the systematic_* uncertainties must be finite and >= 0";
+  } else if (!(statistical_sigma_factor >= 1.0 && statistical_sigma_factor <= 100.0)) {
+    why << "statistical_sigma_factor must be in [1, 100] (got " << statistical_sigma_factor << ")";
   } else if (!(max_time_offset_sigma_s > 0.0) || !(max_readout_time_sigma_s > 0.0) ||
              !(max_rotation_sigma_rad > 0.0) || !(max_gyro_bias_sigma_rad_s > 0.0)) {
     why << "the max_*_sigma limits must be positive";
@@ -862,9 +869,25 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
       const ParameterMatrix sandwich = small_sample * H_inverse * meat * H_inverse;
       sandwich_variance = sandwich_variance.cwiseMax(sandwich.diagonal());
     }
+    ParameterVector statistical = ParameterVector::Zero();
+    for (int i = 0; i < kParameterCount; ++i) {
+      if (active[i]) statistical(i) = std::sqrt(std::max({covariance(i, i), sandwich_variance(i), 0.0}));
+    }
+    result.statistical.time_offset_s = statistical(kOffset);
+    result.statistical.readout_time_s = statistical(kReadout);
+    result.statistical.gyro_bias_rad_s = statistical.segment<3>(kBias);
+    result.statistical.rotation_rad = statistical.segment<3>(kRotation);
+    // The reported sigma: the statistical one inflated for the correlation it still misses, and
+    // what the recording shares as a whole added in quadrature (independent of the statistical
+    // part, which only sees what varies). See CalibrationOptions::statistical_sigma_factor.
+    ParameterVector systematic;
+    systematic(kOffset) = options.systematic_time_offset_s;
+    systematic(kReadout) = options.systematic_readout_time_s;
+    systematic.segment<3>(kBias).setConstant(options.systematic_gyro_bias_rad_s);
+    systematic.segment<3>(kRotation).setConstant(options.systematic_rotation_rad);
     ParameterVector sigma = ParameterVector::Zero();
     for (int i = 0; i < kParameterCount; ++i) {
-      if (active[i]) sigma(i) = std::sqrt(std::max({covariance(i, i), sandwich_variance(i), 0.0}));
+      if (active[i]) sigma(i) = std::hypot(options.statistical_sigma_factor * statistical(i), systematic(i));
     }
     calibration.time_offset_sigma_s = sigma(kOffset);
     calibration.readout_time_sigma_s = sigma(kReadout);
@@ -880,27 +903,29 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
             "facing a scene 4 m away or more; or hold the mount at a known value, e.g. calibrated with "
             "OIS off)"
           : "";
-  if (options.estimate_time_offset && calibration.time_offset_sigma_s > options.max_time_offset_sigma_s) {
+  // Refusals judge what this recording determines: the statistical sigma (the systematic term is
+  // the same for every recording; see CalibrationOptions::max_time_offset_sigma_s).
+  if (options.estimate_time_offset && result.statistical.time_offset_s > options.max_time_offset_sigma_s) {
     result.refusals.push_back(
-        "time offset: 1-sigma " + describeSeconds(calibration.time_offset_sigma_s) + " exceeds " +
+        "time offset: statistical 1-sigma " + describeSeconds(result.statistical.time_offset_s) + " exceeds " +
         describeSeconds(options.max_time_offset_sigma_s) +
         ": the rotation rate hardly changes during the recording (a steady turn looks the same at any "
         "offset); shake the camera, so that its rate changes within fractions of a second" + ois_advice);
   }
-  if (options.estimate_readout_time && calibration.readout_time_sigma_s > options.max_readout_time_sigma_s) {
+  if (options.estimate_readout_time && result.statistical.readout_time_s > options.max_readout_time_sigma_s) {
     result.refusals.push_back(
-        "readout time: 1-sigma " + describeSeconds(calibration.readout_time_sigma_s) + " exceeds " +
+        "readout time: statistical 1-sigma " + describeSeconds(result.statistical.readout_time_s) + " exceeds " +
         describeSeconds(options.max_readout_time_sigma_s) +
         ": the top and bottom rows move alike (it needs vertical image motion, i.e. tilt about the camera x "
         "axis, roll about the optical axis, or rates that change within a frame); tilt and roll the camera "
         "while recording, or hold the readout at its known value" + ois_advice);
   }
   if (options.estimate_rotation &&
-      calibration.rotation_sigma_rad.maxCoeff() > options.max_rotation_sigma_rad) {
+      result.statistical.rotation_rad.maxCoeff() > options.max_rotation_sigma_rad) {
     std::ostringstream why;
-    why << std::fixed << std::setprecision(3) << "IMU-camera rotation: 1-sigma ("
-        << calibration.rotation_sigma_rad(0) * kRadToDeg << ", " << calibration.rotation_sigma_rad(1) * kRadToDeg
-        << ", " << calibration.rotation_sigma_rad(2) * kRadToDeg << ") deg about the camera x, y, z axes exceeds "
+    why << std::fixed << std::setprecision(3) << "IMU-camera rotation: statistical 1-sigma ("
+        << result.statistical.rotation_rad(0) * kRadToDeg << ", " << result.statistical.rotation_rad(1) * kRadToDeg
+        << ", " << result.statistical.rotation_rad(2) * kRadToDeg << ") deg about the camera x, y, z axes exceeds "
         << options.max_rotation_sigma_rad * kRadToDeg
         << " deg: it needs clear rotation about at least two axes (gyro RMS about its principal axes "
         << rates.str() << "); turn the camera about all three axes, or hold the rotation at a known value"
@@ -908,10 +933,10 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
     result.refusals.push_back(why.str());
   }
   if (options.estimate_gyro_bias &&
-      calibration.gyro_bias_sigma_rad_s.maxCoeff() > options.max_gyro_bias_sigma_rad_s) {
+      result.statistical.gyro_bias_rad_s.maxCoeff() > options.max_gyro_bias_sigma_rad_s) {
     std::ostringstream why;
-    why << std::scientific << std::setprecision(2) << "gyro bias: 1-sigma "
-        << calibration.gyro_bias_sigma_rad_s.maxCoeff() << " rad/s exceeds " << options.max_gyro_bias_sigma_rad_s
+    why << std::scientific << std::setprecision(2) << "gyro bias: statistical 1-sigma "
+        << result.statistical.gyro_bias_rad_s.maxCoeff() << " rad/s exceeds " << options.max_gyro_bias_sigma_rad_s
         << " rad/s: record longer or with more texture, or hold the bias" << ois_advice;
     result.refusals.push_back(why.str());
   }

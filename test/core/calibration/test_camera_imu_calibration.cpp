@@ -231,6 +231,57 @@ TEST(CameraImuCalibration, RecoversOffsetReadoutBiasAndMountWithoutOis) {
   EXPECT_LT(result.median_residual_px, 0.2);
 }
 
+// The reported 1-sigma is the statistical one inflated, with the systematic term every recording
+// shares added in quadrature (docs/calibration_uncertainty.md: that is what covers the benchmark's
+// errors); refusals judge the statistical part alone, so even a huge systematic term refuses
+// nothing, and factor 1 with no systematic term reports the statistical sigma itself.
+TEST(CameraImuCalibration, ReportedSigmaIsTheInflatedStatisticalOnePlusTheSystematicTerm) {
+  const SyntheticRecording recording = makeRecording(SyntheticSpec());
+  const CalibrationOptions defaults;
+  const CalibrationResult result = calibrateCameraImu(recording.data, defaults);
+  ASSERT_TRUE(result.ok()) << result.reason();
+  const CameraImuCalibration& c = result.calibration;
+  const CalibrationResult::Sigmas& statistical = result.statistical;
+  ASSERT_GT(statistical.time_offset_s, 0.0);
+  const double k = defaults.statistical_sigma_factor;
+  EXPECT_GT(k, 1.0);
+  EXPECT_NEAR(c.time_offset_sigma_s, std::hypot(k * statistical.time_offset_s, defaults.systematic_time_offset_s), 1e-12);
+  EXPECT_NEAR(c.readout_time_sigma_s, std::hypot(k * statistical.readout_time_s, defaults.systematic_readout_time_s),
+              1e-12);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(c.rotation_sigma_rad(i), std::hypot(k * statistical.rotation_rad(i), defaults.systematic_rotation_rad),
+                1e-12);
+    EXPECT_NEAR(c.gyro_bias_sigma_rad_s(i),
+                std::hypot(k * statistical.gyro_bias_rad_s(i), defaults.systematic_gyro_bias_rad_s), 1e-12);
+  }
+
+  CalibrationOptions statistical_only;
+  statistical_only.statistical_sigma_factor = 1.0;
+  statistical_only.systematic_time_offset_s = 0.0;
+  statistical_only.systematic_readout_time_s = 0.0;
+  statistical_only.systematic_rotation_rad = 0.0;
+  statistical_only.systematic_gyro_bias_rad_s = 0.0;
+  const CalibrationResult bare = calibrateCameraImu(recording.data, statistical_only);
+  EXPECT_EQ(bare.calibration.time_offset_s, c.time_offset_s) << "the sigma must not change the estimate";
+  EXPECT_DOUBLE_EQ(bare.calibration.time_offset_sigma_s, statistical.time_offset_s);
+  EXPECT_DOUBLE_EQ(bare.calibration.readout_time_sigma_s, statistical.readout_time_s);
+  EXPECT_TRUE(bare.calibration.rotation_sigma_rad.isApprox(statistical.rotation_rad));
+
+  CalibrationOptions huge_systematic;
+  huge_systematic.systematic_rotation_rad = 5.0 * kDeg;
+  huge_systematic.systematic_time_offset_s = 0.01;
+  const CalibrationResult wide = calibrateCameraImu(recording.data, huge_systematic);
+  EXPECT_TRUE(wide.ok()) << "a systematic term no recording can lower must not refuse it: " << wide.reason();
+  EXPECT_GT(wide.calibration.rotation_sigma_rad.minCoeff(), 5.0 * kDeg);
+
+  CalibrationOptions bad;
+  bad.systematic_readout_time_s = -1e-4;
+  EXPECT_NE(bad.validate().find("systematic"), std::string::npos);
+  bad = CalibrationOptions();
+  bad.statistical_sigma_factor = 0.5;
+  EXPECT_NE(bad.validate().find("statistical_sigma_factor"), std::string::npos);
+}
+
 TEST(CameraImuCalibration, NegativeOffsetAndGlobalShutter) {
   SyntheticSpec spec;
   spec.seed = 8;
