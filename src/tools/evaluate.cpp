@@ -113,11 +113,25 @@ int main(int argc, char** argv) {
           ->check(deep_ois::existingFile())
           ->type_name("FILE.pt");
   app.add_flag("--no-model", no_model, "leave out the model row")->excludes(model_option);
+  // The shipped default compensator: the generic learned stabiliser model.
+  const std::string shipped_stabiliser =
+      package.empty() ? "" : package + "/models/stabiliser_generic.yaml";
   std::vector<std::string> stabiliser_paths;
-  app.add_option("--stabiliser", stabiliser_paths,
-                 "learned stabiliser models (train_stabiliser), one row each")
-      ->check(deep_ois::existingFile())
-      ->type_name("FILE.yaml ...");
+  CLI::Option* stabiliser_option =
+      app.add_option("--stabiliser", stabiliser_paths,
+                     "learned stabiliser models (train_stabiliser), one row each (default: the "
+                     "package's models/stabiliser_generic.yaml)")
+          ->check(deep_ois::existingFile())
+          ->type_name("FILE.yaml ...");
+  bool no_stabiliser = false;
+  app.add_flag("--no-stabiliser", no_stabiliser, "leave out the stabiliser model rows")
+      ->excludes(stabiliser_option);
+  std::string live_model;
+  app.add_option("--live-model", live_model,
+                 "with --recorded: the model the live compensation ran (default: the package's "
+                 "models/stabiliser_generic.yaml, the launch files' default); its offline row is "
+                 "compared with the recorded flows")
+      ->type_name("FILE");
   command_line.addNumber("--torch-threads", torch_threads, "torch threads of the model row")
       ->check(deep_ois::atLeast(1));
   app.add_option("--recorded", recorded,
@@ -125,6 +139,19 @@ int main(int argc, char** argv) {
       ->check(deep_ois::existingFile())
       ->type_name("LIVE.bag");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (stabiliser_option->count() == 0 && !no_stabiliser && !shipped_stabiliser.empty() &&
+      std::filesystem::exists(shipped_stabiliser)) {
+    stabiliser_paths.push_back(shipped_stabiliser);
+  }
+  if (live_model.empty()) live_model = shipped_stabiliser;
+  const bool live_stabiliser = deep_ois::isStabiliserModelPath(live_model);
+  const std::string live_stabiliser_row =
+      "stabiliser model, " + std::filesystem::path(live_model).filename().string();
+  if (!recorded.empty() && live_stabiliser &&
+      std::find(stabiliser_paths.begin(), stabiliser_paths.end(), live_model) ==
+          stabiliser_paths.end()) {
+    stabiliser_paths.push_back(live_model);  // the offline row the live flows are compared with
+  }
   standard.image_baselines = !no_image_baselines;
   standard.ground_truth = !no_ground_truth;
   options.show_progress = !no_progress;
@@ -196,8 +223,10 @@ int main(int argc, char** argv) {
     if (!recorded.empty()) {
       live_gyro = deep_ois::readRecordedFlows(recorded, "/deep_ois/gyro_flow");
       live_compensated = deep_ois::readRecordedFlows(recorded, "/deep_ois/compensated_flow");
-      // The gyro row is scored on the recorded homographies (as the offline gyro row), the model's
-      // on the recorded grid flow (as the offline model row): like with like, so they must agree.
+      // The gyro row is scored on the recorded homographies (as the offline gyro row); the
+      // compensation's on the recorded grid flow for a network (as its offline row) and on the
+      // recorded per-patch homographies for a stabiliser model (as its offline row): like with
+      // like, so they must agree.
       auto recordedMethod =
           [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
              bool use_homographies) {
@@ -213,8 +242,8 @@ int main(int argc, char** argv) {
           };
       runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs,
                         recordedMethod(live_gyro, true)});
-      runner.addMethod({"DeepOIS (live nodelets, recorded)", deep_ois::kOisCameraPairs,
-                        recordedMethod(live_compensated, false)});
+      runner.addMethod({"compensation (live nodelets, recorded)", deep_ois::kOisCameraPairs,
+                        recordedMethod(live_compensated, live_stabiliser)});
     }
     report = runner.run();
   } catch (const std::exception& e) {
@@ -260,7 +289,11 @@ int main(int argc, char** argv) {
 #endif
     std::vector<std::pair<std::string, std::string>> comparisons = {
         {"gyro, OIS camera (uncompensated)", "gyro, OIS camera (live nodelet, recorded)"}};
-    if (model) comparisons.push_back({model_row, "DeepOIS (live nodelets, recorded)"});
+    if (live_stabiliser) {
+      comparisons.push_back({live_stabiliser_row, "compensation (live nodelets, recorded)"});
+    } else if (model) {
+      comparisons.push_back({model_row, "compensation (live nodelets, recorded)"});
+    }
     std::printf("\nreplay parity (live nodelets recorded in %s vs offline):\n", recorded.c_str());
     for (const auto& [offline, live] : comparisons) {
       const deep_ois::MethodAgreement agreement = deep_ois::compareMethods(report, offline, live);

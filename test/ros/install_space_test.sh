@@ -44,7 +44,7 @@ if [ "$package_dir" != "$prefix/share/deep_ois" ]; then
   echo "install_space_test: rospack finds deep_ois in '$package_dir', not in the prefix $prefix"
   exit 1
 fi
-for file in models/fast.pt models/fast.yaml bags/sample.bag config/gyro_flow.yaml config/compensation.yaml \
+for file in models/fast.pt models/fast.yaml models/stabiliser_generic.yaml bags/sample.bag config/gyro_flow.yaml config/compensation.yaml \
             launch/deep_ois.launch launch/demo.launch rviz nodelet_plugins.xml package.xml; do
   [ -e "$package_dir/$file" ] || { echo "install_space_test: $file is not installed"; exit 1; }
 done

@@ -481,10 +481,12 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   metadata.distortion = frame.distortion;
   metadata.rolling_shutter = config;
   {
-    // The gyro stream behind the pair (for stabiliser models downstream): from one frame interval
-    // before frame a's first patch to frame b's last patch, relative to frame b's stamp.
+    // The gyro stream behind the pair (for stabiliser models downstream): from the model's warm-up
+    // before frame a's first patch to frame b's last patch, relative to frame b's stamp. Every
+    // message carries the warm-up, so a consumer that starts (or restarts) anywhere in the stream
+    // starts from the same history as the evaluator; later messages only add their newest samples.
     const double stamp_a_s = secondsSinceBase(previous.stamp), stamp_b_s = secondsSinceBase(frame.stamp);
-    const double from_s = patchImuTime(config, stamp_a_s, 0) - (stamp_b_s - stamp_a_s);
+    const double from_s = patchImuTime(config, stamp_a_s, 0) - kStabiliserWarmUpS;
     const double until_s = patchImuTime(config, stamp_b_s, config.patch_count - 1);
     for (CameraRateSample rate : cameraRates(imu_buffer_, config.imu_to_camera_rotation, from_s, until_s)) {
       rate.stamp_s -= stamp_b_s;

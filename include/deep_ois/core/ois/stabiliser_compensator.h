@@ -17,6 +17,11 @@
 
 namespace deep_ois {
 
+// Seconds of gyro history a stabiliser model is run over before the first pair of a stream (the
+// lens state depends on it; a few centring time constants). The gyro flow nodelet sends this much
+// with every GyroFlow message, so the live chain starts from the same history as the evaluator.
+constexpr double kStabiliserWarmUpS = 1.0;
+
 // The camera-frame rates of the IMU samples after after_s up to and including the first at or
 // after until_s (IMU clock, seconds): what a model needs to answer at until_s.
 std::vector<CameraRateSample> cameraRates(const ImuSampleBuffer& imu,
@@ -36,7 +41,7 @@ class StabiliserCompensator {
   // `warm_up_s`: at the start of a stream (or after a gap) the model is first run over this much
   // of the gyro history before the pair, when the caller has it (the lens state depends on it).
   StabiliserCompensator(const StabiliserParameters& parameters, const Eigen::Matrix3d& K,
-                        double warm_up_s = 1.0);
+                        double warm_up_s = kStabiliserWarmUpS);
 
   // Appends camera-frame rates in time order; older or repeated samples are ignored.
   void addRates(const std::vector<CameraRateSample>& rates);
