@@ -3,7 +3,7 @@
 // synthetic hand-held gyro, with the same core calls as the nodelets; and, in the same run, a bare
 // cv::remap of the same frame with the same map, so that the chain reads as a multiple of one remap.
 //
-//   benchmark_compensation [--model models/fast.pt] [--frames 200] [--threads 1] [--warp-threads 1]
+//   benchmark_compensation [--model models/fast.pt | models/stabiliser_generic.yaml] [--frames 200] [--threads 1] [--warp-threads 1]
 //                          [--sizes 256x192,640x480,1280x720,1920x1080]
 //
 // One core by default: torch and OpenCV single-threaded (--threads / --warp-threads raise them).
@@ -43,7 +43,10 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_compensator.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/net/compensation_model.h"
+#include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/net/compensation_stream.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/messages/conversions.h"
@@ -155,15 +158,30 @@ int main(int argc, char** argv) {
 
     cv::setNumThreads(warp_threads);  // as the nodelet's ~warp_threads
     deep_ois::setTorchThreads(torch_threads);
-    const deep_ois::CompensationModel model = deep_ois::CompensationModel::load(model_path);
+    // A learned stabiliser model (.yaml) or the network (.pt), as the nodelet's ~model.
+    const bool stabiliser = deep_ois::isStabiliserModelPath(model_path);
+    std::unique_ptr<deep_ois::CompensationModel> model;
+    std::unique_ptr<deep_ois::StabiliserModelFile> stabiliser_model;
+    if (stabiliser) {
+      stabiliser_model = std::make_unique<deep_ois::StabiliserModelFile>(deep_ois::StabiliserModelFile::load(model_path));
+    } else {
+      model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(model_path));
+    }
     const deep_ois::GyroFlowParameters params =
         deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(package + "/config/gyro_flow.yaml"));
-    const auto& m = model.metadata();
-    std::printf("benchmark_compensation: model %s (preset %s, network grid %dx%d), flow grid %dx%d, %d torch "
-                "thread(s), %d OpenCV thread(s), %d frame pairs per size, %u hardware threads\n",
-                model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
-                params.grid_size.width, params.grid_size.height, torch_threads, warp_threads, frames,
-                std::thread::hardware_concurrency());
+    if (stabiliser) {
+      std::printf("benchmark_compensation: learned stabiliser model %s, flow grid %dx%d, %d OpenCV thread(s), %d "
+                  "frame pairs per size, %u hardware threads\n",
+                  model_path.c_str(), params.grid_size.width, params.grid_size.height, warp_threads, frames,
+                  std::thread::hardware_concurrency());
+    } else {
+      const auto& m = model->metadata();
+      std::printf("benchmark_compensation: model %s (preset %s, network grid %dx%d), flow grid %dx%d, %d torch "
+                  "thread(s), %d OpenCV thread(s), %d frame pairs per size, %u hardware threads\n",
+                  model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
+                  params.grid_size.width, params.grid_size.height, torch_threads, warp_threads, frames,
+                  std::thread::hardware_concurrency());
+    }
 
     // The synthetic gyro, shared by all sizes: 400 Hz over the whole run.
     const double duration_s = (frames + kWarmUpPairs + 12) * kFramePeriodS + 1.0;
@@ -181,7 +199,13 @@ int main(int argc, char** argv) {
       deep_ois::RollingShutterConfig rs = params.rolling_shutter;
       rs.imu_to_camera_rotation = Eigen::Matrix3d::Identity();
       const deep_ois::HomographyFlowRenderer renderer(camera, params.grid_size, rs.patch_count);
-      deep_ois::CompensationStream stream(model);
+      std::unique_ptr<deep_ois::CompensationStream> stream;
+      std::unique_ptr<deep_ois::StabiliserFlowCompensator> stabiliser_compensator;
+      if (stabiliser) {
+        stabiliser_compensator = std::make_unique<deep_ois::StabiliserFlowCompensator>(*stabiliser_model);
+      } else {
+        stream = std::make_unique<deep_ois::CompensationStream>(*model);
+      }
       deep_ois::GyroFlowMetadata metadata;
       metadata.camera = camera;
       metadata.distortion_model = "plumb_bob";
@@ -219,6 +243,14 @@ int main(int argc, char** argv) {
         start = Clock::now();
         metadata.header.stamp = image_b.header.stamp;
         metadata.previous_stamp = image_a.header.stamp;
+        // The gyro stream the message carries (as gyro_flow_ros), relative to frame b's stamp.
+        metadata.camera_rates.clear();
+        for (deep_ois::CameraRateSample rate : deep_ois::cameraRates(
+                 imu, rs.imu_to_camera_rotation, deep_ois::patchImuTime(rs, stamp_a_s, 0) - deep_ois::kStabiliserWarmUpS,
+                 deep_ois::patchImuTime(rs, stamp_b_s, rs.patch_count - 1))) {
+          rate.stamp_s -= stamp_b_s;
+          metadata.camera_rates.push_back(rate);
+        }
         auto gyro_msg = boost::make_shared<deep_ois::GyroFlow>();
         deep_ois::fillGyroFlowMsg(metadata, h.homographies, gyro_flow, *gyro_msg);
         cv::Mat gyro_color;
@@ -237,8 +269,17 @@ int main(int argc, char** argv) {
         if (!problem.empty()) throw std::runtime_error(problem);
         ms[6] += msSince(start);
         start = Clock::now();
-        const cv::Mat compensated = stream.compensate(flow_view, static_cast<std::int64_t>(image_a.header.stamp.toNSec()),
-                                                      static_cast<std::int64_t>(image_b.header.stamp.toNSec()));
+        cv::Mat compensated;
+        std::vector<Eigen::Matrix3d> compensated_homographies;  // a stabiliser model's
+        if (stabiliser) {
+          deep_ois::StabiliserFlowResult result = stabiliser_compensator->compensate(*gyro_msg);
+          if (!result.ok) throw std::runtime_error("stabiliser model: " + result.reason);
+          compensated = result.flow;
+          compensated_homographies = std::move(result.homographies);
+        } else {
+          compensated = stream->compensate(flow_view, static_cast<std::int64_t>(image_a.header.stamp.toNSec()),
+                                           static_cast<std::int64_t>(image_b.header.stamp.toNSec()));
+        }
         ms[1] += msSince(start);
         start = Clock::now();
         auto compensated_msg = boost::make_shared<deep_ois::GyroFlow>(*gyro_msg);
@@ -256,7 +297,12 @@ int main(int argc, char** argv) {
         deep_ois::colorizeFlow(compensated, params.color_max_flow_px, color);
         ms[5] += msSince(start);
         start = Clock::now();
-        deep_ois::buildFixedPointBackwardMap(compensated, size, 3, map);
+        // As the nodelet: a stabiliser model's map straight from its homographies.
+        if (stabiliser) {
+          homography_builder.build(compensated_homographies, map);
+        } else {
+          deep_ois::buildFixedPointBackwardMap(compensated, size, 3, map);
+        }
         ms[2] += msSince(start);
         start = Clock::now();
         deep_ois::warpWithFixedPointMap(a->image, map, aligned);
