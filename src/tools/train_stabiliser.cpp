@@ -10,6 +10,8 @@
 // bags; scripts/train_camera.sh runs both.
 #include <ros/package.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -28,6 +30,7 @@
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/dataset_hash.h"
+#include "deep_ois/tools/support/line_plot.h"
 #include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
@@ -161,6 +164,7 @@ int main(int argc, char** argv) {
       "camera_info and the IMU -> camera transform): the lens motion per frame pair and row patch "
       "from the images with the gyro's rotations (gyro-anchored ground truth), then the "
       "stabiliser model fitted to it. Writes MODEL.yaml (parameters, camera, training data) and "
+      "MODEL_fit.png (the fit's loss curve), and "
       "keeps each recording's ground truth in a cache directory (a re-run resumes from it).",
       "Exit status: 0 done, 1 no usable recording or the fit failed, 2 usage, 3 done but some "
       "recordings could not be read or the calibration looks wrong.");
@@ -188,9 +192,10 @@ int main(int argc, char** argv) {
                  "recording found there is not recomputed, so runs for several models can share it")
       ->type_name("DIR");
   app.add_option("--target", target,
-                 "lens motion from the 'images' (gyro-anchored ground truth) or the simulator's "
-                 "'truth'")
-      ->check(deep_ois::oneOf({"images", "truth"}))
+                 "lens motion from the 'images' (gyro-anchored ground truth), the camera's own "
+                 "lens-shift 'log' (with the gyro config's lens_shift_* convention) or the "
+                 "simulator's 'truth'")
+      ->check(deep_ois::oneOf({"images", "log", "truth"}))
       ->capture_default_str();
   deep_ois::StabiliserFitOptions fit_options;
   command_line.addNumber("--iterations", fit_options.iterations,
@@ -213,9 +218,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "train_stabiliser: %s: %s\n", gyro_config.c_str(), e.what());
     return 2;
   }
-  const deep_ois::LensMotionTarget lens_target = target == "truth"
-                                                     ? deep_ois::LensMotionTarget::kSimulatorTruth
-                                                     : deep_ois::LensMotionTarget::kImages;
+  const deep_ois::LensMotionTarget lens_target =
+      target == "truth" ? deep_ois::LensMotionTarget::kSimulatorTruth
+      : target == "log" ? deep_ois::LensMotionTarget::kLensLog
+                        : deep_ois::LensMotionTarget::kImages;
   if (cache_dir.empty()) cache_dir = out_path + ".cache";
   std::error_code ignored;
   fs::create_directories(cache_dir, ignored);
@@ -250,7 +256,11 @@ int main(int argc, char** argv) {
                          ? (", " + std::to_string(data->pairs_without_tracks) +
                             " pairs with too few tracks (left out)").c_str()
                          : "",
-                     "", data->median_track_residual_px, cached ? " (cached)" : "");
+                     data->pairs_without_log
+                         ? (", " + std::to_string(data->pairs_without_log) +
+                            " pairs the lens log does not cover (left out)").c_str()
+                         : "",
+                     data->median_track_residual_px, cached ? " (cached)" : "");
         if (lens_target == deep_ois::LensMotionTarget::kImages &&
             data->median_track_residual_px > kCalibrationSuspectPx) {
           calibration_suspect = true;
@@ -318,6 +328,8 @@ int main(int argc, char** argv) {
   model.name = name.empty() ? (one_camera ? model.camera.summary() : "generic") : name;
   model.training.target = lens_target == deep_ois::LensMotionTarget::kImages
                               ? "gyro-anchored lens shift (images)"
+                          : lens_target == deep_ois::LensMotionTarget::kLensLog
+                              ? "the camera's lens-shift log"
                               : "simulator truth";
   model.training.data_files = bags;
   model.training.recordings = training.size();
@@ -341,8 +353,22 @@ int main(int argc, char** argv) {
     return 1;
   }
 
+  // The fit's loss curve beside the model.
+  std::string plot_path = out_path;
+  if (plot_path.size() > 5 && plot_path.substr(plot_path.size() - 5) == ".yaml")
+    plot_path.resize(plot_path.size() - 5);
+  plot_path += "_fit.png";
+  {
+    const cv::Mat plot = deep_ois::drawLinePlot(
+        {{"training lens motions", fit.rms_history, cv::Scalar(200, 80, 0)}},
+        "train_stabiliser: fit of " + fs::path(out_path).filename().string(),
+        "Levenberg-Marquardt step", "RMS lens-motion residual [px]", true);
+    if (!cv::imwrite(plot_path, plot))
+      std::fprintf(stderr, "train_stabiliser: cannot write %s\n", plot_path.c_str());
+  }
   const auto& p = fit.parameters;
-  std::printf("Stabiliser model %s (%s)\n\n", out_path.c_str(), model.name.c_str());
+  std::printf("Stabiliser model %s (%s); fit curve %s\n\n", out_path.c_str(), model.name.c_str(),
+              plot_path.c_str());
   std::printf("| parameter | value |\n|---|---|\n");
   std::printf("| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0), p.gain(0, 1), p.gain(1, 0),
               p.gain(1, 1));

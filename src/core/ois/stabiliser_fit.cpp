@@ -132,10 +132,11 @@ double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
 }
 
 // Levenberg-Marquardt with a forward-difference Jacobian and Huber reweighting per iteration.
+// `rms_history`, when given, gets the RMS residual (pixels) after every accepted step.
 StabiliserParameters levenbergMarquardt(StabiliserParameters start, const ParameterPacking& packing,
                                         const std::vector<StabiliserFitRecording>& recordings,
                                         const StabiliserFitOptions& options, int iterations,
-                                        double* final_cost) {
+                                        double* final_cost, std::vector<double>* rms_history = nullptr) {
   Eigen::VectorXd x = packing.pack(start);
   Residuals current = residualsOf(packing.unpack(x, start), recordings, options);
   double cost = huberCost(current.values, options.huber_px);
@@ -176,6 +177,9 @@ StabiliserParameters levenbergMarquardt(StabiliserParameters start, const Parame
         current = residualsOf(packing.unpack(x, start), recordings, options);
         const double relative = (cost - trial_cost) / std::max(cost, 1e-12);
         cost = huberCost(current.values, options.huber_px);
+        if (rms_history) {
+          rms_history->push_back(weightedRms(current.values, Eigen::VectorXd::Ones(current.values.size())));
+        }
         lambda = std::max(lambda / 3.0, 1e-7);
         improved = true;
         if (relative < 1e-6) iteration = iterations;  // converged
@@ -375,7 +379,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   {
     double cost = 0.0;
     best = levenbergMarquardt(best, ParameterPacking{}, recordings, physical_options,
-                              std::max(1, options.iterations / 3), &cost);
+                              std::max(1, options.iterations / 3), &cost, &result.rms_history);
     std::ostringstream line;
     line << "first refinement: corner " << best.highpass_corner_hz << " Hz, cost " << cost;
     log(line.str());
@@ -420,7 +424,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   double refined_cost = 0.0;
   StabiliserParameters refined = levenbergMarquardt(best, ParameterPacking{}, recordings,
                                                     physical_options, options.iterations,
-                                                    &refined_cost);
+                                                    &refined_cost, &result.rms_history);
   log(describe(refined, refined_cost));
   tick();
   const int short_iterations = std::max(1, options.iterations / 5);
@@ -451,7 +455,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     ParameterPacking packing;
     packing.pan = variant_best.pan_detection_rate_rad_s > 0.0;
     refined = levenbergMarquardt(variant_best, packing, recordings, physical_options,
-                                 options.iterations, &refined_cost);
+                                 options.iterations, &refined_cost, &result.rms_history);
     log("refined: " + describe(refined, refined_cost));
   }
 

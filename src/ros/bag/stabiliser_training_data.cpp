@@ -5,6 +5,8 @@
 
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/lens_shift_homographies.h"
+#include "deep_ois/core/ois/lens_shift_log.h"
 #include "deep_ois/core/vision/feature_tracker.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
 #include "deep_ois/ros/messages/conversions.h"
@@ -75,6 +77,28 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
     }
   };
 
+  if (target == LensMotionTarget::kLensLog) {
+    if (bag.lens_shift_log.empty()) fail("no lens-shift log in the bag (topic /camera/lens_shift)");
+    LensShiftLog log(gyro.lens_shift_max_gap_s, gyro.lens_shift_convention);
+    for (const LensShiftLogSample& sample : bag.lens_shift_log) log.add(sample);
+    for (std::size_t f = 0; f + 1 < stamps_s.size(); ++f) {
+      ++data.frame_pairs;
+      // The log is on the camera's clock; the model's times are the IMU's (patchImuTime).
+      const double first = patchCameraTime(rs, stamps_s[f], 0);
+      const double last = patchCameraTime(rs, stamps_s[f + 1], rs.patch_count - 1);
+      if (!log.covers(first, last)) {
+        ++data.pairs_without_log;
+        continue;
+      }
+      std::vector<Eigen::Vector2d> s_a, s_b;
+      for (int i = 0; i < rs.patch_count; ++i) {
+        s_a.push_back(log.shiftAt(patchCameraTime(rs, stamps_s[f], i)));
+        s_b.push_back(log.shiftAt(patchCameraTime(rs, stamps_s[f + 1], i)));
+      }
+      addPair(stamps_s[f], stamps_s[f + 1], s_a, s_b);
+    }
+    return data;
+  }
   if (!images) {
     if (bag.truths.empty()) fail("no simulator truth on /ground_truth/frame_pair");
     for (const FramePairTruth& truth : bag.truths) {

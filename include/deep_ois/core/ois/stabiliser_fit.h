@@ -64,6 +64,9 @@ struct StabiliserFitResult {
   double rms_physical_px = 0.0;
   double rms_px = 0.0;
   std::vector<std::string> log;  // one line per candidate tried, for the training report
+  // The RMS residual (pixels) after every accepted refinement step of the model kept (the first
+  // refinement, the full one, and the variant's when one was kept): the fit's loss curve.
+  std::vector<double> rms_history;
 };
 
 // Throws std::invalid_argument when the options are invalid, a recording has no focal length or

@@ -2,6 +2,9 @@
 // gyro stream in the camera frame and the lens motion per frame pair and row patch, from
 //  - the images: the gyro-anchored lens-shift ground truth (core/ground_truth/
 //    lens_shift_ground_truth.h) on the offline job's point tracks, for any recording; or
+//  - the camera's own lens-shift log (docs/lens_shift_logs.md), read with the gyro flow
+//    parameters' log convention: a phone that logs its lens in a development mode trains the model
+//    for units that do not;
 //  - the simulator's truth (FramePairTruth lens shifts), to measure what the images lose.
 // The gyro side is the gyro flow nodelet's code with its parameters, so a model fitted here sees
 // the rotations and patch times the live chain gives it.
@@ -17,7 +20,7 @@
 
 namespace deep_ois {
 
-enum class LensMotionTarget { kImages, kSimulatorTruth };
+enum class LensMotionTarget { kImages, kLensLog, kSimulatorTruth };
 
 struct StabiliserRecordingData {
   StabiliserFitRecording recording;
@@ -25,6 +28,7 @@ struct StabiliserRecordingData {
   std::size_t frame_pairs = 0;          // consecutive frame pairs in the bag
   std::size_t pairs_without_gyro = 0;   // not covered by the gyro (no observation)
   std::size_t pairs_without_tracks = 0; // too few inlier tracks for the images' estimate
+  std::size_t pairs_without_log = 0;    // kLensLog: the log does not cover the pair (a gap)
   double median_track_residual_px = 0.0;  // of the images' estimate (0 for the simulator truth)
 };
 
