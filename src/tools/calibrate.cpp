@@ -195,11 +195,7 @@ int main(int argc, char** argv) {
     // A readout this close to 0 is usually a global shutter, whose readout is known: estimated
     // from a recording with little motion, the offset and readout can slide together along
     // their ridge by a millisecond at a 1-sigma of 0.2-0.3 ms (docs/calibration_uncertainty.md).
-    if (options.estimate_readout_time && c.readout_time_s < 2e-3) {
-      std::printf("  note: readout %.3f ms is near 0: if this is a global-shutter camera, hold it (--readout 0); "
-                  "the time offset is then more reliable (docs/calibration_uncertainty.md)\n",
-                  c.readout_time_s * 1e3);
-    }
+    for (const std::string& note : result.notes) std::printf("  note: %s\n", note.c_str());
     printMatrix(c.imu_to_camera_rotation);
     if (bag.tf_imu_to_camera_rotation) {
       std::printf(

@@ -68,6 +68,8 @@ std::string CalibrationOptions::validate() const {
              !std::isfinite(systematic_time_offset_s + systematic_readout_time_s + systematic_rotation_rad +
                             systematic_gyro_bias_rad_s)) {
     why << "the systematic_* uncertainties must be finite and >= 0";
+  } else if (!(readout_boundary_s >= 0.0) || !std::isfinite(readout_boundary_s)) {
+    why << "readout_boundary_s must be >= 0 seconds (0 = never)";
   } else if (!(statistical_sigma_factor >= 1.0 && statistical_sigma_factor <= 100.0)) {
     why << "statistical_sigma_factor must be in [1, 100] (got " << statistical_sigma_factor << ")";
   } else if (!(max_time_offset_sigma_s > 0.0) || !(max_readout_time_sigma_s > 0.0) ||
@@ -597,7 +599,38 @@ ImuSampleBuffer bufferOf(const std::vector<ImuSample>& gyro) {
 
 }  // namespace
 
+namespace {
+CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOptions& options);
+}  // namespace
+
 CalibrationResult calibrateCameraImu(const CalibrationData& data, const CalibrationOptions& options) {
+  CalibrationResult result = calibrateOnce(data, options);
+  CameraImuCalibration& c = result.calibration;
+  if (!options.estimate_readout_time || !(options.readout_boundary_s > 0.0) ||
+      !(c.readout_time_s < options.readout_boundary_s)) {
+    return result;
+  }
+  // At the readout's lower bound: the other answer, a global shutter, widens the intervals.
+  CalibrationOptions held = options;
+  held.estimate_readout_time = false;
+  held.readout_time_s = 0.0;
+  const CalibrationResult global = calibrateOnce(data, held);
+  const double offset_shift_s = c.time_offset_s - global.calibration.time_offset_s;
+  c.time_offset_sigma_s = std::hypot(c.time_offset_sigma_s, offset_shift_s);
+  c.readout_time_sigma_s = std::max(c.readout_time_sigma_s, c.readout_time_s);
+  std::ostringstream note;
+  note << std::fixed << std::setprecision(3) << "readout " << c.readout_time_s * 1e3
+       << " ms is at its lower bound: with the readout held at 0 (a global shutter) the offset is "
+       << global.calibration.time_offset_s * 1e3 << " ms; the reported intervals hold both (offset +- "
+       << c.time_offset_sigma_s * 1e3 << " ms, readout +- " << c.readout_time_sigma_s * 1e3
+       << " ms). For a global-shutter camera pass --readout 0";
+  result.notes.push_back(note.str());
+  result.seconds += global.seconds;
+  return result;
+}
+
+namespace {
+CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOptions& options) {
   const auto started = std::chrono::steady_clock::now();
   checkInput(data, options);
   CalibrationResult result;
@@ -942,6 +975,7 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
   }
   return finish();
 }
+}  // namespace
 
 std::vector<double> trackResidualsPx(const CalibrationData& data, const CameraImuCalibration& calibration,
                                      RateInterpolation interpolation) {

@@ -299,6 +299,37 @@ TEST(CameraImuCalibration, NegativeOffsetAndGlobalShutter) {
   EXPECT_LT(e.rotation_deg, 0.3);
 }
 
+// A readout estimated at its lower bound (a global shutter): the Gaussian interval is wrong there,
+// so the intervals must also hold the answer with the readout held at 0.
+TEST(CameraImuCalibration, AReadoutAtItsBoundWidensTheIntervalsToHoldTheGlobalShutterAnswer) {
+  SyntheticSpec spec;
+  spec.seed = 8;
+  spec.time_offset_s = -0.048;
+  spec.readout_time_s = 0.0;
+  spec.imu_to_camera_rotation = expSO3(Eigen::Vector3d(-3.0, 0.5, 2.0) * kDeg) * signedAxisPermutations()[4];
+  const SyntheticRecording recording = makeRecording(spec);
+  const CalibrationResult result = calibrateCameraImu(recording.data, CalibrationOptions());
+  ASSERT_TRUE(result.ok()) << result.reason();
+  ASSERT_EQ(result.notes.size(), 1u) << "no note on the readout bound";
+  CalibrationOptions held;
+  held.estimate_readout_time = false;
+  held.readout_time_s = 0.0;
+  const CalibrationResult global = calibrateCameraImu(recording.data, held);
+  ASSERT_TRUE(global.ok()) << global.reason();
+  const CameraImuCalibration& c = result.calibration;
+  EXPECT_TRUE(global.notes.empty());
+  // The reported intervals reach the other answer.
+  EXPECT_GE(c.time_offset_sigma_s + 1e-12,
+            std::abs(c.time_offset_s - global.calibration.time_offset_s));
+  EXPECT_GE(c.readout_time_sigma_s + 1e-12, c.readout_time_s);
+  // Switched off, the interval is the usual one (narrower or equal).
+  CalibrationOptions usual;
+  usual.readout_boundary_s = 0.0;
+  const CalibrationResult plain = calibrateCameraImu(recording.data, usual);
+  EXPECT_TRUE(plain.notes.empty());
+  EXPECT_LE(plain.calibration.time_offset_sigma_s, c.time_offset_sigma_s + 1e-12);
+}
+
 // OIS: the lens cancels most pan/tilt shake. Estimating each frame's lens shift keeps the
 // calibration; ignoring it costs milliseconds and degrees.
 TEST(CameraImuCalibration, PerFrameLensShiftKeepsOisCamerasAccurate) {

@@ -115,6 +115,12 @@ struct CalibrationOptions {
   double coarse_time_step_s = 0.001;
   // Readout is kept in [0, max_readout_time_s]; negative = the median frame interval.
   double max_readout_time_s = -1.0;
+  // An estimated readout below this (seconds) sits at its lower bound 0, where a global-shutter
+  // camera's is: the bound makes the Gaussian interval wrong (the offset and readout slide together
+  // along their ridge by a millisecond at a 1-sigma of 0.2-0.3 ms). The calibration is then also
+  // run with the readout held at 0, and the reported intervals widened to hold both answers
+  // (offset: the difference added in quadrature; readout: down to 0). 0 = never.
+  double readout_boundary_s = 2e-3;
 
   // Refinement.
   int max_iterations = 60;
@@ -190,6 +196,8 @@ struct CalibrationResult {
   CalibrationStatus status = CalibrationStatus::kOk;
   // One sentence per refused quantity: what is missing and what to do about it.
   std::vector<std::string> refusals;
+  // Sentences on how the reported intervals were formed beyond the usual (e.g. the readout bound).
+  std::vector<std::string> notes;
   // The estimate (filled even when refused, for diagnosis; do not use a refused quantity).
   CameraImuCalibration calibration;
 
