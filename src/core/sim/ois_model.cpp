@@ -108,6 +108,14 @@ std::string OisConfig::validate() const {
     why << "pan_release_corner_hz: must be positive (got " << pan_release_corner_hz << " Hz)";
   } else if (!std::isfinite(hall_noise_px) || hall_noise_px < 0.0) {
     why << "hall_noise_px: must be non-negative (got " << hall_noise_px << ")";
+  } else if (position_loop != "second_order" && position_loop != "pi") {
+    why << "position_loop: must be second_order or pi (got '" << position_loop << "')";
+  } else if (position_loop == "pi" &&
+             (!positive(pi_plant_natural_hz) || !positive(pi_plant_damping) || !positive(pi_kp) ||
+              !std::isfinite(pi_ki) || pi_ki < 0.0)) {
+    why << "pi_plant_natural_hz, pi_plant_damping, pi_kp: must be positive, pi_ki >= 0";
+  } else if (position_loop == "pi" && !(control_rate_hz >= 20.0 * pi_plant_natural_hz * std::sqrt(1.0 + pi_kp))) {
+    why << "control_rate_hz: a pi position loop needs at least 20 x its closed-loop frequency";
   } else if (!std::isfinite(hall_lag_s) || hall_lag_s < 0.0 || hall_lag_s > 0.1) {
     why << "hall_lag_s: must be in [0, 0.1] s (got " << hall_lag_s << ")";
   } else if (!positive(control_rate_hz) ||
@@ -117,6 +125,44 @@ std::string OisConfig::validate() const {
   }
   return why.str();
 }
+
+namespace {
+
+// One axis of a PI position loop around a spring-mass lens: force F = kp e + ki integral(e), the
+// lens x'' = wp^2 (F - x) - 2 zeta wp x', semi-implicit Euler at the control step (wp dt << 1).
+// The lens stops dead at +-limit_px (its end stop); the integrator is held while it rests there
+// (anti-windup).
+class PiLensLoop {
+ public:
+  PiLensLoop(const OisConfig& config, double step_s, double limit_px)
+      : wp_(2.0 * kPi * config.pi_plant_natural_hz),
+        zeta_(config.pi_plant_damping),
+        kp_(config.pi_kp),
+        ki_(config.pi_ki),
+        dt_(step_s),
+        limit_px_(limit_px) {}
+
+  // `command_px` minus the Hall reading's error, as the loop sees it; returns the lens position.
+  double advance(double command_px) {
+    const double error = command_px - position_px_;
+    const bool at_stop = std::abs(position_px_) >= limit_px_ && error * position_px_ > 0.0;
+    if (!at_stop) integral_ += error * dt_;
+    const double force = kp_ * error + ki_ * integral_;
+    velocity_ += dt_ * (wp_ * wp_ * (force - position_px_) - 2.0 * zeta_ * wp_ * velocity_);
+    position_px_ += dt_ * velocity_;
+    if (std::abs(position_px_) > limit_px_) {
+      position_px_ = std::copysign(limit_px_, position_px_);
+      if (velocity_ * position_px_ > 0.0) velocity_ = 0.0;
+    }
+    return position_px_;
+  }
+
+ private:
+  double wp_, zeta_, kp_, ki_, dt_, limit_px_;
+  double position_px_ = 0.0, velocity_ = 0.0, integral_ = 0.0;
+};
+
+}  // namespace
 
 // Sign of the cancelling shift, in the optical frame (x right, y down, z forward) and with
 // rotationHomography(K, R_b_a) = K R_b_a K^-1, R_b_a = R_b^T R_a (camera a -> camera b):
@@ -183,6 +229,8 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
                           stroke_limit_px_);
   LensActuator actuator_y(config_.actuator_natural_hz, config_.actuator_damping, dt,
                           stroke_limit_y_px_);
+  const bool pi_loop = config_.position_loop == "pi";
+  PiLensLoop pi_x(config_, dt, stroke_limit_px_), pi_y(config_, dt, stroke_limit_y_px_);
   const double scale_px = config_.gain * focal_px;
   // Commands waiting out the Hall sensor's delay (the loop reacts to them that much later).
   const int lag_steps = static_cast<int>(std::lround(config_.hall_lag_s * config_.control_rate_hz));
@@ -207,7 +255,8 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
       effective -= config_.hall_noise_px * Eigen::Vector2d(noise_x, noise_y);
     }
     shift_grid_[j + 1] =
-        Eigen::Vector2d(actuator_x.advance(effective.x()), actuator_y.advance(effective.y()));
+        pi_loop ? Eigen::Vector2d(pi_x.advance(effective.x()), pi_y.advance(effective.y()))
+                : Eigen::Vector2d(actuator_x.advance(effective.x()), actuator_y.advance(effective.y()));
     const Eigen::Vector2d next_rate = measuredRate(j + 1);
     if (config_.pan_detection_rate_rad_s > 0.0) {
       smoothed_rate += pan_smoothing * (next_rate.norm() - smoothed_rate);

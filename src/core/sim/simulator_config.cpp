@@ -193,6 +193,11 @@ void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
         .read("pan_release_corner_hz", o.pan_release_corner_hz)
         .read("hall_noise_px", o.hall_noise_px)
         .read("hall_lag_s", o.hall_lag_s)
+        .read("position_loop", o.position_loop)
+        .read("pi_plant_natural_hz", o.pi_plant_natural_hz)
+        .read("pi_plant_damping", o.pi_plant_damping)
+        .read("pi_kp", o.pi_kp)
+        .read("pi_ki", o.pi_ki)
         .read("lens_shift_csv", o.lens_shift_csv)
         .finish();
     if (!parseStrokeShape(stroke_shape, &o.stroke_shape)) {

@@ -161,6 +161,31 @@ TEST(OisModel, CancelsMostShakeInsideItsBand) {
       ratio_inside, ratio_wide, ratio_fast);
 }
 
+// A PI position loop stabilises as well inside the band, differs from the second-order actuator,
+// and is refused with a sentence when misconfigured.
+TEST(OisModel, PiPositionLoopStabilisesAndDiffersFromTheSecondOrderLoop) {
+  OisConfig pi;
+  pi.position_loop = "pi";
+  OisConfig off = pi;
+  off.enabled = false;
+  const CameraMotion inside(shakeOnly(2.0, 8.0), 12, -0.25, 12.0);
+  const double ratio = residualRatio(inside, OisModel(pi, inside, kFocalPx, 1), OisModel(off, inside, kFocalPx, 1));
+  EXPECT_LT(ratio, 0.25);
+  const OisModel with_pi(pi, inside, kFocalPx, 1), second_order(OisConfig(), inside, kFocalPx, 1);
+  double largest_difference = 0.0;
+  for (double t = 1.0; t < 11.0; t += 0.01)
+    largest_difference = std::max(largest_difference, (with_pi.lensShift(t) - second_order.lensShift(t)).norm());
+  EXPECT_GT(largest_difference, 0.05);
+  std::printf("[ figures  ] PI loop: residual / uncompensated %.3f, largest difference to the second-order loop %.3f px\n",
+              ratio, largest_difference);
+  OisConfig bad = pi;
+  bad.position_loop = "pid";
+  EXPECT_NE(bad.validate().find("position_loop"), std::string::npos);
+  bad = pi;
+  bad.pi_kp = 0.0;
+  EXPECT_NE(bad.validate().find("pi_kp"), std::string::npos);
+}
+
 // A slow pan: the high-passed angle follows the quasi-static response instead of the growing
 // pan angle, so the lens stays near centre and returns to it when the pan rate does.
 TEST(OisModel, CentresDuringSlowPans) {

@@ -40,6 +40,15 @@ struct OisConfig {
   // off by the noise and follows the command late by the delay.
   double hall_noise_px = 0.0;
   double hall_lag_s = 0.0;
+  // The lens position loop: "second_order" (the actuator above: a voice coil whose loop behaves as
+  // one second-order system) or "pi": a spring-mass lens (pi_plant_natural_hz, pi_plant_damping,
+  // force in pixels of static deflection) under a PI controller on the Hall reading (pi_kp, pi_ki
+  // in 1/s): zero steady-state error, a third-order closed loop that rings more, as many modules.
+  std::string position_loop = "second_order";
+  double pi_plant_natural_hz = 20.0;
+  double pi_plant_damping = 0.7;
+  double pi_kp = 4.0;
+  double pi_ki = 300.0;
   // When not empty: the lens follows this trajectory instead of the stabiliser (a CSV with a
   // header line and rows "t_s,x_px,y_px", t in seconds from the start of the motion, e.g. a real
   // phone's lens log re-timed), linear between rows and held outside them.
