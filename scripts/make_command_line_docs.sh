@@ -7,9 +7,10 @@ build_dir="${1:-${DEEP_OIS_BUILD_DIR:-$repo/_build/main}}"
 bin="$build_dir/devel/lib/deep_ois"
 out="$repo/docs/command_line_tools.md"
 # The tools in the order a user meets them; the list must match DEEP_OIS_TOOLS in CMakeLists.txt.
-tools=(simulate sim_contact_sheet convert_recording annotate_pairs fundamental_mixtures train
-  evaluate evaluate_fundamental_mixtures gyro_flow_summary calibrate make_calibration_configs
-  calibration_benchmark benchmark_gyro_flow benchmark_compensation benchmark_fundamental_mixtures
+tools=(simulate sim_contact_sheet convert_recording annotate_pairs calibrate make_calibration_configs
+  calibration_benchmark train_stabiliser fundamental_mixtures train evaluate
+  evaluate_fundamental_mixtures evaluate_lens_shift_ground_truth gyro_flow_summary live_rate_monitor
+  recover_bag benchmark_gyro_flow benchmark_compensation benchmark_fundamental_mixtures
   benchmark_simulator)
 listed="$(sed -n '/^set(DEEP_OIS_TOOLS/,/^endif()/p' "$repo/CMakeLists.txt" | tr -s ' ()\n' '\n' |
   grep -E '^[a-z_]+$' | grep -vE '^(set|if|endif|list|APPEND|DEEP_OIS_TOOLS|Torch_FOUND)$' | sort)"
