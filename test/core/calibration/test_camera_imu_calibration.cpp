@@ -282,13 +282,18 @@ TEST(CameraImuCalibration, ReportedSigmaIsTheInflatedStatisticalOnePlusTheSystem
   EXPECT_NE(bad.validate().find("statistical_sigma_factor"), std::string::npos);
 }
 
-TEST(CameraImuCalibration, NegativeOffsetAndGlobalShutter) {
+// A global-shutter camera 48 ms ahead of its IMU, with a tilted mount.
+SyntheticRecording globalShutterRecording() {
   SyntheticSpec spec;
   spec.seed = 8;
   spec.time_offset_s = -0.048;
   spec.readout_time_s = 0.0;
   spec.imu_to_camera_rotation = expSO3(Eigen::Vector3d(-3.0, 0.5, 2.0) * kDeg) * signedAxisPermutations()[4];
-  const SyntheticRecording recording = makeRecording(spec);
+  return makeRecording(spec);
+}
+
+TEST(CameraImuCalibration, NegativeOffsetAndGlobalShutter) {
+  const SyntheticRecording recording = globalShutterRecording();
   const CalibrationResult result = calibrateCameraImu(recording.data, CalibrationOptions());
   const Errors e = errorsOf(result, recording.truth, "global shutter, -48 ms");
   ASSERT_TRUE(result.ok()) << result.reason();
@@ -302,12 +307,7 @@ TEST(CameraImuCalibration, NegativeOffsetAndGlobalShutter) {
 // A readout estimated at its lower bound (a global shutter): the Gaussian interval is wrong there,
 // so the intervals must also hold the answer with the readout held at 0.
 TEST(CameraImuCalibration, AReadoutAtItsBoundWidensTheIntervalsToHoldTheGlobalShutterAnswer) {
-  SyntheticSpec spec;
-  spec.seed = 8;
-  spec.time_offset_s = -0.048;
-  spec.readout_time_s = 0.0;
-  spec.imu_to_camera_rotation = expSO3(Eigen::Vector3d(-3.0, 0.5, 2.0) * kDeg) * signedAxisPermutations()[4];
-  const SyntheticRecording recording = makeRecording(spec);
+  const SyntheticRecording recording = globalShutterRecording();
   const CalibrationResult result = calibrateCameraImu(recording.data, CalibrationOptions());
   ASSERT_TRUE(result.ok()) << result.reason();
   ASSERT_EQ(result.notes.size(), 1u) << "no note on the readout bound";
