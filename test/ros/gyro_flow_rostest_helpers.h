@@ -364,6 +364,31 @@ inline sensor_msgs::CameraInfoPtr makeInfo(const ros::Time& stamp) {
   return info;
 }
 
+// IMU events of `motion` every 2.5 ms from its reference stamp up to stream time end_tau_s (stamps
+// exact in nanoseconds), rates rotated into the IMU frame, each published lead_s before its stamp.
+inline void appendImuEvents(const LinearRateMotion& motion, const Eigen::Matrix3d& R_cam_imu, double end_tau_s,
+                            double lead_s, std::vector<StreamEvent>& events) {
+  for (int k = 0; k * 0.0025 <= end_tau_s; ++k) {
+    const ros::Time stamp = motion.reference_stamp + ros::Duration(0, 2500000) * k;
+    StreamEvent event;
+    event.publish_key_s = motion.tau(stamp) - lead_s;
+    event.imu = makeImu(stamp, kImuFrame, R_cam_imu.transpose() * motion.cameraRate(motion.tau(stamp)));
+    events.push_back(event);
+  }
+}
+
+// A camera event (image and camera_info) per stamp, published at the stamp's stream time.
+inline void appendFrameEvents(const LinearRateMotion& motion, const std::vector<ros::Time>& frame_stamps,
+                              std::vector<StreamEvent>& events) {
+  for (const ros::Time& stamp : frame_stamps) {
+    StreamEvent event;
+    event.publish_key_s = motion.tau(stamp);
+    event.image = makeImage(stamp, kImageWidthPx, kImageHeightPx);
+    event.info = makeInfo(stamp);
+    events.push_back(event);
+  }
+}
+
 // Publishes the inputs of the nodelet and collects its outputs. Callbacks run on the global queue
 // served by the AsyncSpinner that main() starts; `mutex_` guards the collected messages.
 class GyroFlowHarness {

@@ -109,14 +109,7 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
     frame_stamps.push_back(motion.reference_stamp + ros::Duration(0.1 + j * kFramePeriodS));
   }
   const double end_tau_s = motion.tau(frame_stamps.back()) + 0.1;
-  for (int k = 0; k * kImuPeriodS <= end_tau_s; ++k) {
-    const ros::Time stamp = motion.reference_stamp + ros::Duration(0, 2500000) * k;
-    StreamEvent event;
-    event.publish_key_s = motion.tau(stamp) - kImuLeadS;
-    event.imu =
-        makeImu(stamp, kImuFrame, R_cam_imu.transpose() * motion.cameraRate(motion.tau(stamp)));
-    events.push_back(event);
-  }
+  appendImuEvents(motion, R_cam_imu, end_tau_s, kImuLeadS, events);
   // Two gaps, starting 10 ms into the readout of frames 20 and 25 (camera clock).
   std::vector<std::pair<double, double>> gaps;
   for (int j : {20, 25})
@@ -143,13 +136,7 @@ TEST(GyroFlowLensLog, KnownTrajectoryReproducedAndGapsFallBackPerPair) {
     event.lens = sample;
     events.push_back(event);
   }
-  for (const ros::Time& stamp : frame_stamps) {
-    StreamEvent event;
-    event.publish_key_s = motion.tau(stamp);
-    event.image = makeImage(stamp, kImageWidthPx, kImageHeightPx);
-    event.info = makeInfo(stamp);
-    events.push_back(event);
-  }
+  appendFrameEvents(motion, frame_stamps, events);
   sortByPublishKey(events);
 
   RosoutCounter warnings;

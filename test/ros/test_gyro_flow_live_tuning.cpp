@@ -46,13 +46,7 @@ std::vector<StreamEvent> makeStream(const LinearRateMotion& motion, const Eigen:
     event.imu = makeImu(stamp, kImuFrame, R_cam_imu.transpose() * motion.cameraRate(motion.tau(stamp)));
     events.push_back(event);
   }
-  for (const ros::Time& stamp : frame_stamps) {
-    StreamEvent event;
-    event.publish_key_s = motion.tau(stamp);
-    event.image = makeImage(stamp, kImageWidthPx, kImageHeightPx);
-    event.info = makeInfo(stamp);
-    events.push_back(event);
-  }
+  appendFrameEvents(motion, frame_stamps, events);
   sortByPublishKey(events);
   return events;
 }

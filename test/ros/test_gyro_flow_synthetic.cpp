@@ -35,21 +35,8 @@ TEST(GyroFlowSynthetic, MatchesAnalyticRotationForEveryFramePair) {
     frame_stamps.push_back(motion.reference_stamp + ros::Duration(0.1 + j * kFramePeriodS));
   }
   const double end_tau_s = motion.tau(frame_stamps.back()) + 0.1;
-  for (int k = 0; k * kImuPeriodS <= end_tau_s; ++k) {
-    const ros::Time stamp = motion.reference_stamp + ros::Duration(0, 2500000) * k;
-    const Eigen::Vector3d rate_imu = R_cam_imu.transpose() * motion.cameraRate(motion.tau(stamp));
-    StreamEvent event;
-    event.publish_key_s = motion.tau(stamp) - kImuLeadS;
-    event.imu = makeImu(stamp, kImuFrame, rate_imu);
-    events.push_back(event);
-  }
-  for (const ros::Time& stamp : frame_stamps) {
-    StreamEvent event;
-    event.publish_key_s = motion.tau(stamp);
-    event.image = makeImage(stamp, kImageWidthPx, kImageHeightPx);
-    event.info = makeInfo(stamp);
-    events.push_back(event);
-  }
+  appendImuEvents(motion, R_cam_imu, end_tau_s, kImuLeadS, events);
+  appendFrameEvents(motion, frame_stamps, events);
   sortByPublishKey(events);
 
   // gyro_flow_camera_info_only.test: the nodelet subscribes camera_info alone, never the images.
