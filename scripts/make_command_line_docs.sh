@@ -9,8 +9,8 @@ out="$repo/docs/command_line_tools.md"
 # The tools in the order a user meets them; the list must match DEEP_OIS_TOOLS in CMakeLists.txt.
 tools=(simulate sim_contact_sheet convert_recording annotate_pairs calibrate make_calibration_configs
   calibration_benchmark train_stabiliser fundamental_mixtures train evaluate
-  evaluate_fundamental_mixtures evaluate_lens_shift_ground_truth gyro_flow_summary live_rate_monitor
-  recover_bag benchmark_gyro_flow benchmark_compensation benchmark_fundamental_mixtures
+  evaluate_fundamental_mixtures evaluate_lens_shift_ground_truth gyro_flow_summary bag_static_transforms
+  live_rate_monitor recover_bag benchmark_gyro_flow benchmark_compensation benchmark_fundamental_mixtures
   benchmark_simulator)
 listed="$(sed -n '/^set(DEEP_OIS_TOOLS/,/^endif()/p' "$repo/CMakeLists.txt" | tr -s ' ()\n' '\n' |
   grep -E '^[a-z_]+$' | grep -vE '^(set|if|endif|list|APPEND|DEEP_OIS_TOOLS|Torch_FOUND)$' | sort)"

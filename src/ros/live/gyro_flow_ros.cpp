@@ -327,7 +327,10 @@ void GyroFlowRos::processPendingFrames() {
     const Frame& frame = pending_frames_.front();
     if (previous_) {
       const Outcome outcome = processFrame(frame);
-      if (outcome == Outcome::kWaitForImu || outcome == Outcome::kWaitForLensLog) return;
+      if (outcome == Outcome::kWaitForImu || outcome == Outcome::kWaitForLensLog ||
+          outcome == Outcome::kWaitForTransform) {
+        return;
+      }
     }
     // Published or dropped, this frame is the earlier frame of the next pair.
     if (previous_) {
@@ -340,8 +343,10 @@ void GyroFlowRos::processPendingFrames() {
   }
 }
 
-std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::string& camera_frame) {
+std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const Frame& frame, bool& wait) {
+  wait = false;
   if (!params_.rotation_from_tf) return params_.rolling_shutter.imu_to_camera_rotation;
+  const std::string& camera_frame = frame.frame_id;
   if (imu_frame_id_.empty() || camera_frame.empty()) {
     skipPair("empty frame_id: no IMU-to-camera transform can be looked up");
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
@@ -362,6 +367,15 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const std::strin
     cached_rotation_frames_ = frames;
     return cached_rotation_;
   } catch (const tf2::TransformException& e) {
+    // Start-up: the mount's latched /tf_static travels on its own connection, which a player or a
+    // driver may open after the sensor data flows (rosbag play advertises it last when started
+    // past it), so the first frames can come before it. Until the rotation has been found once,
+    // a frame waits for it as for its IMU samples (bounded by ~imu_wait_timeout) instead of
+    // losing its pair (issue 14, defect 9).
+    if (!cached_rotation_ && (ros::Time::now() - frame.received).toSec() < params_.imu_wait_timeout_s) {
+      wait = true;
+      return std::nullopt;
+    }
     // Say what tf knows: nothing at all (no /tf_static received: the publisher is not running, or
     // its latched message has not arrived yet), or other frames (a wrong frame_id).
     std::vector<std::string> known;
@@ -397,7 +411,9 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     skipPair("camera_info changed between the frames");
     return Outcome::kDropped;
   }
-  const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame.frame_id);
+  bool wait_for_transform = false;
+  const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame, wait_for_transform);
+  if (wait_for_transform) return Outcome::kWaitForTransform;
   if (!rotation) return Outcome::kDropped;  // imuToCameraRotation counted it
   diagnostics_->setValue("R_cam_imu source", params_.rotation_from_tf ? "tf " + cached_rotation_frames_
                                                                        : "~imu_to_camera_rotation");

@@ -77,7 +77,7 @@ class GyroFlowRos {
   // Pairs pending frames with the previous frame as far as the IMU data allows.
   void processPendingFrames();
   // Publishes the gyro flow from previous_ to `frame`; false when IMU data is not there yet.
-  enum class Outcome { kPublished, kWaitForImu, kWaitForLensLog, kDropped };
+  enum class Outcome { kPublished, kWaitForImu, kWaitForLensLog, kWaitForTransform, kDropped };
   Outcome processFrame(const Frame& frame);
   // The pair's homographies from the lens log when it covers the pair (true), else false after
   // counting and warning (throttled) why the pair falls back to the gyro alone.
@@ -90,8 +90,11 @@ class GyroFlowRos {
   void reportSkips();
   // Median interval of the recent consecutive frames, seconds; 0 until known.
   double typicalFrameIntervalS() const;
-  // R_cam_imu from the parameter or tf; empty (and a throttled warning) when unavailable.
-  std::optional<Eigen::Matrix3d> imuToCameraRotation(const std::string& camera_frame);
+  // R_cam_imu from the parameter or tf for `frame`. Empty when unavailable: then either `wait` is
+  // set (no rotation found yet since the start and the frame has waited less than
+  // ~imu_wait_timeout: at start-up a latched /tf_static can arrive after the first frames), or
+  // the pair is counted as skipped with a throttled warning.
+  std::optional<Eigen::Matrix3d> imuToCameraRotation(const Frame& frame, bool& wait);
   // Forgets IMU samples and frames, e.g. when time jumps backwards because a bag loops.
   void resetState(const std::string& why);
   // Resets when ROS time went backwards since the last callback.
