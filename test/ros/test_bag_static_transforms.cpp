@@ -14,6 +14,7 @@
 
 #include "deep_ois/ros/bag/bag_sequence.h"
 #include "deep_ois/ros/bag/bag_static_transforms.h"
+#include "deep_ois/ros/messages/recording_bag_messages.h"
 
 namespace deep_ois {
 namespace {
@@ -36,18 +37,6 @@ tf2_msgs::TFMessage message(std::initializer_list<geometry_msgs::TransformStampe
   tf2_msgs::TFMessage m;
   m.transforms = transforms;
   return m;
-}
-
-// A static transform message as a recorder writes it, from publisher `caller_id`, latched or not.
-void writeStatic(rosbag::Bag& bag, double time_s, const tf2_msgs::TFMessage& m, const std::string& caller_id,
-                 bool latched) {
-  auto header = boost::make_shared<ros::M_string>();
-  (*header)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
-  (*header)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
-  (*header)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();
-  (*header)["callerid"] = caller_id;
-  if (latched) (*header)["latching"] = "1";
-  bag.write("/tf_static", ros::Time(time_s), m, header);
 }
 
 std::string tempBag(const std::string& name) { return ::testing::TempDir() + "/" + name + ".bag"; }
@@ -76,10 +65,13 @@ TEST(BagStaticTransforms, EveryPublishersTransformsMergeTheNewestPerChildFrame) 
   const std::string path = tempBag("static_merge");
   {
     rosbag::Bag bag(path, rosbag::bagmode::Write);
-    writeStatic(bag, 10.0, message({transform("camera", "imu", 10.0, 0.1)}), "/mount_publisher", true);
-    writeStatic(bag, 10.1, message({transform("base_link", "camera", 10.1, 0.2), transform("", "lidar", 10.1, 0)}),
-                "/robot_state_publisher", false);
-    writeStatic(bag, 12.0, message({transform("camera", "imu", 12.0, 0.3)}), "/mount_publisher", true);
+    writeLatched(bag, "/tf_static", ros::Time(10.0), message({transform("camera", "imu", 10.0, 0.1)}),
+                 "/mount_publisher");
+    // Unlatched, as a bag rewritten by a tool that drops connection headers has it.
+    bag.write("/tf_static", ros::Time(10.1),
+              message({transform("base_link", "camera", 10.1, 0.2), transform("", "lidar", 10.1, 0)}));
+    writeLatched(bag, "/tf_static", ros::Time(12.0), message({transform("camera", "imu", 12.0, 0.3)}),
+                 "/mount_publisher");
   }
   const BagStaticTransforms read = readBagStaticTransforms(path);
   EXPECT_EQ(read.messages_read, 3u);
@@ -137,7 +129,8 @@ TEST(BagStaticTransforms, ABagCutShortStillGivesItsMount) {
   {
     rosbag::Bag bag(whole, rosbag::bagmode::Write);
     bag.setChunkThreshold(4096);
-    writeStatic(bag, 10.0, message({transform("camera", "imu", 10.0, 0.1)}), "/mount_publisher", true);
+    writeLatched(bag, "/tf_static", ros::Time(10.0), message({transform("camera", "imu", 10.0, 0.1)}),
+                 "/mount_publisher");
     for (int k = 0; k < 2000; ++k) {
       sensor_msgs::Imu imu;
       imu.header.stamp = ros::Time(10.0 + k * 0.005);
