@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/camera/camera_description_yaml.h"
+
 namespace deep_ois {
 
 namespace {
@@ -100,6 +102,7 @@ std::string ModelMetadata::toYaml() const {
   emitSequence(out, "history_time_constants_s", history_time_constants_s);
   emitSequence(out, "history_mean_px", history_mean_px);
   emitSequence(out, "history_std_px", history_std_px);
+  writeCameraDescription(out, camera);
   out << YAML::Key << "training" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "data_files" << YAML::Value << training.data_files;
   out << YAML::Key << "data_sha256" << YAML::Value << training.data_sha256;
@@ -158,6 +161,11 @@ ModelMetadata ModelMetadata::fromYaml(const std::string& yaml_text) {
   m.history_time_constants_s = optional<std::vector<double>>(root, "history_time_constants_s", "", {});
   m.history_mean_px = optional<std::vector<double>>(root, "history_mean_px", "", {});
   m.history_std_px = optional<std::vector<double>>(root, "history_std_px", "", {});
+  try {
+    m.camera = readCameraDescription(root["camera"]);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("model metadata: field ") + e.what());
+  }
   const YAML::Node training = root["training"];
   if (training && training.IsMap()) {
     TrainingRecord& t = m.training;

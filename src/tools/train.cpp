@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/ground_truth/training_set_camera.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/flow_trainer.h"
 #include "deep_ois/ros/bag/training_set_reader.h"
@@ -173,6 +174,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "  skipped %zu: %s\n", count, reason.c_str());
     std::vector<deep_ois::TrainingSample> samples = set.samples;
     if (max_pairs > 0 && samples.size() > max_pairs) samples.resize(max_pairs);
+    // The model says which camera it is for; the compensation nodelet compares it with the stream.
+    const deep_ois::TrainingSetCamera trained_for = deep_ois::describeTrainingSetCamera(samples);
+    if (trained_for.cameras == 1) {
+      std::fprintf(stderr, "train: camera %s\n", trained_for.camera.summary().c_str());
+    } else {
+      std::fprintf(stderr, "train: the training set holds %zu cameras: the model records none (a generic model)\n",
+                   trained_for.cameras);
+    }
     std::vector<deep_ois::TrainingSample> train, validation;
     splitByRecording(samples, validation_fraction, options.seed, train, validation);
     std::fprintf(stderr,
@@ -222,6 +231,7 @@ int main(int argc, char** argv) {
     deep_ois::TrainingRecord& record = model.metadata().training;
     record.data_files = data;
     record.data_sha256 = deep_ois::sha256OfFiles(data);
+    model.metadata().camera = trained_for.camera;
     model.save(out);
     std::ofstream yaml(stem + ".yaml");
     yaml << "# Metadata of " << out << " (also stored inside it).\n" << model.metadata().toYaml();

@@ -250,6 +250,27 @@ TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
     old_yaml.erase(at, old_yaml.find('\n', at) + 1 - at);
   }
   EXPECT_EQ(ModelMetadata::fromYaml(old_yaml).inputChannels(), 2);
+
+  // The camera it was trained for: kept through YAML (a readout that was not recorded stays
+  // unknown); a model from before it reads as an unknown camera; a malformed field is named.
+  ModelMetadata with_camera = m;
+  with_camera.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, CameraDescription::kUnknownReadout, 30.0};
+  const std::string camera_yaml = with_camera.toYaml();
+  EXPECT_EQ(camera_yaml.find("readout_time_s"), std::string::npos) << camera_yaml;
+  const ModelMetadata camera_back = ModelMetadata::fromYaml(camera_yaml);
+  EXPECT_EQ(camera_back.camera.summary(), with_camera.camera.summary());
+  EXPECT_FALSE(camera_back.camera.readoutKnown());
+  std::string no_camera = camera_yaml;
+  no_camera.erase(no_camera.find("camera:"), no_camera.find("training:") - no_camera.find("camera:"));
+  EXPECT_FALSE(ModelMetadata::fromYaml(no_camera).camera.known());
+  std::string bad_camera = camera_yaml;
+  bad_camera.replace(bad_camera.find("fx: 500"), 7, "fx: wide");
+  try {
+    ModelMetadata::fromYaml(bad_camera);
+    ADD_FAILURE() << "a malformed camera.fx was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("camera.fx"), std::string::npos) << e.what();
+  }
 }
 
 // The synthetic sets' camera: 360x270, focal length 250 px.

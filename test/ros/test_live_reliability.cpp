@@ -156,6 +156,32 @@ TEST(LiveReliability, TheNodesSayWhyTheyExit) {
   expectFatal(std::string(DEEP_OIS_GYRO_FLOW_NODE) + " _patch_count:=-3 __name:=fatal_gyro_flow", "patch_count");
 }
 
+// With model_camera_check.test (~require_matching_camera true) and model_camera_warning.test
+// (false): a model trained for another camera. The gyro flows go on; refused, no compensated flow
+// comes; warned, every pair is compensated. Either way one message names both cameras.
+TEST(ModelCamera, AModelForAnotherCameraIsRefusedOrWarnedAbout) {
+  bool refuse = false;
+  ASSERT_TRUE(ros::param::get("/deep_ois/compensation/require_matching_camera", refuse));
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const ros::WallTime t0 = ros::WallTime::now();
+  harness->stream(3.0);
+  ros::WallDuration(0.5).sleep();
+  const ros::WallTime t1 = ros::WallTime::now();
+  const std::size_t gyro_flows = harness->countBetween(false, t0, t1);
+  const std::size_t compensated = harness->countBetween(true, t0, t1);
+  EXPECT_GE(gyro_flows, 30u) << "the gyro flow stopped too";
+  if (refuse) {
+    EXPECT_EQ(compensated, 0u) << "flows compensated with another camera's model";
+  } else {
+    EXPECT_GE(compensated + 2, gyro_flows) << "a warned model must still compensate every pair";
+  }
+  const auto said = harness->warnings(t0, {"compensation", "was trained for 1920x1080", "the gyro flows are of 320x240",
+                                          "image size differs",
+                                          refuse ? "~require_matching_camera is true" : "compensating anyway"});
+  EXPECT_EQ(said.size(), 1u) << "the camera difference must be said once; warnings:\n" << harness->warningsText(t0);
+}
+
 // Defect 10 (lag), with live_lag.test: the compensation slower than its input (0.1 s per pair by
 // its test hook, 30 pairs/s in) drops the oldest work, says so, and stays within ~max_lag (0.5 s).
 TEST(LiveLag, ASlowCompensationDropsOldWorkInsteadOfFallingBehind) {

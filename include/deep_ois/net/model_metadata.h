@@ -10,6 +10,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "deep_ois/core/camera/camera_description.h"
+
 namespace deep_ois {
 
 // The UNet: `widths` are the channel counts of the encoder levels, the last one being the
@@ -67,6 +69,10 @@ struct ModelMetadata {
   std::vector<double> history_time_constants_s;
   std::vector<double> history_mean_px;
   std::vector<double> history_std_px;
+  // The camera of the training set (core/ground_truth/training_set_camera.h): the compensation
+  // nodelet compares it with the stream's. Unknown in models from before it was recorded, and for
+  // a training set of several cameras.
+  CameraDescription camera;
   TrainingRecord training;
 
   // Sets the history time constants with neutral statistics (mean 0, std 1 per channel) until

@@ -15,10 +15,21 @@ bool relativelyClose(double a, double b, double tolerance) {
 std::string CameraDescription::summary() const {
   if (!known()) return "unknown camera";
   char text[256];
-  std::snprintf(text, sizeof(text),
-                "%dx%d, fx %.1f fy %.1f cx %.1f cy %.1f, readout %.1f ms, %.1f fps", width, height,
-                fx, fy, cx, cy, 1000.0 * readout_time_s, frame_rate_hz);
-  return text;
+  std::snprintf(text, sizeof(text), "%dx%d, fx %.1f fy %.1f cx %.1f cy %.1f, ", width, height, fx, fy, cx, cy);
+  std::string out = text;
+  if (readoutKnown()) {
+    std::snprintf(text, sizeof(text), "readout %.1f ms, ", 1000.0 * readout_time_s);
+    out += text;
+  } else {
+    out += "readout unknown, ";
+  }
+  if (frame_rate_hz > 0.0) {
+    std::snprintf(text, sizeof(text), "%.1f fps", frame_rate_hz);
+    out += text;
+  } else {
+    out += "frame rate unknown";
+  }
+  return out;
 }
 
 std::string CameraDescription::differencesTo(const CameraDescription& other) const {
@@ -30,11 +41,24 @@ std::string CameraDescription::differencesTo(const CameraDescription& other) con
     add("focal length differs by more than 1 %");
   if (std::abs(cx - other.cx) > 1.0 || std::abs(cy - other.cy) > 1.0)
     add("principal point differs by more than 1 px");
-  if (!relativelyClose(readout_time_s, other.readout_time_s, 0.02)) add("readout time differs");
+  if (readoutKnown() && other.readoutKnown() && !relativelyClose(readout_time_s, other.readout_time_s, 0.02))
+    add("readout time differs");
   if (frame_rate_hz > 0.0 && other.frame_rate_hz > 0.0 &&
       !relativelyClose(frame_rate_hz, other.frame_rate_hz, 0.02))
     add("frame rate differs");
   return out;
+}
+
+CameraDescription describeCamera(const CameraModel& camera, double readout_time_s) {
+  CameraDescription d;
+  d.width = camera.width();
+  d.height = camera.height();
+  d.fx = camera.K()(0, 0);
+  d.fy = camera.K()(1, 1);
+  d.cx = camera.K()(0, 2);
+  d.cy = camera.K()(1, 2);
+  d.readout_time_s = readout_time_s;
+  return d;
 }
 
 }  // namespace deep_ois

@@ -6,6 +6,9 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
+
+#include "deep_ois/core/camera/camera_description_yaml.h"
 
 namespace deep_ois {
 namespace {
@@ -65,15 +68,7 @@ std::string StabiliserModelFile::toYaml() const {
     for (long c = 0; c < p.residual.cols(); ++c) residual.push_back(p.residual(r, c));
   out << YAML::Key << "residual" << YAML::Value << YAML::Flow << residual;
   out << YAML::EndMap;
-  out << YAML::Key << "camera" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "width" << YAML::Value << camera.width;
-  out << YAML::Key << "height" << YAML::Value << camera.height;
-  out << YAML::Key << "fx" << YAML::Value << camera.fx << YAML::Key << "fy" << YAML::Value
-      << camera.fy << YAML::Key << "cx" << YAML::Value << camera.cx << YAML::Key << "cy"
-      << YAML::Value << camera.cy;
-  out << YAML::Key << "readout_time_s" << YAML::Value << camera.readout_time_s;
-  out << YAML::Key << "frame_rate_hz" << YAML::Value << camera.frame_rate_hz;
-  out << YAML::EndMap;
+  writeCameraDescription(out, camera);
   const StabiliserTrainingRecord& t = training;
   out << YAML::Key << "training" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "target" << YAML::Value << t.target;
@@ -137,17 +132,10 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
       p.residual(r, c) = residual[static_cast<std::size_t>(r * 2 * k + c)];
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
-  if (root["camera"]) {
-    const YAML::Node c = root["camera"];
-    CameraDescription& camera = file.camera;
-    camera.width = optional<int>(c, "width", 0);
-    camera.height = optional<int>(c, "height", 0);
-    camera.fx = optional<double>(c, "fx", 0.0);
-    camera.fy = optional<double>(c, "fy", 0.0);
-    camera.cx = optional<double>(c, "cx", 0.0);
-    camera.cy = optional<double>(c, "cy", 0.0);
-    camera.readout_time_s = optional<double>(c, "readout_time_s", 0.0);
-    camera.frame_rate_hz = optional<double>(c, "frame_rate_hz", 0.0);
+  try {
+    file.camera = readCameraDescription(root["camera"]);
+  } catch (const std::invalid_argument& e) {
+    throw StabiliserModelFileError(std::string("field ") + e.what());
   }
   if (root["training"]) {
     const YAML::Node t = root["training"];

@@ -52,13 +52,7 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
     for (const ros::Time& stamp : bag.frame_stamps) stamps_s.push_back(bag.secondsSinceBase(stamp));
   }
   CameraDescription& description = data.camera;
-  description.width = camera.width();
-  description.height = camera.height();
-  description.fx = camera.K()(0, 0);
-  description.fy = camera.K()(1, 1);
-  description.cx = camera.K()(0, 2);
-  description.cy = camera.K()(1, 2);
-  description.readout_time_s = rs.readout_time_s;
+  description = describeCamera(camera, rs.readout_time_s);
   if (stamps_s.size() >= 2) {
     std::vector<double> intervals;
     for (std::size_t f = 1; f < stamps_s.size(); ++f) intervals.push_back(stamps_s[f] - stamps_s[f - 1]);

@@ -97,8 +97,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
     diagnostics_->setValue("torch threads", std::to_string(params_.torch_threads));
   } else {
     diagnostics_->setValue("model kind", "learned stabiliser model");
-    diagnostics_->setValue("model camera", stabiliser_->model().camera.summary());
   }
+  diagnostics_->setValue("model camera", modelCamera().summary());
   // Live-tunable parameters; built before the lock below (it applies the values once here).
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
@@ -128,10 +128,10 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   expire_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), &CompensationRos::expireTimerCallback, this);
   if (model_) {
     const ModelMetadata& m = model_->metadata();
-    ROS_INFO_NAMED("compensation", "%s: model %s (preset %s, working grid %dx%d, trained %d epochs), %d torch thread(s), "
-                   "%d warp thread(s)", log_name_.c_str(),
+    ROS_INFO_NAMED("compensation", "%s: model %s (preset %s, working grid %dx%d, trained %d epochs for %s), %d torch "
+                   "thread(s), %d warp thread(s)", log_name_.c_str(),
                    params_.model_path.c_str(), m.preset.c_str(), m.working_grid.width, m.working_grid.height,
-                   m.training.epochs, params_.torch_threads, params_.warp_threads);
+                   m.training.epochs, m.camera.summary().c_str(), params_.torch_threads, params_.warp_threads);
   } else {
     const StabiliserModelFile& m = stabiliser_->model();
     ROS_INFO_NAMED("compensation", "%s: learned stabiliser model %s ('%s', trained for %s on %zu recordings), %d warp "
@@ -261,7 +261,11 @@ void CompensationRos::observeOnly(const GyroFlow& gyro) {
                   static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
 }
 
-bool CompensationRos::checkStabiliserCamera(const GyroFlow& gyro) {
+const CameraDescription& CompensationRos::modelCamera() const {
+  return stabiliser_ ? stabiliser_->model().camera : model_->metadata().camera;
+}
+
+bool CompensationRos::checkModelCamera(const GyroFlow& gyro) {
   CameraDescription stream;
   stream.width = static_cast<int>(gyro.image_width);
   stream.height = static_cast<int>(gyro.image_height);
@@ -272,22 +276,27 @@ bool CompensationRos::checkStabiliserCamera(const GyroFlow& gyro) {
   stream.readout_time_s = gyro.readout_time;
   // No frame rate: one pair's interval is jittery and doubles when a frame is lost.
   const std::string summary = stream.summary();
-  if (summary == checked_camera_) return camera_check_.empty();
+  if (summary == checked_camera_) return camera_check_.empty() || !params_.require_matching_camera;
   checked_camera_ = summary;
-  const CameraDescription& trained = stabiliser_->model().camera;
+  const CameraDescription& trained = modelCamera();
   camera_check_ = trained.differencesTo(stream);
   diagnostics_->setValue("model camera check", camera_check_.empty() ? "matches" : camera_check_);
   if (camera_check_.empty()) return true;
+  // A stabiliser model works in focal-length units and degrades gracefully on another camera; the
+  // network sees working-grid pixels of its training camera's flows.
+  const char* kind = stabiliser_ ? "stabiliser model" : "network model";
+  const char* train_tool = stabiliser_ ? "train_stabiliser" : "fundamental_mixtures and train";
+  const char* anyway = stabiliser_ ? "its units follow the focal length" : "expect a weaker compensation";
   if (params_.require_matching_camera) {
-    ROS_ERROR_NAMED("compensation", "%s: the stabiliser model %s was trained for %s but the gyro flows are of %s (%s): "
-                    "refusing them (~require_matching_camera is true; train a model for this camera with "
-                    "train_stabiliser)", log_name_.c_str(), params_.model_path.c_str(), trained.summary().c_str(),
-                    summary.c_str(), camera_check_.c_str());
+    ROS_ERROR_NAMED("compensation", "%s: the %s %s was trained for %s but the gyro flows are of %s (%s): refusing "
+                    "them (~require_matching_camera is true; train a model for this camera with %s)",
+                    log_name_.c_str(), kind, params_.model_path.c_str(), trained.summary().c_str(), summary.c_str(),
+                    camera_check_.c_str(), train_tool);
   } else {
-    ROS_WARN_NAMED("compensation", "%s: the stabiliser model %s was trained for %s but the gyro flows are of %s (%s): "
-                   "compensating anyway (its units follow the focal length); set ~require_matching_camera to refuse, "
-                   "or train a model for this camera with train_stabiliser", log_name_.c_str(),
-                   params_.model_path.c_str(), trained.summary().c_str(), summary.c_str(), camera_check_.c_str());
+    ROS_WARN_NAMED("compensation", "%s: the %s %s was trained for %s but the gyro flows are of %s (%s): compensating "
+                   "anyway (%s); set ~require_matching_camera to refuse, or train a model for this camera with %s",
+                   log_name_.c_str(), kind, params_.model_path.c_str(), trained.summary().c_str(), summary.c_str(),
+                   camera_check_.c_str(), anyway, train_tool);
   }
   return !params_.require_matching_camera;
 }
@@ -356,11 +365,10 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     if (stream_) stream_->reset();
     if (stabiliser_) stabiliser_->observe(gyro);
     compensated = gyro_flow.clone();
+  } else if (!checkModelCamera(gyro)) {
+    countDrop("model trained for another camera (~require_matching_camera)");
+    return;
   } else if (stabiliser_) {
-    if (!checkStabiliserCamera(gyro)) {
-      countDrop("stabiliser model trained for another camera (~require_matching_camera)");
-      return;
-    }
     StabiliserFlowResult result = stabiliser_->compensate(gyro);
     if (!result.ok) {
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",

@@ -235,6 +235,12 @@ TEST(CameraDescription, SaysHowAnotherCameraDiffers) {
   EXPECT_NE(difference.find("readout"), std::string::npos) << difference;
   EXPECT_EQ(difference.find("frame rate"), std::string::npos) << difference;
   EXPECT_EQ(trained.differencesTo(CameraDescription{}), "");  // an older model: unknown camera
+  // A network's training records carry no readout: not compared, and said to be unknown.
+  CameraDescription network = trained;
+  network.readout_time_s = CameraDescription::kUnknownReadout;
+  network.frame_rate_hz = 0.0;
+  EXPECT_EQ(network.differencesTo(other).find("readout"), std::string::npos);
+  EXPECT_EQ(network.summary(), "360x270, fx 257.1 fy 257.1 cx 179.5 cy 134.5, readout unknown, frame rate unknown");
 }
 
 TEST(StabiliserCompensator, ComposesThePredictedLensShiftsWithTheGyroRotations) {

@@ -31,8 +31,8 @@ struct CompensationParameters {
   // ~model: the model file (required): a network (.pt) or a learned stabiliser model (.yaml,
   // train_stabiliser), which predicts the lens from the gyro stream with the stabiliser's state.
   std::string model_path;
-  // ~require_matching_camera: a stabiliser model trained for another camera (size, K, readout,
-  // frame rate) is refused instead of warned about.
+  // ~require_matching_camera: a model (either kind) trained for another camera (size, K, and the
+  // readout when the model records it) is refused instead of warned about.
   bool require_matching_camera = false;
   int torch_threads = 1;         // ~torch_threads: intra-op threads (process-wide in torch)
   // Input queues hold a second of 30 fps video: work is dropped by ~max_lag, counted and said,
@@ -113,9 +113,10 @@ class CompensationRos {
   void process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                const sensor_msgs::ImageConstPtr& image_b);
   bool anyOutputWanted() const;
-  // The stabiliser model's camera against the flow's (once per camera); false when it differs
+  // The model's camera (either kind) against the flow's (once per camera); false when it differs
   // and ~require_matching_camera refuses it (the flow is then counted as dropped).
-  bool checkStabiliserCamera(const GyroFlow& gyro);
+  bool checkModelCamera(const GyroFlow& gyro);
+  const CameraDescription& modelCamera() const;
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
@@ -129,8 +130,8 @@ class CompensationRos {
   std::unique_ptr<CompensationModel> model_;
   std::unique_ptr<CompensationStream> stream_;
   std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
-  // The stabiliser model's camera against the stream's, checked on the first flow (and when the
-  // camera changes): empty until then, "ok" or the difference.
+  // The model's camera against the stream's, checked on the first flow (and when the camera
+  // changes): empty when they match, else the difference.
   std::string camera_check_;
   std::string checked_camera_;  // summary of the camera last checked
 
