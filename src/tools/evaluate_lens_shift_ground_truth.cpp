@@ -28,7 +28,7 @@
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/core/evaluation/results_table.h"
 #include "deep_ois/core/ground_truth/fundamental_mixtures.h"
-#include "deep_ois/core/ground_truth/lens_shift_ground_truth.h"
+#include "deep_ois/core/ground_truth/recording_lens_shift.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/vision/feature_tracker.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
@@ -151,42 +151,31 @@ int main(int argc, char** argv) {
       deep_ois::FundamentalMixturesOptions solver;
       solver.patch_count = rs.patch_count;
       std::vector<double> stamps_s;
-      for (const auto& frame : frames) stamps_s.push_back(bag.secondsSinceBase(frame.stamp));
-      std::vector<deep_ois::LensShiftPairObservation> observations;
-      std::vector<PairRecord> records;
-      int gyro_gaps = 0;
-      for (std::size_t f = 0; f + 1 < frames.size(); ++f) {
-        const deep_ois::RollingShutterHomographies gyro =
-            deep_ois::computeRollingShutterHomographies(imu, gyro_parameters.integration, rs,
-                                                        camera.K(), stamps_s[f], stamps_s[f + 1]);
-        if (!gyro.ok()) {
-          ++gyro_gaps;
-          continue;
-        }
-        deep_ois::LensShiftPairObservation observation;
-        observation.frame_a = static_cast<int>(f);
-        observation.frame_b = static_cast<int>(f + 1);
-        observation.rotations = gyro.rotations;
-        observation.matches = tracker.match(frames[f].gray, frames[f + 1].gray);
-        const auto truth = truth_ending_at.find(frames[f + 1].stamp);
-        if (truth != truth_ending_at.end() && truth->second->previous_stamp == frames[f].stamp) {
-          PairRecord record;
-          record.frame_a = static_cast<int>(f);
-          record.truth = truth->second;
-          record.gyro_rotations = gyro.rotations;
-          record.gyro_homographies = gyro.homographies;
-          const deep_ois::FundamentalMixturesResult mixtures =
-              deep_ois::estimateFundamentalMixtures(observation.matches, camera, solver);
-          if (mixtures.ok()) record.mixtures_homographies = mixtures.homographies;
-          records.push_back(std::move(record));
-        }
-        observations.push_back(std::move(observation));
+      std::vector<cv::Mat> gray;
+      for (const auto& frame : frames) {
+        stamps_s.push_back(bag.secondsSinceBase(frame.stamp));
+        gray.push_back(frame.gray);
       }
-      deep_ois::LensShiftOptions options = lens_options;
-      options.patch_count = rs.patch_count;
-      options.readout_time_s = rs.readout_time_s;
-      const deep_ois::LensShiftTrajectory trajectory =
-          deep_ois::estimateLensShiftTrajectory(camera, stamps_s, observations, options);
+      const deep_ois::RecordingLensShift estimate = deep_ois::estimateRecordingLensShift(
+          camera, gray, stamps_s, imu, gyro_parameters.integration, rs, lens_options, tracker);
+      const int gyro_gaps = static_cast<int>(estimate.pairs_without_gyro);
+      const deep_ois::LensShiftTrajectory& trajectory = estimate.trajectory;
+      // The annotated pairs among them, with the gyro's and Fundamental Mixtures' homographies.
+      std::vector<PairRecord> records;
+      for (std::size_t p = 0; p < estimate.pairs.size(); ++p) {
+        const deep_ois::LensShiftPairObservation& observation = estimate.pairs[p];
+        const auto truth = truth_ending_at.find(frames[observation.frame_b].stamp);
+        if (truth == truth_ending_at.end() || truth->second->previous_stamp != frames[observation.frame_a].stamp) continue;
+        PairRecord record;
+        record.frame_a = observation.frame_a;
+        record.truth = truth->second;
+        record.gyro_rotations = observation.rotations;
+        record.gyro_homographies = estimate.gyro_homographies[p];
+        const deep_ois::FundamentalMixturesResult mixtures =
+            deep_ois::estimateFundamentalMixtures(observation.matches, camera, solver);
+        if (mixtures.ok()) record.mixtures_homographies = mixtures.homographies;
+        records.push_back(std::move(record));
+      }
 
       for (const PairRecord& record : records) {
         const deep_ois::FramePairTruth& truth = *record.truth;

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
+#include "deep_ois/core/ground_truth/recording_lens_shift.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/ois/lens_shift_log.h"
@@ -112,29 +113,16 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
   }
 
   // The images: tracks of consecutive frames, the gyro's rotations, one lens trajectory.
+  std::vector<cv::Mat> gray;
+  for (const BagFrame& frame : frames) gray.push_back(frame.gray);
   const FeatureTracker tracker;  // the offline job's defaults
-  std::vector<LensShiftPairObservation> pairs;
-  for (std::size_t f = 0; f + 1 < frames.size(); ++f) {
-    ++data.frame_pairs;
-    const RollingShutterHomographies homographies = computeRollingShutterHomographies(
-        imu, gyro.integration, rs, camera.K(), stamps_s[f], stamps_s[f + 1]);
-    if (!homographies.ok()) {
-      ++data.pairs_without_gyro;
-      continue;
-    }
-    LensShiftPairObservation pair;
-    pair.frame_a = static_cast<int>(f);
-    pair.frame_b = static_cast<int>(f + 1);
-    pair.rotations = homographies.rotations;
-    pair.matches = tracker.match(frames[f].gray, frames[f + 1].gray);
-    pairs.push_back(std::move(pair));
-  }
+  const RecordingLensShift estimate =
+      estimateRecordingLensShift(camera, gray, stamps_s, imu, gyro.integration, rs, lens_options, tracker);
+  data.frame_pairs += frames.size() > 1 ? frames.size() - 1 : 0;
+  data.pairs_without_gyro = estimate.pairs_without_gyro;
+  const std::vector<LensShiftPairObservation>& pairs = estimate.pairs;
+  const LensShiftTrajectory& trajectory = estimate.trajectory;
   if (pairs.empty()) fail("no frame pair covered by the gyro");
-  LensShiftOptions options = lens_options;
-  options.patch_count = rs.patch_count;
-  options.readout_time_s = rs.readout_time_s;
-  const LensShiftTrajectory trajectory =
-      estimateLensShiftTrajectory(camera, stamps_s, pairs, options);
   std::vector<double> residuals;
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     if (trajectory.pair_inliers[p] < kMinimumInlierTracks) {
