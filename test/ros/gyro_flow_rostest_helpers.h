@@ -29,6 +29,8 @@
 #include <utility>
 #include <vector>
 
+#include "synthetic_camera_messages.h"
+
 namespace deep_ois {
 namespace rostest_helpers {
 
@@ -40,8 +42,9 @@ constexpr char kImuTopic[] = "/sensors/imu";
 constexpr char kImageTopic[] = "/camera/image_raw";
 constexpr char kInfoTopic[] = "/camera/camera_info";
 constexpr char kLensShiftTopic[] = "/camera/lens_shift";  // the camera's lens log (remapped in .test)
-constexpr char kImuFrame[] = "imu_link";
-constexpr char kCameraFrame[] = "camera_optical_frame";
+using synthetic::kCameraFrame;
+using synthetic::kImuFrame;
+using synthetic::makeImage;
 
 constexpr int kImageWidthPx = 320;
 constexpr int kImageHeightPx = 240;
@@ -329,39 +332,9 @@ inline sensor_msgs::ImuPtr makeImu(const ros::Time& stamp, const std::string& fr
   return imu;
 }
 
-// A mono8 gradient of `width` x `height` pixels (content is irrelevant to the gyro flow).
-inline sensor_msgs::ImagePtr makeImage(const ros::Time& stamp, uint32_t width, uint32_t height,
-                                       const std::string& encoding = "mono8") {
-  auto image = boost::make_shared<sensor_msgs::Image>();
-  image->header.stamp = stamp;
-  image->header.frame_id = kCameraFrame;
-  image->width = width;
-  image->height = height;
-  image->encoding = encoding;
-  image->step = width;
-  image->data.resize(static_cast<std::size_t>(width) * height);
-  for (std::size_t k = 0; k < image->data.size(); ++k) image->data[k] = static_cast<uint8_t>(k * 7);
-  return image;
-}
-
-// Plumb_bob with zero coefficients, K = syntheticK(), P = [K | 0].
+// The synthetic camera's camera_info: K = syntheticK(), no distortion.
 inline sensor_msgs::CameraInfoPtr makeInfo(const ros::Time& stamp) {
-  auto info = boost::make_shared<sensor_msgs::CameraInfo>();
-  info->header.stamp = stamp;
-  info->header.frame_id = kCameraFrame;
-  info->width = kImageWidthPx;
-  info->height = kImageHeightPx;
-  info->distortion_model = "plumb_bob";
-  info->D.assign(5, 0.0);
-  const Eigen::Matrix3d K = syntheticK();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) {
-      info->K[3 * r + c] = K(r, c);
-      info->P[4 * r + c] = K(r, c);
-    }
-  }
-  info->R[0] = info->R[4] = info->R[8] = 1.0;
-  return info;
+  return synthetic::makeInfo(stamp, kImageWidthPx, kImageHeightPx, syntheticK());
 }
 
 // IMU events of `motion` every 2.5 ms from its reference stamp up to stream time end_tau_s (stamps

@@ -27,6 +27,8 @@
 #include <string>
 #include <vector>
 
+#include "synthetic_camera_messages.h"
+
 namespace deep_ois {
 namespace live_test {
 
@@ -36,8 +38,9 @@ constexpr char kInfoTopic[] = "/camera/camera_info";
 constexpr char kCompensationImageTopic[] = "/compensation_input/image_raw";
 constexpr char kGyroFlowTopic[] = "/deep_ois/gyro_flow";
 constexpr char kCompensatedTopic[] = "/deep_ois/compensated_flow";
-constexpr char kImuFrame[] = "imu_link";
-constexpr char kCameraFrame[] = "camera_optical_frame";
+using synthetic::kCameraFrame;
+using synthetic::kImuFrame;
+using synthetic::makeImage;
 constexpr int kWidthPx = 320, kHeightPx = 240;
 constexpr double kImuPeriodS = 0.0025;  // 400 Hz
 constexpr double kFramePeriodS = 1.0 / 30.0;
@@ -57,39 +60,13 @@ struct FrameEdit {
   bool send_info = true;  // camera_info with the frame to the gyro flow
 };
 
-inline sensor_msgs::ImagePtr makeImage(const ros::Time& stamp, uint32_t width, uint32_t height,
-                                       const std::string& encoding = "mono8") {
-  auto image = boost::make_shared<sensor_msgs::Image>();
-  image->header.stamp = stamp;
-  image->header.frame_id = kCameraFrame;
-  image->width = width;
-  image->height = height;
-  image->encoding = encoding;
-  image->step = width;
-  image->data.resize(static_cast<std::size_t>(width) * height);
-  for (std::size_t k = 0; k < image->data.size(); ++k) image->data[k] = static_cast<uint8_t>((k * 7) ^ (k / width));
-  return image;
-}
-
+// A camera_info of `width` x `height` with a focal length of 0.8 x width, no distortion.
 inline sensor_msgs::CameraInfoPtr makeInfo(const ros::Time& stamp, uint32_t width = kWidthPx,
                                            uint32_t height = kHeightPx) {
-  auto info = boost::make_shared<sensor_msgs::CameraInfo>();
-  info->header.stamp = stamp;
-  info->header.frame_id = kCameraFrame;
-  info->width = width;
-  info->height = height;
-  info->distortion_model = "plumb_bob";
-  info->D.assign(5, 0.0);
   const double f = 0.8 * width;
-  const double K[9] = {f, 0, 0.5 * width - 0.5, 0, f, 0.5 * height - 0.5, 0, 0, 1};
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) {
-      info->K[3 * r + c] = K[3 * r + c];
-      info->P[4 * r + c] = K[3 * r + c];
-    }
-  }
-  info->R[0] = info->R[4] = info->R[8] = 1.0;
-  return info;
+  Eigen::Matrix3d K;
+  K << f, 0, 0.5 * width - 0.5, 0, f, 0.5 * height - 0.5, 0, 0, 1;
+  return synthetic::makeInfo(stamp, width, height, K);
 }
 
 // True when every float of a 32FC2 flow is finite.
