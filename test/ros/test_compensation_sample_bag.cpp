@@ -224,6 +224,13 @@ TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
   } else {
     EXPECT_EQ(values["model kind"], "learned stabiliser model");
   }
+  // A model without a camera record cannot be checked against the stream, and must not say "matches".
+  ASSERT_TRUE(values.count("model camera check")) << "no camera check on /diagnostics";
+  if (values["model camera"] == "none recorded (a generic model)") {
+    EXPECT_EQ(values["model camera check"], "not checked (the model records no camera)");
+  } else {
+    EXPECT_NE(values["model camera check"], "not checked (the model records no camera)");
+  }
   EXPECT_GE(std::stoi(values["compensated flows total"]), 28);
   EXPECT_GE(std::stoi(latest[gyro]["gyro flows total"]), 28);
   EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);

@@ -98,7 +98,10 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   } else {
     diagnostics_->setValue("model kind", "learned stabiliser model");
   }
-  diagnostics_->setValue("model camera", modelCamera().summary());
+  // A generic model (trained on several cameras, or before models recorded theirs) cannot be
+  // checked against the stream; say so rather than "matches".
+  diagnostics_->setValue("model camera", modelCamera().known() ? modelCamera().summary()
+                                                               : "none recorded (a generic model)");
   // Live-tunable parameters; built before the lock below (it applies the values once here).
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
@@ -280,7 +283,9 @@ bool CompensationRos::checkModelCamera(const GyroFlow& gyro) {
   checked_camera_ = summary;
   const CameraDescription& trained = modelCamera();
   camera_check_ = trained.differencesTo(stream);
-  diagnostics_->setValue("model camera check", camera_check_.empty() ? "matches" : camera_check_);
+  diagnostics_->setValue("model camera check", !trained.known()      ? "not checked (the model records no camera)"
+                                               : camera_check_.empty() ? "matches"
+                                                                       : camera_check_);
   if (camera_check_.empty()) return true;
   // A stabiliser model works in focal-length units and degrades gracefully on another camera; the
   // network sees working-grid pixels of its training camera's flows.
