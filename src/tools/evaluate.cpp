@@ -23,6 +23,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "deep_ois/core/evaluation/stabiliser_table_row.h"
@@ -171,6 +172,8 @@ int main(int argc, char** argv) {
 
   deep_ois::EvaluationReport report;
   bool parity_failed = false;
+  // Each model row with the camera it was trained for, compared with the recordings' after the run.
+  std::vector<std::pair<std::string, deep_ois::CameraDescription>> model_cameras;
 #ifdef DEEP_OIS_WITH_TORCH
   std::unique_ptr<deep_ois::CompensationModel> model;
 #else
@@ -198,6 +201,7 @@ int main(int argc, char** argv) {
       deep_ois::setTorchThreads(torch_threads);
       model = std::make_unique<deep_ois::CompensationModel>(
           deep_ois::CompensationModel::load(model_path));
+      model_cameras.emplace_back(modelRowName(model_path, model->metadata().preset), model->metadata().camera);
       auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
       auto recording = std::make_shared<std::uint64_t>(0);
       runner.addMethod({modelRowName(model_path, model->metadata().preset),
@@ -215,8 +219,9 @@ int main(int argc, char** argv) {
     // Learned stabiliser models: their state carried over each recording's gyro stream.
     for (const std::string& path : stabiliser_paths) {
       const deep_ois::StabiliserModelFile file = deep_ois::StabiliserModelFile::load(path);
-      runner.addMethod(deep_ois::stabiliserAlignmentMethod(
-          "stabiliser model, " + std::filesystem::path(path).filename().string(), file.parameters));
+      const std::string row = "stabiliser model, " + std::filesystem::path(path).filename().string();
+      runner.addMethod(deep_ois::stabiliserAlignmentMethod(row, file.parameters));
+      model_cameras.emplace_back(row, file.camera);
     }
     // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
     std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
@@ -265,6 +270,9 @@ int main(int argc, char** argv) {
   }
   for (const std::string& error : report.errors)
     std::fprintf(stderr, "evaluate: %s\n", error.c_str());
+  for (const auto& [row, camera] : model_cameras) {
+    std::fprintf(stderr, "evaluate: %s\n", deep_ois::modelCameraNote(row, camera, report.recordings).c_str());
+  }
   std::fprintf(
       stderr,
       "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",

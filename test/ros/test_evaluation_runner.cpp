@@ -208,6 +208,24 @@ TEST(EvaluationRunner, TwinsScoreOnlyTheNonOisGyroRowAndABrokenBagCostsOnlyItsel
   // The OIS problem: the gyro misses on the OIS camera and not on its twin.
   EXPECT_LT(table.mean(kGyroNonOisMethod, "RE"), 0.5 * table.mean(kGyroOisMethod, "RE"));
   EXPECT_NE(report.markdown().find("**not scored**: " + missing), std::string::npos);
+
+  // The camera of each readable recording, which evaluate compares with each model row's.
+  const CameraDescription camera = report.recordings[0].camera;
+  ASSERT_TRUE(camera.known());
+  EXPECT_FALSE(report.recordings[1].camera.known());
+  EXPECT_EQ(camera.readout_time_s, options.gyro.rolling_shutter.readout_time_s);
+  EXPECT_EQ(camera.differencesTo(report.recordings[2].camera), "");
+  EXPECT_EQ(modelCameraNote("m.pt", camera, report.recordings),
+            "m.pt: trained for " + camera.summary() + ", the camera of every recording");
+  CameraDescription larger = camera;
+  larger.width *= 2;
+  const std::string note = modelCameraNote("m.pt", larger, report.recordings);
+  EXPECT_EQ(note.rfind("m.pt was trained for " + larger.summary() + " but 2 of 2 recordings are of another camera "
+                       "(first: " + ois + ": " + camera.summary() + "; image size differs",
+                       0),
+            0u)
+      << note;
+  EXPECT_EQ(modelCameraNote("m.pt", CameraDescription{}, report.recordings), "m.pt records no camera (a generic model)");
 }
 
 // The "gyro + lens log" row: offered only when a bag holds the camera's lens log (the OIS bag, not

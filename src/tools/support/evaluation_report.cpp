@@ -305,4 +305,25 @@ MethodAgreement compareMethods(const EvaluationReport& report, const std::string
   return agreement;
 }
 
+std::string modelCameraNote(const std::string& model_name, const CameraDescription& trained,
+                            const std::vector<RecordingOutcome>& recordings) {
+  if (!trained.known()) return model_name + " records no camera (a generic model)";
+  std::size_t read = 0, other = 0;
+  std::string first_other;
+  for (const RecordingOutcome& recording : recordings) {
+    if (!recording.camera.known()) continue;
+    ++read;
+    const std::string difference = trained.differencesTo(recording.camera);
+    if (difference.empty()) continue;
+    if (other++ == 0) first_other = recording.path + ": " + recording.camera.summary() + "; " + difference;
+  }
+  if (other == 0) {
+    return model_name + ": trained for " + trained.summary() +
+           (read > 0 ? ", the camera of every recording" : " (no recording was read)");
+  }
+  return model_name + " was trained for " + trained.summary() + " but " + std::to_string(other) + " of " +
+         std::to_string(read) + " recordings are of another camera (first: " + first_other +
+         "): its row is not its accuracy on the camera it was trained for";
+}
+
 }  // namespace deep_ois

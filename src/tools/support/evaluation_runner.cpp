@@ -216,6 +216,7 @@ EvaluationReport EvaluationRunner::run() {
       Recording& recording = *loaded;
       const BagSequence& sequence = recording.sequence;
       const CameraModel& camera = *sequence.camera;
+      result.camera = describeCamera(camera, recording.rolling_shutter.readout_time_s);
       auto fail = [&](const std::string& what) {
         throw std::runtime_error(recording.path + ": " + what);
       };

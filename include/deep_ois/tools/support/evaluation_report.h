@@ -8,8 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/tools/support/evaluation_plots.h"
+#include "deep_ois/core/camera/camera_description.h"
 #include "deep_ois/core/evaluation/results_table.h"
+#include "deep_ois/tools/support/evaluation_plots.h"
 
 namespace deep_ois {
 
@@ -33,6 +34,9 @@ struct RecordingOutcome {
   std::size_t pairs_skipped = 0;                    // pairs no method could be scored on
   std::map<std::string, std::size_t> skip_reasons;  // reason -> pairs
   std::string error;  // why the recording failed; empty when it did not
+  // The recording's camera (camera_info, the gyro config's readout), to compare with the camera a
+  // model was trained for; unknown when the recording could not be read.
+  CameraDescription camera;
 };
 
 struct EvaluationReport {
@@ -82,6 +86,14 @@ struct MethodAgreement {
   double max_abs_difference_px = 0.0; // of the uncapped distances
 };
 MethodAgreement compareMethods(const EvaluationReport& report, const std::string& first, const std::string& second);
+
+// One line on the camera a model row was trained for against the recordings it was scored on, so
+// that a row is not read as the model's accuracy on its own camera when it is not: "<model>:
+// trained for <camera>, the camera of every recording", "<model> was trained for <camera> but k of
+// n recordings are of another camera (first: <path>: <camera>; <what differs>)", or "<model>
+// records no camera (a generic model)". Recordings that could not be read are not counted.
+std::string modelCameraNote(const std::string& model_name, const CameraDescription& trained,
+                            const std::vector<RecordingOutcome>& recordings);
 
 // Writes evaluation.csv, evaluation.json, evaluation_pairs.csv, bars_<category>.png per category
 // plus bars_Avg.png, and ghosts_<category>.png into `directory` (created when missing). Returns the
