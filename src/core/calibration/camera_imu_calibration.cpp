@@ -693,6 +693,16 @@ CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOp
   state.R_cam_imu = options.estimate_rotation ? coarse.imu_to_camera_rotation : options.imu_to_camera_rotation;
 
   // ---- Motion prerequisites. ----------------------------------------------------------------
+  // Too little motion for any quantity: refused, with the coarse stage's values as the (untrusted)
+  // calibration so that the caller still sees what was found.
+  auto refuseUnobservable = [&](const std::string& why) -> CalibrationResult {
+    result.refusals.push_back(why);
+    result.calibration.time_offset_s = state.time_offset_s;
+    result.calibration.readout_time_s = state.readout_time_s;
+    result.calibration.gyro_bias_rad_s = state.bias;
+    result.calibration.imu_to_camera_rotation = state.R_cam_imu;
+    return finish();
+  };
   const double first_s = data.frame_stamps_s.front() + state.time_offset_s;
   const double last_s = data.frame_stamps_s.back() + state.time_offset_s + max_readout_s;
   result.rate_rms_rad_s = principalRateRms(data.gyro, first_s, last_s, state.bias);
@@ -705,12 +715,7 @@ CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOp
         << "; at least " << options.min_excitation_rate_rad_s
         << " rad/s is needed about one axis, two for the rotation): no quantity is observable; record "
            "again while turning the camera by hand about all three axes";
-    result.refusals.push_back(why.str());
-    result.calibration.time_offset_s = state.time_offset_s;
-    result.calibration.readout_time_s = state.readout_time_s;
-    result.calibration.gyro_bias_rad_s = state.bias;
-    result.calibration.imu_to_camera_rotation = state.R_cam_imu;
-    return finish();
+    return refuseUnobservable(why.str());
   }
   // The rate check passes a still camera on a vibrating mount; what the tracks see between frames
   // is what carries the information.
@@ -728,12 +733,7 @@ CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOp
         << " deg at this focal length, is needed): track noise and translation parallax are as large as the "
            "rotation, so no quantity is observable; record again while turning the camera by hand about "
            "all three axes";
-    result.refusals.push_back(why.str());
-    result.calibration.time_offset_s = state.time_offset_s;
-    result.calibration.readout_time_s = state.readout_time_s;
-    result.calibration.gyro_bias_rad_s = state.bias;
-    result.calibration.imu_to_camera_rotation = state.R_cam_imu;
-    return finish();
+    return refuseUnobservable(why.str());
   }
   if (options.estimate_rotation && result.rate_rms_rad_s(1) < options.min_excitation_rate_rad_s) {
     std::ostringstream why;
