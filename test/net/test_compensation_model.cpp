@@ -204,7 +204,7 @@ TEST(ModelMetadata, YamlRoundTripAndFieldNamingErrors) {
   EXPECT_EQ(back.training.data_sha256, m.training.data_sha256);
   EXPECT_EQ(m.toYaml().find("data_hash"), std::string::npos) << m.toYaml();
 
-  // A model from before the SHA-256 (as the shipped models/fast.pt): its FNV-1a hash under
+  // A model from before the SHA-256 (as models/fast.pt was until 2026-11): its FNV-1a hash under
   // data_hash is read as what it is, not as a SHA-256, and written back unchanged.
   std::string fnv_yaml = m.toYaml();
   const std::size_t sha_at = fnv_yaml.find("data_sha256: ");
