@@ -201,10 +201,11 @@ int main(int argc, char** argv) {
       deep_ois::setTorchThreads(torch_threads);
       model = std::make_unique<deep_ois::CompensationModel>(
           deep_ois::CompensationModel::load(model_path));
-      model_cameras.emplace_back(modelRowName(model_path, model->metadata().preset), model->metadata().camera);
+      const std::string model_row = modelRowName(model_path, model->metadata().preset);
+      model_cameras.emplace_back(model_row, model->metadata().camera);
       auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
       auto recording = std::make_shared<std::uint64_t>(0);
-      runner.addMethod({modelRowName(model_path, model->metadata().preset),
+      runner.addMethod({model_row,
                         deep_ois::kOisCameraPairs,
                         [stream, recording](const deep_ois::FramePairContext& pair) {
                           if (pair.recording_id != *recording) stream->reset();
