@@ -203,6 +203,12 @@ class LivePipelineHarness {
     }
     return delays;
   }
+  // Images received so far on one of the image outputs (gyro_flow/color, compensated_flow/color,
+  // aligned/image_raw, aligned/ghost under /deep_ois).
+  std::size_t imageOutputs(const std::string& topic) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return image_outputs_[topic];
+  }
   GyroFlowConstPtr lastGyroFlow() {
     std::lock_guard<std::mutex> lock(mutex_);
     return last_gyro_flow_;

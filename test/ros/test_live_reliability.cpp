@@ -2,6 +2,7 @@
 // real time (live_pipeline_rostest_helpers.h). Each test states the defect it guards against; the
 // tests run in order on one stream.
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #include "live_pipeline_rostest_helpers.h"
@@ -60,6 +61,46 @@ TEST(LiveReliability, AFrameThatNeverComesCostsOnlyItsPairs) {
   });
   expectFullRateAfterOneSecond(t0);
   EXPECT_FALSE(harness->warnings(t0, {"compensation", "its frame never came"}).empty()) << harness->warningsText(t0);
+}
+
+// Issue 23, papercut 11: with 16UC1 or 32FC1 frames (depth, thermal) the ghost overlay could not
+// be converted to rgb8, and the pair was counted as a gyro flow without output although its
+// compensated flow and aligned frame were published. Every output, the ghost included, for every
+// pair; nothing counted as without output.
+TEST(LiveReliability, DepthAndThermalEncodingsGetEveryOutputIncludingTheGhost) {
+  ensureStarted();
+  for (const std::string encoding : {"16UC1", "32FC1"}) {
+    SCOPED_TRACE(encoding);
+    const ros::WallTime t0 = ros::WallTime::now();
+    const std::size_t ghosts_before = harness->imageOutputs("/deep_ois/aligned/ghost");
+    const std::size_t aligned_before = harness->imageOutputs("/deep_ois/aligned/image_raw");
+    std::size_t frames = 0;
+    harness->stream(2.0, [&](live_test::FrameEdit& edit) {
+      const std::size_t depth = encoding == "16UC1" ? 2 : 4;
+      edit.image->encoding = encoding;
+      edit.image->step = static_cast<uint32_t>(edit.image->width * depth);
+      edit.image->data.resize(edit.image->step * edit.image->height);
+      for (std::size_t k = 0; k < edit.image->data.size(); k += depth) {
+        if (encoding == "16UC1") {
+          const uint16_t value = static_cast<uint16_t>(500 + 37 * ((k / depth) % 97));
+          std::memcpy(&edit.image->data[k], &value, sizeof value);
+        } else {
+          const float value = 0.5f + 0.05f * static_cast<float>((k / depth) % 89);
+          std::memcpy(&edit.image->data[k], &value, sizeof value);
+        }
+      }
+      ++frames;
+    });
+    ros::WallDuration(0.5).sleep();
+    const std::size_t ghosts = harness->imageOutputs("/deep_ois/aligned/ghost") - ghosts_before;
+    const std::size_t aligned = harness->imageOutputs("/deep_ois/aligned/image_raw") - aligned_before;
+    std::printf("[ measured ] %s: %zu frames, %zu aligned, %zu ghosts\n", encoding.c_str(), frames, aligned, ghosts);
+    // A pair per frame; the first after the change of encoding and a loaded machine may cost a few.
+    EXPECT_GE(ghosts + 6, frames) << harness->warningsText(t0);
+    EXPECT_GE(aligned + 6, frames) << harness->warningsText(t0);
+    EXPECT_TRUE(harness->warnings(t0, {"compensation", "without output"}).empty()) << harness->warningsText(t0);
+    EXPECT_TRUE(harness->warnings(t0, {"compensation", "ghost"}).empty()) << harness->warningsText(t0);
+  }
 }
 
 // Defect 5: a frame lost before the gyro flow made a flow span two frame intervals, silently.

@@ -17,6 +17,7 @@
 #include <mutex>
 #include <set>
 #include <string>
+#include <vector>
 
 namespace deep_ois {
 namespace {
@@ -92,6 +93,63 @@ TEST(ReplayLaunch, StartedPastTheBagsStaticTransformsNoPairLosesTheMount) {
         << value << " pair(s) dropped without the IMU -> camera mount: " << key;
   }
   EXPECT_TRUE(before_start.empty()) << before_start.size() << " flows of pairs before the start offset";
+}
+
+// Issue 23: replay.launch looped (rosbag play --loop --clock: ROS time jumps back at every loop)
+// with the shipped default model, the learned stabiliser model. It kept the state of the first
+// loop and compensated nothing after it (0 of 168 gyro flows). Now every loop after the first
+// must have >= 95 % of its gyro flows compensated (~loops_wanted loops counted).
+TEST(ReplayLaunch, EveryLoopOfALoopedBagIsCompensated) {
+  ros::NodeHandle nh, private_nh("~");
+  int loops_wanted = 0;
+  ASSERT_TRUE(private_nh.getParam("loops_wanted", loops_wanted));
+  // The gyro flows' pair stamps per loop (a loop starts where the stamps go back), and the
+  // compensated ones per loop of the gyro flow they came from: every loop has the same stamps, so
+  // a compensated flow belongs to the newest loop whose gyro flows hold its stamp.
+  std::mutex mutex;
+  std::vector<std::set<ros::Time>> gyro_loops, compensated_loops;
+  ros::Time last_gyro;
+  ros::Subscriber gyro_sub = nh.subscribe<GyroFlow>("/deep_ois/gyro_flow", 200, [&](const GyroFlowConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (gyro_loops.empty() || m->header.stamp < last_gyro) {
+      gyro_loops.emplace_back();
+      compensated_loops.emplace_back();
+    }
+    gyro_loops.back().insert(m->header.stamp);
+    last_gyro = m->header.stamp;
+  });
+  ros::Subscriber compensated_sub =
+      nh.subscribe<GyroFlow>("/deep_ois/compensated_flow", 200, [&](const GyroFlowConstPtr& m) {
+        std::lock_guard<std::mutex> lock(mutex);
+        for (std::size_t k = gyro_loops.size(); k-- > 0;) {
+          if (gyro_loops[k].count(m->header.stamp)) {
+            compensated_loops[k].insert(m->header.stamp);
+            break;
+          }
+        }
+      });
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  // Complete loops: the one in progress is not counted.
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(100.0);
+  while (ros::ok() && ros::WallTime::now() < deadline) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (static_cast<int>(gyro_loops.size()) > loops_wanted) break;
+    }
+    ros::WallDuration(0.1).sleep();
+  }
+  ros::WallDuration(1.0).sleep();  // the last compensated flows of the counted loops
+  std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_GT(static_cast<int>(gyro_loops.size()), loops_wanted) << "the bag did not loop " << loops_wanted << " times";
+  for (int k = 0; k < loops_wanted; ++k) {
+    const std::size_t wanted = gyro_loops[static_cast<std::size_t>(k)].size();
+    const std::size_t done = compensated_loops[static_cast<std::size_t>(k)].size();
+    std::cout << "[ measured ] loop " << k + 1 << ": " << wanted << " gyro flows, " << done << " compensated"
+              << std::endl;
+    // The first loop starts the pipeline (subscriptions connecting): only the later ones count.
+    if (k > 0) EXPECT_GE(static_cast<double>(done), 0.95 * static_cast<double>(wanted)) << "loop " << k + 1;
+  }
 }
 
 }  // namespace

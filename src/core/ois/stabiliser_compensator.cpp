@@ -28,6 +28,20 @@ StabiliserCompensator::StabiliserCompensator(const StabiliserParameters& paramet
   if (!(warm_up_s >= 0.0)) throw std::invalid_argument("StabiliserCompensator: warm_up_s < 0");
 }
 
+double StabiliserCompensator::followTimeline(double frame_a_s, double frame_b_s) {
+  double back_s = 0.0;
+  // Consecutive pairs share a frame (the next pair's frame a is the last one's frame b; later
+  // after a lost pair). Earlier than that by more than a stamp's rounding is another timeline.
+  if (seen_pair_ && frame_a_s < last_frame_b_s_ - 1e-6) {
+    back_s = last_frame_b_s_ - frame_a_s;
+    predictor_.reset();
+    ++time_jumps_;
+  }
+  seen_pair_ = true;
+  last_frame_b_s_ = frame_b_s;
+  return back_s;
+}
+
 void StabiliserCompensator::addRates(const std::vector<CameraRateSample>& rates) {
   for (const CameraRateSample& sample : rates) {
     if (predictor_.started() && sample.stamp_s <= predictor_.newestStamp()) continue;

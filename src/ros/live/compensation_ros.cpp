@@ -253,7 +253,7 @@ void CompensationRos::settle(const std::vector<Matcher::Settled>& settled) {
 
 void CompensationRos::observeOnly(const GyroFlow& gyro) {
   if (stabiliser_) {
-    stabiliser_->observe(gyro);
+    sayTimeJump(gyro, stabiliser_->observe(gyro));
     return;
   }
   std::vector<Eigen::Matrix3d> homographies;
@@ -304,6 +304,18 @@ bool CompensationRos::checkModelCamera(const GyroFlow& gyro) {
                    camera_check_.c_str(), anyway, train_tool);
   }
   return !params_.require_matching_camera;
+}
+
+void CompensationRos::sayTimeJump(const GyroFlow& gyro, double back_s) {
+  if (!(back_s > 0.0)) return;
+  diagnostics_->setValue("stabiliser restarts after time went back", std::to_string(stabiliser_->timeJumps()));
+  // Once per jump (only the first pair of the new timeline reports one): not throttled.
+  ROS_WARN_NAMED("compensation",
+                 "%s: gyro flow stamps on %s went back by %.3f s (to %.6f; a bag that loops or a restarted "
+                 "replay): the stabiliser model restarts from a centred lens, warmed up on the gyro history "
+                 "the flows carry (up to %.1f s)",
+                 log_name_.c_str(), gyro_flow_sub_.getTopic().c_str(), back_s, gyro.previous_stamp.toSec(),
+                 kStabiliserWarmUpS);
 }
 
 double CompensationRos::lagS(const ros::Time& stamp_b) {
@@ -368,13 +380,14 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   CameraModel compensated_camera;                         // the camera they refer to
   if (gyro.motion_model == GyroFlow::MOTION_GYRO_LENS_LOG) {
     if (stream_) stream_->reset();
-    if (stabiliser_) stabiliser_->observe(gyro);
+    if (stabiliser_) sayTimeJump(gyro, stabiliser_->observe(gyro));
     compensated = gyro_flow.clone();
   } else if (!checkModelCamera(gyro)) {
     countDrop("model trained for another camera (~require_matching_camera)");
     return;
   } else if (stabiliser_) {
     StabiliserFlowResult result = stabiliser_->compensate(gyro);
+    sayTimeJump(gyro, result.time_jump_back_s);
     if (!result.ok) {
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",
                               log_name_.c_str(), gyro.header.stamp.toSec(), result.reason.c_str());
@@ -416,8 +429,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     color_pub_.publish(msg);
   }
   const bool want_aligned = aligned_pub_.getNumSubscribers() > 0, want_ghost = ghost_pub_.getNumSubscribers() > 0;
-  if (!want_aligned && !want_ghost) return;
-  try {
+  if (want_aligned || want_ghost) {
     // The flow inverted on its grid; per camera pixel only the map's interpolation and the remaps.
     if (!compensated_homographies.empty()) {
       // Per-patch homographies (a stabiliser model): the map straight from them, no flow inversion.
@@ -430,32 +442,35 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     } else {
       buildFixedPointBackwardMap(compensated, camera_size, params_.warp_iterations, warp_map_);
     }
-    const std_msgs::Header& header = image_b->header;
-    cv::Mat aligned;
-    if (want_aligned) {
-      const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a);
-      sensor_msgs::ImagePtr msg = makeImageMsg(header, image_a->encoding, camera_size, aligned);
-      warpWithFixedPointMap(a->image, warp_map_, aligned);
-      aligned_pub_.publish(msg);
-    }
-    if (want_ghost) {
+  }
+  const std_msgs::Header& header = image_b->header;
+  cv::Mat aligned;
+  if (want_aligned) {
+    // Any encoding: the warp works per channel on the frame's own pixels.
+    const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a);
+    sensor_msgs::ImagePtr msg = makeImageMsg(header, image_a->encoding, camera_size, aligned);
+    warpWithFixedPointMap(a->image, warp_map_, aligned);
+    aligned_pub_.publish(msg);
+  }
+  // The pair has its output now: a ghost that cannot be drawn is said and counted on its own,
+  // not as a flow without output.
+  if (want_ghost) {
+    try {
       cv::Mat ghost;
       sensor_msgs::ImagePtr msg = makeImageMsg(header, sensor_msgs::image_encodings::RGB8, camera_size, ghost);
-      const cv_bridge::CvImageConstPtr b = cv_bridge::toCvShare(image_b, sensor_msgs::image_encodings::RGB8);
+      const cv_bridge::CvImageConstPtr b = toRgb8ForDisplay(image_b);
       if (want_aligned && image_a->encoding == sensor_msgs::image_encodings::RGB8) {
         ghostOverlay(aligned, b->image, ghost);  // frame a is already warped in RGB
       } else {
-        const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a, sensor_msgs::image_encodings::RGB8);
-        warpWithFixedPointMap(a->image, warp_map_, ghost);
+        warpWithFixedPointMap(toRgb8ForDisplay(image_a)->image, warp_map_, ghost);
         ghostOverlay(ghost, b->image, ghost);
       }
       ghost_pub_.publish(msg);
+    } catch (const cv_bridge::Exception& e) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no ghost overlay for the %s frames on %s: %s",
+                              log_name_.c_str(), image_b->encoding.c_str(), image_sub_.getTopic().c_str(), e.what());
+      diagnostics_->setValue("ghost overlays not drawn", std::to_string(++ghosts_not_drawn_));
     }
-  } catch (const cv_bridge::Exception& e) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: cannot convert the images on %s: %s", log_name_.c_str(),
-                            image_sub_.getTopic().c_str(), e.what());
-    countDrop("images that cannot be converted");
-    return;
   }
   ++published_;
 }

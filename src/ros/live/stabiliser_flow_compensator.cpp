@@ -30,20 +30,27 @@ RollingShutterConfig timingOf(const GyroFlow& msg) {
 }  // namespace
 
 StabiliserCompensator& StabiliserFlowCompensator::compensatorFor(const GyroFlow& msg,
-                                                                 std::string* problem) {
+                                                                 std::string* problem,
+                                                                 double* time_jump_back_s) {
   const Eigen::Matrix3d K = rowMajor(msg.K);
   if (!compensator_ || !K.isApprox(K_, 1e-12)) {
     compensator_ = std::make_unique<StabiliserCompensator>(model_.parameters, K);
     K_ = K;
   }
+  // Before the rates: the state of another timeline must not take in this one's samples.
+  const RollingShutterConfig rs = timingOf(msg);
+  *time_jump_back_s = compensator_->followTimeline(patchImuTime(rs, msg.previous_stamp.toSec(), 0),
+                                                   patchImuTime(rs, msg.header.stamp.toSec(), 0));
   const std::vector<CameraRateSample> rates = readGyroFlowRates(msg, problem);
   compensator_->addRates(rates);
   return *compensator_;
 }
 
-void StabiliserFlowCompensator::observe(const GyroFlow& msg) {
+double StabiliserFlowCompensator::observe(const GyroFlow& msg) {
   std::string problem;
-  compensatorFor(msg, &problem);
+  double time_jump_back_s = 0.0;
+  compensatorFor(msg, &problem, &time_jump_back_s);
+  return time_jump_back_s;
 }
 
 StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) {
@@ -58,7 +65,7 @@ StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) 
     return result;
   }
   std::string problem;
-  StabiliserCompensator& compensator = compensatorFor(msg, &problem);
+  StabiliserCompensator& compensator = compensatorFor(msg, &problem, &result.time_jump_back_s);
   if (!problem.empty()) {
     result.reason = problem;
     return result;

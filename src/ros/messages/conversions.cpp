@@ -220,6 +220,14 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
   return {};
 }
 
+cv_bridge::CvImageConstPtr toRgb8ForDisplay(const sensor_msgs::ImageConstPtr& image) {
+  namespace enc = sensor_msgs::image_encodings;
+  if (enc::isColor(image->encoding) || enc::isMono(image->encoding)) return cv_bridge::toCvShare(image, enc::RGB8);
+  // Not dynamic scaling: each frame scaled by its own range would make equal pixels of two frames
+  // differ in the overlay.
+  return cv_bridge::cvtColorForDisplay(cv_bridge::toCvShare(image), enc::RGB8);
+}
+
 sensor_msgs::ImagePtr makeImageMsg(const std_msgs::Header& header, const std::string& encoding, cv::Size size,
                                    cv::Mat& view) {
   const int type = cv_bridge::getCvType(encoding);

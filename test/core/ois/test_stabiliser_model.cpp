@@ -271,3 +271,65 @@ TEST(StabiliserCompensator, ComposesThePredictedLensShiftsWithTheGyroRotations) 
 
 }  // namespace
 }  // namespace deep_ois
+
+namespace deep_ois {
+namespace {
+
+// Feeds a compensator the pairs of a 30 fps stream over `rates` as the nodelet does (the
+// timeline check, then the rates up to the pair) and returns the last pair's result.
+StabiliserCompensation compensatePairs(StabiliserCompensator& compensator,
+                                       const std::vector<CameraRateSample>& rates, double first_frame_s,
+                                       int pairs, double* time_jump_back_s = nullptr) {
+  const std::vector<Eigen::Matrix3d> rotations(6, Eigen::Matrix3d::Identity());
+  StabiliserCompensation result;
+  for (int k = 0; k < pairs; ++k) {
+    std::vector<double> times_a, times_b;
+    for (int i = 0; i < 6; ++i) {
+      times_a.push_back(first_frame_s + k / 30.0 + 0.02 * (i + 0.5) / 6.0);
+      times_b.push_back(times_a.back() + 1.0 / 30.0);
+    }
+    const double back_s = compensator.followTimeline(times_a.front(), times_b.front());
+    if (time_jump_back_s && k == 0) *time_jump_back_s = back_s;
+    // The rates the gyro flow message carries: a warm-up second before the pair up to its end.
+    std::vector<CameraRateSample> carried;
+    for (const CameraRateSample& r : rates) {
+      if (r.stamp_s > times_a.front() - kStabiliserWarmUpS && r.stamp_s <= times_b.back() + 0.003) carried.push_back(r);
+    }
+    compensator.addRates(carried);
+    result = compensator.compensate(rotations, times_a, times_b);
+  }
+  return result;
+}
+
+TEST(StabiliserCompensator, TimeGoingBackRestartsTheStateWithNothingOfTheOtherTimeline) {
+  Eigen::Matrix3d K;
+  K << kFocalPx, 0.0, 180.0, 0.0, kFocalPx, 135.0, 0.0, 0.0, 1.0;
+  // Timeline A: 100-104 s. Then time goes back (a bag that loops) to timeline B: 98-100 s,
+  // another motion.
+  const std::vector<CameraRateSample> a = shake(100.0, 4.0, 7), b = shake(97.0, 3.0, 8);
+  StabiliserCompensator looped(knownStabiliser(), K), fresh(knownStabiliser(), K);
+  double back_s = 0.0;
+  ASSERT_TRUE(compensatePairs(looped, a, 101.5, 60, &back_s).ok);
+  EXPECT_EQ(back_s, 0.0);
+  EXPECT_EQ(looped.timeJumps(), 0);
+  const StabiliserCompensation after_jump = compensatePairs(looped, b, 98.2, 1, &back_s);
+  // The last pair of A ended at 101.5 + 60 / 30 = 103.5 s (frame b, first patch).
+  EXPECT_NEAR(back_s, 103.5 - 98.2, 1e-6);
+  EXPECT_EQ(looped.timeJumps(), 1);
+  // Today's regression: the old state ignored the older samples and answered nothing.
+  ASSERT_TRUE(after_jump.ok) << after_jump.reason;
+  // Exactly what a compensator that never saw timeline A answers.
+  const StabiliserCompensation expected = compensatePairs(fresh, b, 98.2, 1);
+  ASSERT_TRUE(expected.ok) << expected.reason;
+  for (std::size_t i = 0; i < 6; ++i) {
+    EXPECT_LT((after_jump.shift_a_px[i] - expected.shift_a_px[i]).norm(), 1e-12) << "patch " << i;
+    EXPECT_LT((after_jump.shift_b_px[i] - expected.shift_b_px[i]).norm(), 1e-12) << "patch " << i;
+  }
+  // And it goes on along the new timeline without further restarts.
+  EXPECT_TRUE(compensatePairs(looped, b, 98.2 + 1.0 / 30.0, 30, &back_s).ok);
+  EXPECT_EQ(back_s, 0.0);
+  EXPECT_EQ(looped.timeJumps(), 1);
+}
+
+}  // namespace
+}  // namespace deep_ois

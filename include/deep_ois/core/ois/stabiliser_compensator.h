@@ -4,7 +4,8 @@
 //
 // One per camera stream: it carries the stabiliser's state from pair to pair. The compensation
 // nodelet, the evaluator and the benchmark all go through it (the same computation live and
-// offline). A gap in the gyro stream restarts the model from a centred lens (counted).
+// offline). A gap in the gyro stream restarts the model from a centred lens (counted), and so
+// does time going back (a bag that loops, a replay restarted: followTimeline).
 #pragma once
 
 #include <Eigen/Core>
@@ -43,7 +44,15 @@ class StabiliserCompensator {
   StabiliserCompensator(const StabiliserParameters& parameters, const Eigen::Matrix3d& K,
                         double warm_up_s = kStabiliserWarmUpS);
 
-  // Appends camera-frame rates in time order; older or repeated samples are ignored.
+  // Call before feeding a pair's rates, with the times of the same patch (e.g. the first) of the
+  // pair's frames a and b (IMU clock, seconds). Time is not monotonic: a pair whose frame a is
+  // older than the last pair's frame b belongs to another timeline (a bag that loops, a replay
+  // restarted, a clock reset), so the model restarts from a centred lens and is warmed up again
+  // from the gyro history fed next; nothing of the other timeline's state is used. Returns how far
+  // time went back (seconds), 0 when it did not.
+  double followTimeline(double frame_a_s, double frame_b_s);
+  // Appends camera-frame rates in time order; older or repeated samples are ignored (consecutive
+  // pairs carry overlapping gyro history).
   void addRates(const std::vector<CameraRateSample>& rates);
   // The IMU time from which the caller should feed rates before compensating a pair whose first
   // patch is at t_first_s: the model's newest sample, or t_first_s - warm_up_s for a fresh model.
@@ -58,12 +67,16 @@ class StabiliserCompensator {
 
   void reset() { predictor_.reset(); }
   int stateResets() const { return predictor_.resets(); }
+  int timeJumps() const { return time_jumps_; }
   const LensShiftPredictor& predictor() const { return predictor_; }
 
  private:
   Eigen::Matrix3d K_;
   double warm_up_s_;
   LensShiftPredictor predictor_;
+  bool seen_pair_ = false;
+  double last_frame_b_s_ = 0.0;
+  int time_jumps_ = 0;
 };
 
 }  // namespace deep_ois

@@ -106,6 +106,8 @@ class CompensationRos {
   void countDrop(const std::string& reason);
   // Adds the flow's motion to the history without an output.
   void observeOnly(const GyroFlow& gyro);
+  // Says once that the stabiliser model restarted because time went back by `back_s` (> 0).
+  void sayTimeJump(const GyroFlow& gyro, double back_s);
   // Processing delay of the pair ending at `stamp_b` beyond the smallest seen, seconds.
   double lagS(const ros::Time& stamp_b);
   // The throttled warning of everything dropped since the last one.
@@ -158,6 +160,7 @@ class CompensationRos {
   std::optional<cv::Size> last_flow_grid_;    // the history restarts when the grid changes
   std::size_t errors_ = 0;  // exceptions caught at the callbacks
   std::size_t published_ = 0;
+  std::size_t ghosts_not_drawn_ = 0;  // pairs with an output whose ghost could not be drawn
   std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, model
   std::unique_ptr<CompensationReconfigure> reconfigure_;
 };

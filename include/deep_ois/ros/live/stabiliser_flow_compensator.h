@@ -26,6 +26,9 @@ struct StabiliserFlowResult {
   std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;
   cv::Mat flow;  // CV_32FC2 on the gyro flow's grid (same convention)
   CameraModel camera;  // the message's camera (K, distortion, size) the homographies refer to
+  // Seconds time went back before this message (a bag that loops): the stabiliser's state was
+  // restarted from a centred lens before its gyro stream was fed. 0 when it did not.
+  double time_jump_back_s = 0.0;
 };
 
 class StabiliserFlowCompensator {
@@ -36,14 +39,18 @@ class StabiliserFlowCompensator {
   // older publisher) or whose stream does not cover the pair is not ok, with the reason.
   StabiliserFlowResult compensate(const GyroFlow& msg);
   // Feeds the message's gyro stream only (a pair without an output still moved the camera).
-  void observe(const GyroFlow& msg);
+  // Returns how far time went back before it (seconds; 0 when it did not), as in the result.
+  double observe(const GyroFlow& msg);
 
   const StabiliserModelFile& model() const { return model_; }
   int stateResets() const { return compensator_ ? compensator_->stateResets() : 0; }
+  int timeJumps() const { return compensator_ ? compensator_->timeJumps() : 0; }
 
  private:
-  // The compensator for the message's camera (rebuilt when K changes).
-  StabiliserCompensator& compensatorFor(const GyroFlow& msg, std::string* problem);
+  // The compensator for the message's camera (rebuilt when K changes), restarted when time went
+  // back (*time_jump_back_s, seconds), then fed with the message's gyro stream.
+  StabiliserCompensator& compensatorFor(const GyroFlow& msg, std::string* problem,
+                                        double* time_jump_back_s);
 
   StabiliserModelFile model_;
   std::unique_ptr<StabiliserCompensator> compensator_;

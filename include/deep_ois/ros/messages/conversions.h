@@ -1,6 +1,8 @@
 // Conversions between ROS messages and the plain types of the core library.
 #pragma once
 
+#include <cv_bridge/cv_bridge.h>
+
 #include <deep_ois/GyroFlow.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -71,6 +73,14 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
 // unknown encoding.
 sensor_msgs::ImagePtr makeImageMsg(const std_msgs::Header& header, const std::string& encoding, cv::Size size,
                                    cv::Mat& view);
+
+// The image as rgb8 for a picture (the ghost overlay): colour and mono encodings converted as
+// cv_bridge does; any other one-channel encoding (16UC1 and 32FC1 depth or thermal, 8UC1, ...)
+// scaled to 8 bits with cv_bridge's fixed display range for that encoding, the same for every
+// frame, so two frames stay comparable. Shares the message's data where it can. Throws
+// cv_bridge::Exception for an encoding that cannot be shown (several channels of no known
+// meaning).
+cv_bridge::CvImageConstPtr toRgb8ForDisplay(const sensor_msgs::ImageConstPtr& image);
 
 // Messages carry matrices and points as flat float64[] arrays: consecutive row-major 3x3 blocks,
 // and (x, y) pairs. The unflatten functions ignore a trailing incomplete block.
