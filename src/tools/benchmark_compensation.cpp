@@ -3,7 +3,7 @@
 // synthetic hand-held gyro, with the same core calls as the nodelets; and, in the same run, a bare
 // cv::remap of the same frame with the same map, so that the chain reads as a multiple of one remap.
 //
-//   benchmark_compensation [--model models/fast.pt | models/stabiliser_generic.yaml] [--frames 200] [--threads 1] [--warp-threads 1]
+//   benchmark_compensation [--model models/stabiliser_generic.yaml | models/fast.pt] [--frames 200] [--threads 1] [--warp-threads 1]
 //                          [--sizes 256x192,640x480,1280x720,1920x1080]
 //
 // One core by default: torch and OpenCV single-threaded (--threads / --warp-threads raise them).
@@ -126,7 +126,8 @@ cv::Size parseSize(const std::string& text) {
 
 int main(int argc, char** argv) {
   const std::string package = ros::package::getPath("deep_ois");
-  std::string model_path = package + "/models/fast.pt";
+  // The launch files' default (launch/deep_ois.launch): what a user runs is what is timed.
+  std::string model_path = package + "/models/stabiliser_generic.yaml";
   std::string sizes_text = "256x192,640x480,1280x720,1920x1080";
   int torch_threads = 1, warp_threads = 1, frames = 200;
   deep_ois::ToolCommandLine command_line(
@@ -136,10 +137,10 @@ int main(int argc, char** argv) {
       "the yardstick (docs/benchmarks.md). One core by default.",
       "Exit status: 0 done, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
-  app.add_option("--model", model_path, "the compensation model")
+  app.add_option("--model", model_path, "the compensation model: a stabiliser model .yaml or a network .pt")
       ->check(deep_ois::existingFile())
       ->capture_default_str()
-      ->type_name("FILE.pt");
+      ->type_name("FILE");
   command_line.addNumber("--frames", frames, "frame pairs timed per camera size (>= 10)")
       ->check(CLI::Range(10, 1000000));
   command_line.addNumber("--threads", torch_threads, "torch intra-op threads (>= 1)")

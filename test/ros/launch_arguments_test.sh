@@ -43,6 +43,18 @@ check() {  # $1 launch file, further: its required arguments
   return 0
 }
 
+# The benchmark times what the launch runs: its default model is deep_ois.launch's.
+launch_model="$(roslaunch --dump-params deep_ois deep_ois.launch 2>/dev/null | sed -n 's|^/deep_ois/compensation/model: ||p')"
+if command -v rospack >/dev/null && [ -x "$(dirname "$(command -v roslaunch)")/rosrun" ] &&
+    benchmark_help="$(rosrun deep_ois benchmark_compensation --help 2>/dev/null)"; then
+  if ! grep -qF "$(basename "$launch_model")" <<<"$benchmark_help"; then
+    echo "FAIL benchmark_compensation's default model is not deep_ois.launch's ($(basename "$launch_model"))"
+    failures=$((failures + 1))
+  else
+    echo "ok   benchmark_compensation defaults to $(basename "$launch_model")"
+  fi
+fi
+
 check gyro_flow.launch
 check deep_ois.launch
 check replay.launch bag:="$bag" rviz:=false

@@ -17,6 +17,15 @@ std::string formatted(const char* format, double value) {
 }
 }  // namespace
 
+double loadDiagnosticPeriodS(const ParameterSource& source) {
+  const double period_s = source.param("diagnostic_period", 1.0);
+  if (!(period_s > 0.0) || !std::isfinite(period_s)) {
+    throw std::invalid_argument("parameter " + source.describe("diagnostic_period") +
+                                ": must be a positive number of seconds, got " + std::to_string(period_s));
+  }
+  return period_s;
+}
+
 LiveDiagnostics::LiveDiagnostics(const ros::NodeHandle& nh, const ros::NodeHandle& private_nh,
                                  const std::vector<std::string>& streams, const std::string& output_stream,
                                  const std::string& hardware_id)
@@ -28,11 +37,7 @@ LiveDiagnostics::LiveDiagnostics(const ros::NodeHandle& nh, const ros::NodeHandl
   updater_.setHardwareID(hardware_id);
   updater_.add("status", this, &LiveDiagnostics::report);
   // Read with the nodelets' strict parameter source: a wrong type or value is an error naming it.
-  const double period_s = NodeHandleParameters(private_nh).param("diagnostic_period", 1.0);
-  if (!(period_s > 0.0) || !std::isfinite(period_s)) {
-    throw std::invalid_argument("parameter " + private_nh.resolveName("diagnostic_period") +
-                                ": must be a positive number of seconds, got " + std::to_string(period_s));
-  }
+  const double period_s = loadDiagnosticPeriodS(NodeHandleParameters(private_nh));
   timer_ = private_nh.createWallTimer(ros::WallDuration(period_s), &LiveDiagnostics::timerCallback, this);
 }
 

@@ -1,5 +1,6 @@
 #include "deep_ois/ros/live/parameter_source.h"
 
+#include <sstream>
 #include <stdexcept>
 
 namespace deep_ois {
@@ -47,5 +48,33 @@ template bool YamlParameters::read(const std::string&, double&) const;
 template bool YamlParameters::read(const std::string&, int&) const;
 template bool YamlParameters::read(const std::string&, std::string&) const;
 template bool YamlParameters::read(const std::string&, std::vector<double>&) const;
+
+namespace {
+std::string shortest(double x) {
+  std::ostringstream out;
+  out.precision(15);
+  out << x;
+  return out.str();
+}
+}  // namespace
+
+bool RecordingParameters::get(const std::string& name, double& value) const {
+  record(name, shortest(value));
+  return inner_.get(name, value);
+}
+
+bool RecordingParameters::get(const std::string& name, std::vector<double>& value) const {
+  std::string text = "[";
+  for (std::size_t k = 0; k < value.size(); ++k) text += (k ? ", " : "") + shortest(value[k]);
+  record(name, text + "]");
+  return inner_.get(name, value);
+}
+
+void RecordingParameters::record(const std::string& name, const std::string& default_text) const {
+  for (const Read& read : reads_) {
+    if (read.name == name) return;
+  }
+  reads_.push_back({name, default_text});
+}
 
 }  // namespace deep_ois

@@ -20,6 +20,7 @@
 #include "deep_ois/core/flow/flow_frame_matcher.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
+#include "deep_ois/ros/live/compensation_parameters.h"
 #include "deep_ois/ros/live/compensation_reconfigure.h"
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
@@ -27,38 +28,6 @@
 
 namespace deep_ois {
 
-struct CompensationParameters {
-  // ~model: the model file (required): a network (.pt) or a learned stabiliser model (.yaml,
-  // train_stabiliser), which predicts the lens from the gyro stream with the stabiliser's state.
-  std::string model_path;
-  // ~require_matching_camera: a model (either kind) trained for another camera (size, K, and the
-  // readout when the model records it) is refused instead of warned about.
-  bool require_matching_camera = false;
-  int torch_threads = 1;         // ~torch_threads: intra-op threads (process-wide in torch)
-  // Input queues hold a second of 30 fps video: work is dropped by ~max_lag, counted and said,
-  // rather than silently by a full subscriber queue.
-  int image_queue_size = 30;      // ~image_queue_size
-  int gyro_flow_queue_size = 30;  // ~gyro_flow_queue_size
-  int image_cache_size = 30;     // ~image_cache_size: frames kept to pair with gyro flows
-  double max_wait_s = 1.0;       // ~max_wait: wall time a gyro flow waits for its images
-  int max_pending_flows = 60;    // ~max_pending_flows: gyro flows waiting for their frames
-  // ~max_image_pixels: larger frames are refused (3840x2160, 4K UHD: the largest common video
-  // mode; 30 cached rgb8 frames of it take 750 MB, and the network works at 360x270 anyway).
-  int max_image_pixels = 3840 * 2160;
-  // ~max_lag: a pair whose frame b is this much later (ROS time of handling minus stamp, above
-  // the smallest such delay seen, which absorbs a constant clock offset) is dropped unprocessed:
-  // the compensation catches up instead of falling behind.
-  double max_lag_s = 0.5;
-  // ~test_processing_delay: TEST HOOK ONLY (default 0): seconds slept per processed pair, to
-  // make a slow compensation in the lag rostest on any machine. Never set it in use.
-  double test_processing_delay_s = 0.0;
-  int warp_iterations = 3;       // ~warp_iterations: fixed-point steps inverting the flow
-  int warp_threads = 1;          // ~warp_threads: OpenCV threads for the warp (process-wide)
-  double color_max_flow_px = 0.0;  // ~color_max_flow: as the gyro flow nodelet's
-};
-
-// Reads and checks the parameters; throws std::invalid_argument naming the bad one.
-CompensationParameters loadCompensationParameters(const ros::NodeHandle& private_nh);
 
 // Topics (relative to the node handle): subscribes `gyro_flow` (deep_ois/GyroFlow) and
 // `image_raw` (image_transport); publishes `compensated_flow` (deep_ois/GyroFlow: the gyro

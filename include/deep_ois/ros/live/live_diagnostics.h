@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/ros/live/parameter_source.h"
+
 namespace deep_ois {
 
 // Every method is thread-safe (one internal mutex) and cheap enough to call from a callback while
@@ -22,6 +24,9 @@ namespace deep_ois {
 // The status is published every ~diagnostic_period seconds of wall time (default 1; wall time, so
 // that a paused bag replay still reports). Its level is WARN while frame pairs were dropped in the
 // last period or while inputs arrive but no output is produced, OK otherwise.
+// ~diagnostic_period (seconds, default 1); throws std::invalid_argument naming it when not > 0.
+double loadDiagnosticPeriodS(const ParameterSource& source);
+
 class LiveDiagnostics {
  public:
   // `streams`: the names of the message streams whose rates are reported (e.g. "imu", "frames",

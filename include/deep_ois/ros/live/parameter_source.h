@@ -74,4 +74,40 @@ class YamlParameters : public ParameterSource {
   YAML::Node root_;
 };
 
+// Wraps a source and records every parameter a loader asks for, with the value the loader would
+// use when it is absent (its default): the parameter tables in docs/ros_api.md are checked
+// against what the loaders really read (test_parameter_docs), so the two cannot drift apart.
+class RecordingParameters : public ParameterSource {
+ public:
+  struct Read {
+    std::string name;
+    std::string default_text;  // as YAML would write it: true, 0.5, centre, [1, 2]
+  };
+  explicit RecordingParameters(const ParameterSource& inner) : inner_(inner) {}
+  bool get(const std::string& name, bool& value) const override {
+    record(name, value ? "true" : "false");
+    return inner_.get(name, value);
+  }
+  bool get(const std::string& name, double& value) const override;
+  bool get(const std::string& name, int& value) const override {
+    record(name, std::to_string(value));
+    return inner_.get(name, value);
+  }
+  bool get(const std::string& name, std::string& value) const override {
+    record(name, value);
+    return inner_.get(name, value);
+  }
+  bool get(const std::string& name, std::vector<double>& value) const override;
+  std::string describe(const std::string& name) const override { return inner_.describe(name); }
+
+  // In the order first read; a name read twice is kept once.
+  const std::vector<Read>& reads() const { return reads_; }
+
+ private:
+  void record(const std::string& name, const std::string& default_text) const;
+
+  const ParameterSource& inner_;
+  mutable std::vector<Read> reads_;
+};
+
 }  // namespace deep_ois

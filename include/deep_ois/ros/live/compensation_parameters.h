@@ -1,0 +1,49 @@
+// Every parameter of the compensation wrapper, read and validated in one place. Torch-free, so the
+// parameter table can be checked (test_parameter_docs) in a build without libtorch.
+#pragma once
+
+#include <ros/node_handle.h>
+
+#include <string>
+
+#include "deep_ois/ros/live/parameter_source.h"
+
+namespace deep_ois {
+
+struct CompensationParameters {
+  // ~model: the model file (required): a network (.pt) or a learned stabiliser model (.yaml,
+  // train_stabiliser), which predicts the lens from the gyro stream with the stabiliser's state.
+  std::string model_path;
+  // ~require_matching_camera: a model (either kind) trained for another camera (size, K, and the
+  // readout when the model records it) is refused instead of warned about.
+  bool require_matching_camera = false;
+  int torch_threads = 1;         // ~torch_threads: intra-op threads (process-wide in torch)
+  // Input queues hold a second of 30 fps video: work is dropped by ~max_lag, counted and said,
+  // rather than silently by a full subscriber queue.
+  int image_queue_size = 30;      // ~image_queue_size
+  int gyro_flow_queue_size = 30;  // ~gyro_flow_queue_size
+  int image_cache_size = 30;     // ~image_cache_size: frames kept to pair with gyro flows
+  double max_wait_s = 1.0;       // ~max_wait: wall time a gyro flow waits for its images
+  int max_pending_flows = 60;    // ~max_pending_flows: gyro flows waiting for their frames
+  // ~max_image_pixels: larger frames are refused (3840x2160, 4K UHD: the largest common video
+  // mode; 30 cached rgb8 frames of it take 750 MB, and the network works at 360x270 anyway).
+  int max_image_pixels = 3840 * 2160;
+  // ~max_lag: a pair whose frame b is this much later (ROS time of handling minus stamp, above
+  // the smallest such delay seen, which absorbs a constant clock offset) is dropped unprocessed:
+  // the compensation catches up instead of falling behind.
+  double max_lag_s = 0.5;
+  // ~test_processing_delay: TEST HOOK ONLY (default 0): seconds slept per processed pair, to
+  // make a slow compensation in the lag rostest on any machine. Never set it in use.
+  double test_processing_delay_s = 0.0;
+  int warp_iterations = 3;       // ~warp_iterations: fixed-point steps inverting the flow
+  int warp_threads = 1;          // ~warp_threads: OpenCV threads for the warp (process-wide)
+  double color_max_flow_px = 0.0;  // ~color_max_flow: as the gyro flow nodelet's
+};
+
+// Reads every parameter with its default and checks it; throws std::invalid_argument naming the
+// bad one. The nodelet reads its private namespace; tests and tools may read a YAML file of the
+// same shape (config/compensation.yaml) through a YamlParameters source.
+CompensationParameters loadCompensationParameters(const ParameterSource& source);
+CompensationParameters loadCompensationParameters(const ros::NodeHandle& private_nh);
+
+}  // namespace deep_ois
