@@ -124,6 +124,12 @@ int main(int argc, char** argv) {
   app.add_flag("--drop-uncovered-frames", options.drop_uncovered_frames,
                "leave out (and count) the frames whose stamp the gyro does not cover, e.g. a gyro that "
                "starts a few ms after the first frame; without it such a recording is refused");
+  command_line.addNumber("--from", options.span_from_s,
+                         "keep the frames from this many seconds after the first frame (e.g. a held-out part)")
+      ->type_name("SECONDS");
+  command_line.addNumber("--to", options.span_to_s,
+                         "keep the frames before this many seconds after the first frame")
+      ->type_name("SECONDS");
   app.add_option("--gyro-config-out", gyro_config_out,
                  "videoimucapture/dvs: where to write the gyro flow parameters the metadata gives "
                  "(default: OUT with .gyro_flow.yaml in place of .bag)")
@@ -293,6 +299,8 @@ int main(int argc, char** argv) {
       std::printf("convert_recording: gyro flow parameters (readout %.3f ms, mount, lens-log convention): %s\n",
                   imported->readout_s * 1e3, gyro_config_out.c_str());
     }
+    if (stats.frames_outside_span > 0)
+      std::printf("convert_recording: %d frames outside --from/--to left out\n", stats.frames_outside_span);
     std::printf(
         "convert_recording: %s: %d frames%s (indices %d..%d, %d missing) %dx%d %s, stamps %u.%09u .. "
         "%u.%09u s, %d IMU messages, %d lens-shift samples, %.1f s%s\n",

@@ -106,7 +106,17 @@ VideoImuCaptureMetadata loadVideoImuCaptureMetadata(const std::string& path) {
   ProtobufField f;
   bool has_camera = false;
   int imu_rows = 0;
-  while (top.next(f)) {
+  auto next = [&]() {
+    try {
+      return top.next(f);
+    } catch (const RecordingFormatError& e) {
+      // Say where in the recording it broke, as a row count.
+      throw RecordingFormatError(path, 0,
+                                 e.problem() + " (after " + std::to_string(imu_rows) + " imu rows and " +
+                                     std::to_string(out.frames.size()) + " video_meta rows)");
+    }
+  };
+  while (next()) {
     if (f.number == 2) {
       readCameraMeta(top.child(f, "camera_meta"), out);
       has_camera = true;

@@ -193,6 +193,31 @@ PhoneRecordingBagStats writeRecordingBag(RecordingContent content, const std::st
   sensor_msgs::CameraInfo& info = content.camera_info;
   if (gyro.empty()) throw RecordingFormatError(content.gyro_source, 0, "no gyro samples");
   if (images.empty()) throw RecordingFormatError(content.frames_source, 0, "no frames");
+  if (!(options.span_to_s > options.span_from_s)) throw std::invalid_argument("phone recording bag options: the span is empty");
+  int frames_outside_span = 0;
+  if (options.span_from_s > 0.0 || std::isfinite(options.span_to_s)) {
+    const double start_s = images.front().stamp_s;
+    std::vector<RecordingFrame> inside;
+    std::vector<std::size_t> positions;  // into the original frames, for read_image
+    for (std::size_t k = 0; k < images.size(); ++k) {
+      const double t = images[k].stamp_s - start_s;
+      if (t >= options.span_from_s && t < options.span_to_s) {
+        inside.push_back(images[k]);
+        positions.push_back(k);
+      } else {
+        ++frames_outside_span;
+      }
+    }
+    if (inside.size() < 2) {
+      throw RecordingFormatError(content.frames_source, 0,
+                                 "fewer than two frames between " + describeSeconds(options.span_from_s) + " and " +
+                                     describeSeconds(options.span_to_s) + " after the first frame");
+    }
+    images = std::move(inside);
+    if (content.read_image) {
+      content.read_image = [read = std::move(content.read_image), positions](std::size_t k) { return read(positions[k]); };
+    }
+  }
   const LensShiftLogRepair lens_repair =
       content.lens_log.empty() ? LensShiftLogRepair{}
                                : [&] {
@@ -209,9 +234,23 @@ PhoneRecordingBagStats writeRecordingBag(RecordingContent content, const std::st
   auto frameTime = [&](const RecordingFrame& frame) { return frame.stamp_s + options.frame_stamp_offset_s; };
   const double uncovered_first_s = frameTime(images.front()), uncovered_last_s = frameTime(images.back());
   PhoneRecordingBagStats stats;
+  stats.frames_outside_span = frames_outside_span;
   stats.images = static_cast<bool>(content.read_image);
   stats.lens_shift_repeats_dropped = lens_repair.repeats_dropped;
   stats.lens_shift_steps_back = lens_repair.steps_back;
+  // No overlap at all is not a gyro started late: the two are stamped on different clocks (e.g. a
+  // boot clock and Unix time, or ns read as us), which no --drop-uncovered-frames can fix.
+  // (A second apart at least: a gyro that merely stopped early is the message below.)
+  if (frameTime(images.back()) < gyro.front().stamp_s - 1.0 || frameTime(images.front()) > gyro.back().stamp_s + 1.0) {
+    const double gap_s = frameTime(images.front()) - gyro.front().stamp_s;
+    throw RecordingFormatError(
+        content.frames_source, 0,
+        "stamps on two clocks: the frames (" + describeSeconds(uncovered_first_s) + " .. " +
+            describeSeconds(uncovered_last_s) + ", first at " + images.front().label + ") and the gyro (" +
+            describeSeconds(gyro.front().stamp_s) + " .. " + describeSeconds(gyro.back().stamp_s) + ", " +
+            content.gyro_source + ") do not overlap at all (first frame - first gyro sample = " +
+            describeSeconds(gap_s) + "); both must be on one clock (check the units and the clock of each file)");
+  }
   // Which of content.frames are written (their positions, so read_image gets the right k).
   std::vector<std::size_t> kept;
   for (std::size_t k = 0; k < images.size(); ++k) {

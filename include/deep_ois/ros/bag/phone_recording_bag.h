@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -63,6 +64,11 @@ struct PhoneRecordingBagOptions {
   // camera, or stopped before it), counted in PhoneRecordingBagStats::dropped_uncovered_frames;
   // false refuses such a recording, naming how many frames lie outside.
   bool drop_uncovered_frames = false;
+  // Only the frames from span_from_s to before span_to_s seconds after the recording's first frame
+  // (e.g. a training part and a held-out part of one recording); the others are counted in
+  // PhoneRecordingBagStats::frames_outside_span.
+  double span_from_s = 0.0;
+  double span_to_s = std::numeric_limits<double>::infinity();
   rosbag::compression::CompressionType compression = rosbag::compression::LZ4;
 };
 
@@ -72,6 +78,7 @@ struct PhoneRecordingBagStats {
   int first_frame_index = 0;
   int last_frame_index = 0;
   int skipped_frame_indices = 0;  // indices between first and last without an image
+  int frames_outside_span = 0;  // left out by span_from_s / span_to_s
   int dropped_uncovered_frames = 0;  // images left out: outside the gyro log (drop_uncovered_frames)
   int imu_messages = 0;
   int lens_shift_messages = 0;
