@@ -315,6 +315,7 @@ int main(int argc, char** argv) {
             : "");
     return 0;
   } catch (const std::exception& e) {
+    std::fflush(stdout);  // what was said before the error comes first
     std::fprintf(stderr, "convert_recording: %s\n", e.what());
     return 1;
   }
