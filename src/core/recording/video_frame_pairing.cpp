@@ -1,10 +1,13 @@
 #include "deep_ois/core/recording/video_frame_pairing.h"
 
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 #include <sstream>
 
 namespace deep_ois {
@@ -13,24 +16,46 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// Pearson correlation of the pairs where both are finite; `count` gets their number.
-double correlation(const std::vector<double>& a, const std::vector<double>& b, int& count) {
-  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
-  count = 0;
-  for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) {
-    if (!std::isfinite(a[k]) || !std::isfinite(b[k])) continue;
-    sa += a[k], sb += b[k], saa += a[k] * a[k], sbb += b[k] * b[k], sab += a[k] * b[k];
-    ++count;
+const Eigen::Vector2d kNaN2(kNaN, kNaN);
+
+// R^2 of `image` explained by A * `gyro` + b, A (2x2) and b fitted by least squares over the pairs
+// where both are finite; `count` gets their number.
+double explainedShare(const std::vector<Eigen::Vector2d>& image, const std::vector<Eigen::Vector2d>& gyro, int& count) {
+  // Only where the camera turns (the gyro's motion above its median): while it is still, what moves
+  // in the image is the scene (a person in front of a phone on a table), not the camera.
+  std::vector<double> magnitudes;
+  for (const Eigen::Vector2d& g : gyro)
+    if (g.allFinite()) magnitudes.push_back(g.norm());
+  if (magnitudes.size() < 16) return kNaN;
+  std::nth_element(magnitudes.begin(), magnitudes.begin() + static_cast<long>(magnitudes.size() / 2), magnitudes.end());
+  const double threshold = magnitudes[magnitudes.size() / 2];
+  std::vector<std::size_t> used;
+  for (std::size_t k = 0; k < image.size() && k < gyro.size(); ++k)
+    if (image[k].allFinite() && gyro[k].allFinite() && gyro[k].norm() > threshold) used.push_back(k);
+  count = static_cast<int>(used.size());
+  if (count < 8) return kNaN;
+  Eigen::MatrixXd X(count, 3), Y(count, 2);
+  for (int i = 0; i < count; ++i) {
+    X.row(i) << gyro[used[i]].x(), gyro[used[i]].y(), 1.0;
+    Y.row(i) = image[used[i]].transpose();
   }
-  if (count < 3) return kNaN;
-  const double n = count;
-  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n;
-  if (va <= 0 || vb <= 0) return kNaN;
-  return (sab - sa * sb / n) / std::sqrt(va * vb);
+  const Eigen::MatrixXd coefficients = X.colPivHouseholderQr().solve(Y);
+  const double residual = (Y - X * coefficients).squaredNorm();
+  const double total = (Y.rowwise() - Y.colwise().mean()).squaredNorm();
+  return total > 0 ? 1.0 - residual / total : kNaN;
 }
 
 // The rows' series seen from the video frames at `shift`: element j is row j - shift.
-std::vector<double> shifted(const std::vector<double>& rows, std::size_t frames, int shift) {
+std::vector<Eigen::Vector2d> shifted(const std::vector<Eigen::Vector2d>& rows, std::size_t frames, int shift) {
+  std::vector<Eigen::Vector2d> out(frames, kNaN2);
+  for (std::size_t j = 0; j < frames; ++j) {
+    const long r = static_cast<long>(j) - shift;
+    if (r >= 0 && r < static_cast<long>(rows.size())) out[j] = rows[static_cast<std::size_t>(r)];
+  }
+  return out;
+}
+
+std::vector<double> shiftedScalars(const std::vector<double>& rows, std::size_t frames, int shift) {
   std::vector<double> out(frames, kNaN);
   for (std::size_t j = 0; j < frames; ++j) {
     const long r = static_cast<long>(j) - shift;
@@ -47,23 +72,42 @@ std::vector<double> intervals(const std::vector<double>& stamps) {
 
 }  // namespace
 
-double ConsecutiveImageMotion::add(const cv::Mat& grey) {
-  cv::Mat current;
-  grey.convertTo(current, CV_32F);
-  double motion = kNaN;
+Eigen::Vector2d ConsecutiveImageMotion::add(const cv::Mat& grey) {
+  const cv::Mat current = grey.clone();
+  Eigen::Vector2d motion = kNaN2;
   if (!previous_.empty() && previous_.size() == current.size()) {
-    if (window_.size() != current.size()) cv::createHanningWindow(window_, current.size(), CV_32F);
-    const cv::Point2d shift = cv::phaseCorrelate(previous_, current, window_);
-    motion = std::hypot(shift.x, shift.y);
+    // Tracks and a RANSAC similarity: the motion of the larger rigid part of the image (the
+    // background), not of a person moving in front of it (which a phase correlation follows).
+    std::vector<cv::Point2f> corners, tracked;
+    cv::goodFeaturesToTrack(previous_, corners, 300, 0.01, 6.0);
+    if (corners.size() >= 12) {
+      std::vector<unsigned char> found;
+      std::vector<float> errors;
+      cv::calcOpticalFlowPyrLK(previous_, current, corners, tracked, found, errors, cv::Size(15, 15), 3);
+      std::vector<cv::Point2f> a, b;
+      for (std::size_t i = 0; i < corners.size(); ++i)
+        if (found[i]) a.push_back(corners[i]), b.push_back(tracked[i]);
+      if (a.size() >= 12) {
+        std::vector<unsigned char> inliers;
+        const cv::Mat similarity = cv::estimateAffinePartial2D(a, b, inliers, cv::RANSAC, 1.0);
+        if (!similarity.empty() && cv::countNonZero(inliers) >= 10) {
+          // The motion of the image centre.
+          const double cx = 0.5 * (current.cols - 1), cy = 0.5 * (current.rows - 1);
+          const double x = similarity.at<double>(0, 0) * cx + similarity.at<double>(0, 1) * cy + similarity.at<double>(0, 2);
+          const double y = similarity.at<double>(1, 0) * cx + similarity.at<double>(1, 1) * cy + similarity.at<double>(1, 2);
+          motion = Eigen::Vector2d(x - cx, y - cy);
+        }
+      }
+    }
   }
   previous_ = current;
   motions_px_.push_back(motion);
   return motion;
 }
 
-std::vector<double> gyroImageMotionPx(const std::vector<ImuSample>& gyro, const std::vector<double>& stamps_s,
-                                      const Eigen::Matrix3d& imu_to_camera_rotation, double focal_px) {
-  std::vector<double> out(stamps_s.size(), kNaN);
+std::vector<Eigen::Vector2d> gyroImageMotionPx(const std::vector<ImuSample>& gyro, const std::vector<double>& stamps_s,
+                                               const Eigen::Matrix3d& imu_to_camera_rotation, double focal_px) {
+  std::vector<Eigen::Vector2d> out(stamps_s.size(), kNaN2);
   if (gyro.size() < 2) return out;
   // Rate at time t, linear between samples.
   auto rateAt = [&](double t, std::size_t& hint) -> Eigen::Vector3d {
@@ -90,27 +134,38 @@ std::vector<double> gyroImageMotionPx(const std::vector<ImuSample>& gyro, const 
     }
     while (hint + 1 < gyro.size() && gyro[hint + 1].stamp_s < t0) ++hint;
     const Eigen::Vector3d camera = imu_to_camera_rotation * angle;
-    out[k] = focal_px * std::hypot(camera.x(), camera.y());
+    out[k] = focal_px * Eigen::Vector2d(camera.x(), camera.y());
   }
   return out;
 }
 
-VideoFramePairing pairVideoFrames(const std::vector<double>& presentation_s, const std::vector<double>& image_motion_px,
-                                  const std::vector<double>& row_stamps_s, const std::vector<double>& gyro_motion_px,
-                                  int max_shift) {
+VideoFramePairing pairVideoFrames(const std::vector<double>& presentation_s,
+                                  const std::vector<Eigen::Vector2d>& image_motion_px,
+                                  const std::vector<double>& row_stamps_s,
+                                  const std::vector<Eigen::Vector2d>& gyro_motion_px, int max_shift) {
   VideoFramePairing pairing;
   const std::size_t frames = image_motion_px.size();
   // Do the presentation times carry timing? A re-encode writes a uniform 1/fps.
-  const std::vector<double> pts_intervals = intervals(presentation_s);
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (double d : pts_intervals)
-    if (std::isfinite(d)) lo = std::min(lo, d), hi = std::max(hi, d);
-  const bool timing = presentation_s.size() > 2 && hi - lo > 1e-3;
+  // The last frame's position is not always reported: only the frames before it count.
+  std::vector<double> pts_intervals = intervals(presentation_s);
+  if (!pts_intervals.empty()) pts_intervals.back() = kNaN;
+  std::vector<double> finite;
+  int not_increasing = 0;
+  for (double d : pts_intervals) {
+    if (!std::isfinite(d)) continue;
+    finite.push_back(d);
+    not_increasing += !(d > 0.0);
+  }
+  std::sort(finite.begin(), finite.end());
+  const double lo = finite.empty() ? 0.0 : finite[finite.size() / 20];
+  const double hi = finite.empty() ? 0.0 : finite[finite.size() - 1 - finite.size() / 20];
+  const bool timing = finite.size() > 2 && not_increasing == 0 && hi - lo > 1e-3;
   std::ostringstream note;
   note << std::fixed << std::setprecision(2);
-  if (presentation_s.size() > 2) {
-    note << "presentation-time intervals " << lo * 1e3 << " .. " << hi * 1e3 << " ms"
-         << (timing ? " (they carry timing: matched to the rows' intervals)" : " (uniform: no timing; paired by order)");
+  if (finite.size() > 2) {
+    note << "presentation-time intervals " << lo * 1e3 << " .. " << hi * 1e3 << " ms (5-95 %)";
+    if (not_increasing > 0) note << ", " << not_increasing << " not increasing (unusable; paired by order)";
+    else note << (timing ? " (they carry timing: matched to the rows' intervals)" : " (uniform: no timing; paired by order)");
   }
   pairing.timing_note = note.str();
   int best_timing_shift = 0;
@@ -118,7 +173,7 @@ VideoFramePairing pairVideoFrames(const std::vector<double>& presentation_s, con
     const std::vector<double> row_intervals = intervals(row_stamps_s);
     double best = std::numeric_limits<double>::infinity();
     for (int shift = -max_shift; shift <= max_shift; ++shift) {
-      const std::vector<double> rows = shifted(row_intervals, presentation_s.size(), shift);
+      const std::vector<double> rows = shiftedScalars(row_intervals, presentation_s.size(), shift);
       std::vector<double> errors;
       for (std::size_t j = 0; j < rows.size(); ++j)
         if (std::isfinite(rows[j]) && std::isfinite(pts_intervals[j])) errors.push_back(std::abs(rows[j] - pts_intervals[j]));
@@ -131,7 +186,7 @@ VideoFramePairing pairVideoFrames(const std::vector<double>& presentation_s, con
   int best_shift = 0, second_shift = 0, best_count = 0;
   for (int shift = -max_shift; shift <= max_shift; ++shift) {
     int count = 0;
-    const double c = correlation(image_motion_px, shifted(gyro_motion_px, frames, shift), count);
+    const double c = explainedShare(image_motion_px, shifted(gyro_motion_px, frames, shift), count);
     if (!std::isfinite(c)) continue;
     if (c > best) {
       second = best, second_shift = best_shift;
@@ -144,7 +199,7 @@ VideoFramePairing pairVideoFrames(const std::vector<double>& presentation_s, con
   pairing.shift = timing ? best_timing_shift : best_shift;
   {
     int count = 0;
-    const double c = correlation(image_motion_px, shifted(gyro_motion_px, frames, pairing.shift), count);
+    const double c = explainedShare(image_motion_px, shifted(gyro_motion_px, frames, pairing.shift), count);
     pairing.correlation = std::isfinite(c) ? c : 0.0;
     pairing.compared = count;
   }
@@ -152,7 +207,12 @@ VideoFramePairing pairVideoFrames(const std::vector<double>& presentation_s, con
   (void)best_count;
   pairing.runner_up_shift = second_shift;
   pairing.runner_up_correlation = second > -2 ? second : 0.0;
-  pairing.confident = pairing.correlation >= 0.6 && pairing.correlation - pairing.runner_up_correlation >= 0.2 &&
+  // Gaussian log-likelihood ratio of the two fits over the same intervals: n/2 * ln(SSR_2 / SSR_1)
+  // (the intervals are not fully independent, so it is a heuristic; 5 means e^5 ~ 150 : 1).
+  pairing.log_likelihood_ratio =
+      0.5 * pairing.compared *
+      std::log(std::max(1.0 - pairing.runner_up_correlation, 1e-9) / std::max(1.0 - pairing.correlation, 1e-9));
+  pairing.confident = pairing.correlation >= 0.2 && pairing.log_likelihood_ratio >= 5.0 &&
                       (!timing || pairing.shift == best_shift);
   for (std::size_t j = 0; j < frames; ++j) {
     const long r = static_cast<long>(j) - pairing.shift;
@@ -168,8 +228,9 @@ std::string VideoFramePairing::summary() const {
   out << std::fixed << std::setprecision(2);
   out << "frame pairing: video frame j = metadata row j" << (shift >= 0 ? " - " : " + ") << std::abs(shift);
   if (shift != 0) out << " (a shift of " << std::abs(shift) << " whole frame" << (std::abs(shift) == 1 ? "" : "s") << ")";
-  out << "; image motion vs gyro correlation " << correlation << " over " << compared
-      << " frame intervals (next best: shift " << runner_up_shift << ", " << runner_up_correlation << "); confidence "
+  out << "; image motion explained by the gyro R^2 " << correlation << " over " << compared
+      << " frame intervals where the camera turns (next best: shift " << runner_up_shift << ", " << runner_up_correlation
+      << "; log-likelihood ratio " << std::setprecision(1) << log_likelihood_ratio << std::setprecision(2) << "); confidence "
       << (confident ? "high" : "LOW") << "; " << video_frames_without_row << " video frames without a row, "
       << rows_without_frame << " rows without a frame";
   if (!timing_note.empty()) out << "; " << timing_note;

@@ -169,10 +169,14 @@ ImportedRecording importVideoImuCapture(const std::string& video, const std::str
     }
     if (decoder.position() < 3) throw RecordingFormatError(video, 0, "fewer than 3 frames decoded");
   }
-  std::vector<double> row_stamps;
-  for (const VideoImuCaptureFrameRow& row : meta.frames) row_stamps.push_back(row.stamp_s);
-  const std::vector<double> gyro_motion =
-      gyroImageMotionPx(meta.gyro, row_stamps, out.imu_to_camera_rotation, k[0] * motion_scale);
+  std::vector<double> row_stamps, centre_stamps;
+  for (const VideoImuCaptureFrameRow& row : meta.frames) {
+    row_stamps.push_back(row.stamp_s);
+    // The image centre's capture: middle of its exposure (SENSOR_TIMESTAMP starts the first row's).
+    centre_stamps.push_back(row.stamp_s + 0.5 * row.exposure_s + 0.5 * row.readout_s);
+  }
+  const std::vector<Eigen::Vector2d> gyro_motion =
+      gyroImageMotionPx(meta.gyro, centre_stamps, out.imu_to_camera_rotation, k[0] * motion_scale);
   const VideoFramePairing pairing =
       pairVideoFrames(presentation_s, motion.motions_px(), row_stamps, gyro_motion, options.max_shift);
   out.notes.push_back(pairing.summary());
