@@ -196,8 +196,9 @@ int main(int argc, char** argv) {
                     ? "held"
                     : ("#" + std::to_string(result.coarse_permutation_index)).c_str(),
                 result.initial_median_residual_px);
-    std::printf("  refined in %d iterations: median residual %.3f px, %.1f %% inliers\n",
-                result.iterations, result.median_residual_px, 100.0 * result.inlier_fraction);
+    std::printf("  refined in %d iterations (%s): median residual %.3f px, %.1f %% inliers\n", result.iterations,
+                result.converged ? "converged" : "iteration cap reached, NOT converged", result.median_residual_px,
+                100.0 * result.inlier_fraction);
     // The 1-sigma printed is the honest one (statistical, inflated, plus the systematic part that
     // every recording shares); the statistical part in brackets is what the refusals judge.
     std::printf("  time offset     %+9.3f ms  +- %.3f ms (statistical %.3f)%s\n", c.time_offset_s * 1e3,
@@ -219,6 +220,10 @@ int main(int argc, char** argv) {
     // their ridge by a millisecond at a 1-sigma of 0.2-0.3 ms (docs/calibration_uncertainty.md).
     for (const std::string& note : result.notes) std::printf("  note: %s\n", note.c_str());
     printMatrix(c.imu_to_camera_rotation);
+    if (result.nearest_permutation_index >= 0) {
+      std::printf("  the mount is %.2f deg from the nearest axis permutation (#%d)\n", result.mount_from_permutation_deg,
+                  result.nearest_permutation_index);
+    }
     if (bag.tf_imu_to_camera_rotation) {
       std::printf(
           "  the bag's /tf_static differs by %.3f deg\n",

@@ -151,12 +151,11 @@ int main(int argc, char** argv) {
   command_line.addNumber("--active-array-width", dvs_options.active_array_width_px,
                          "dvs: the sensor's active-array width, px (the OIS log's unit; Pixel 4: 4032)")
       ->capture_default_str();
-  command_line.addNumber("--sensor-orientation", dvs_options.sensor_orientation_deg,
-                         "dvs: Android SENSOR_ORIENTATION of the camera, for the IMU-to-camera rotation")
-      ->capture_default_str();
+
   app.add_option("--imu-to-camera", imu_to_camera,
-                 "R_cam_imu, 9 comma-separated row-major values (default: the cc9pro's "
-                 "0,-1,0,-1,0,0,0,0,-1)")
+                 "R_cam_imu, 9 comma-separated row-major values (default: folder layout the cc9pro's "
+                 "0,-1,0,-1,0,0,0,0,-1; videoimucapture the Android back camera's for its "
+                 "SENSOR_ORIENTATION; dvs -1,0,0,0,1,0,0,0,-1)")
       ->check(deep_ois::commaSeparatedNumbers(9))
       ->type_name("R");
   app.add_option("--image-topic", options.image_topic, "image topic")

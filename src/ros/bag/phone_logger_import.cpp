@@ -226,9 +226,10 @@ ImportedRecording importDvsLogs(const std::string& directory, const DvsImportOpt
   out.notes.push_back("camera: no video in the logs; camera_info " + std::to_string(options.image_width_px) + "x" +
                       std::to_string(options.image_height_px) + ", fx = width / fov = " + fixed(f, 1) + " px (fov " +
                       fixed(fov, 3) + (logs.fov > 0 ? " from " + files.calib : std::string(" assumed: no calib.txt")) + ")");
-  out.imu_to_camera_rotation = androidBackCameraImuToCamera(options.sensor_orientation_deg);
-  out.imu_to_camera_source = "the Android back-camera convention for SENSOR_ORIENTATION " +
-                             std::to_string(options.sensor_orientation_deg) + ", gyro columns as logged (wx, wy, wz)";
+  out.imu_to_camera_rotation = options.imu_to_camera_rotation;
+  out.imu_to_camera_source =
+      "the DVS logs' gyro columns as logged (wx, wy, wz) on the landscape image: x -> -x, y -> y, z -> -z "
+      "(measured on the Pixel 4 logs: the OIS log's x, y are then the image's x, y)";
   out.readout_s = logs.readout_s;
   out.exposure_s = logs.exposure_s;
   out.ois_enabled = true;

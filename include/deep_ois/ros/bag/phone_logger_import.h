@@ -53,7 +53,11 @@ struct DvsImportOptions {
   int image_width_px = 1920;           // the images the bag describes (no video in the logs)
   int image_height_px = 1080;
   int active_array_width_px = 4032;    // Pixel 4 main camera (the OIS log's unit)
-  int sensor_orientation_deg = 90;     // for the Android IMU-to-camera rotation
+  // R_cam_imu of the logs' gyro columns (wx, wy, wz as logged) and the landscape image: x -> -x,
+  // y -> y, z -> -z. Measured on the Pixel 4 logs (../shared/data/pixel4_dvs_ois): with it the OIS
+  // log's x, y are the image's x, y (train_stabiliser --target log fits a gain of about +identity);
+  // its README's finding. --imu-to-camera overrides it.
+  Eigen::Matrix3d imu_to_camera_rotation = (Eigen::Matrix3d() << -1, 0, 0, 0, 1, 0, 0, 0, -1).finished();
 };
 
 // Google DVS logs in `directory` (dvsLogLayout): a log-only recording (camera_info per frame).
