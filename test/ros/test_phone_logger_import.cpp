@@ -8,6 +8,7 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 
+#include <Eigen/LU>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
