@@ -19,11 +19,14 @@
 
 #include <deep_ois/LensShiftSample.h>
 
+#include "deep_ois/core/calibration/camera_imu_calibration.h"
+#include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/core/recording/android_camera_orientation.h"
 #include "deep_ois/core/recording/dvs_log_recording.h"
 #include "deep_ois/core/recording/phone_recording.h"
 #include "deep_ois/core/recording/videoimucapture_metadata.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
+#include "deep_ois/ros/bag/calibration_bag_reader.h"
 #include "deep_ois/ros/bag/phone_logger_import.h"
 #include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "run_command.h"
@@ -246,6 +249,39 @@ TEST(PhoneRecordingVideoImuCapture, ConvertsWithFramesStampsCameraInfoAndImuOfTh
     ++imu;
   }
   EXPECT_GT(imu, 100);
+  bag.close();
+
+  // calibrate on it: accepted only with the readout's 1-sigma interval holding the logged 32.2 ms,
+  // the offset within 2 ms of 0 (one clock) and the mount within 2 deg of the Android permutation,
+  // or refused with the reason; never accepted with a wrong mount (before: with the readout held
+  // and no bias, accepted 17.8 deg off on the whole recording).
+  const CalibrationBag calibration_bag = readCalibrationBag(bag_path, CalibrationBagOptions{});
+  for (const bool held : {false, true}) {
+    CalibrationOptions calibration_options;
+    if (held) {
+      calibration_options.estimate_readout_time = false;
+      calibration_options.readout_time_s = 0.0322;
+      calibration_options.estimate_gyro_bias = false;
+    }
+    const CalibrationResult result = calibrateCameraImu(calibration_bag.data, calibration_options);
+    const CameraImuCalibration& c = result.calibration;
+    const double mount_deg =
+        rotationAngleBetween(c.imu_to_camera_rotation, androidBackCameraImuToCamera(90)) * 180.0 / M_PI;
+    std::printf("calibrate (%s): %s; offset %.3f +- %.3f ms, readout %.3f +- %.3f ms, mount %.2f deg from the "
+                "permutation (1-sigma %.2f deg), %d iterations%s\n",
+                held ? "readout held, no bias" : "all free", result.ok() ? "accepted" : result.reason().c_str(),
+                c.time_offset_s * 1e3, c.time_offset_sigma_s * 1e3, c.readout_time_s * 1e3,
+                c.readout_time_sigma_s * 1e3, mount_deg, c.rotation_sigma_rad.maxCoeff() * 180.0 / M_PI,
+                result.iterations, result.converged ? " (converged)" : " (cap)");
+    for (const std::string& note : result.notes) std::printf("  note: %s\n", note.c_str());
+    if (result.ok()) {
+      EXPECT_LE(mount_deg, 2.0);
+      EXPECT_LE(std::abs(c.time_offset_s), 0.002);
+      if (!held) EXPECT_LE(std::abs(c.readout_time_s - 0.0322), c.readout_time_sigma_s);
+    } else {
+      EXPECT_FALSE(result.refusals.empty());
+    }
+  }
 }
 
 // Pixel 4 DVS logs (no video): converted without hand work; the OIS log's repeats are counted.

@@ -631,13 +631,19 @@ CalibrationResult calibrateCameraImu(const CalibrationData& data, const Calibrat
           << std::setprecision(1) << result.mount_from_permutation_deg << " deg from the nearest axis permutation"
           << (result.converged ? "" : " without converging (iteration cap " + std::to_string(options.max_iterations) + ")")
           << ", with a 1-sigma of " << std::setprecision(2) << sigma_deg << " deg, but holding that permutation fits ";
-      if (at_permutation.median_residual_px <= 1.01 * result.median_residual_px) {
-        why << "as well (median residual " << std::setprecision(3) << at_permutation.median_residual_px << " px against "
-            << result.median_residual_px
-            << " px): the data do not determine the mount beyond the permutation, so the refined mount and its "
+      // Unconverged, the refined mount is where the iteration cap stopped a drift, whatever its
+      // residual: a mount off the axes must be a converged minimum that fits better.
+      const bool fits_as_well = at_permutation.median_residual_px <= 1.01 * result.median_residual_px;
+      if (fits_as_well || !result.converged) {
+        why << (fits_as_well ? "as well" : "only " + std::to_string(static_cast<int>(std::lround(
+                                                100.0 * (at_permutation.median_residual_px / result.median_residual_px - 1.0)))) +
+                                                " % worse")
+            << " (median residual " << std::setprecision(3) << at_permutation.median_residual_px << " px against "
+            << result.median_residual_px << " px)" << (fits_as_well ? "" : " and the refinement did not converge")
+            << ": the data do not determine the mount beyond the permutation, so the refined mount and its "
                "1-sigma are not to be trusted. If the IMU is mounted along the camera's axes (a phone), hold it: "
                "--rotation ";
-        for (int i = 0; i < 9; ++i) why << (i ? "," : "") << permutation(i / 3, i % 3);
+        for (int i = 0; i < 9; ++i) why << (i ? "," : "") << static_cast<int>(std::lround(permutation(i / 3, i % 3)));
         result.refusals.push_back(why.str());
         result.status = CalibrationStatus::kRefused;
       } else {
