@@ -277,7 +277,9 @@ TEST(PhoneRecordingVideoImuCapture, ConvertsWithFramesStampsCameraInfoAndImuOfTh
     if (result.ok()) {
       EXPECT_LE(mount_deg, 2.0);
       EXPECT_LE(std::abs(c.time_offset_s), 0.002);
-      if (!held) EXPECT_LE(std::abs(c.readout_time_s - 0.0322), c.readout_time_sigma_s);
+      if (!held) {
+        EXPECT_LE(std::abs(c.readout_time_s - 0.0322), c.readout_time_sigma_s);
+      }
     } else {
       EXPECT_FALSE(result.refusals.empty());
     }
