@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
+#include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/ros/bag/stabiliser_training_data.h"
@@ -320,6 +321,12 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (const std::string& line : fit.log) std::fprintf(stderr, "train_stabiliser: %s\n", line.c_str());
+  // Learned dynamics on top of the physical chain, scored on the held-out recordings; the best is
+  // kept (core/ois/stabiliser_candidates.h).
+  const deep_ois::StabiliserSelection selection =
+      deep_ois::selectStabiliser(fit, training, held_out, fit_options);
+  fit.parameters = selection.candidates[selection.kept].parameters;
+  fit.rms_px = selection.candidates[selection.kept].training.rms_px;
 
   // ---- 3. Held-out scores and the model file. ----
   deep_ois::StabiliserModelFile model;
@@ -382,7 +389,13 @@ int main(int argc, char** argv) {
                   ? (std::to_string(p.pan_detection_rate_rad_s) + " rad/s, release " +
                      std::to_string(p.pan_release_corner_hz) + " Hz").c_str()
                   : "off");
-  std::printf("| residual bank | %zu time constants |\n\n", p.residual_time_constants_s.size());
+  std::printf("| residual bank | %zu time constants |\n", p.residual_time_constants_s.size());
+  std::printf("| nonlinear residual | %s |\n\n", p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
+  std::printf("Candidates, lens-motion RMS residual (pixels):\n\n| candidate | training | held out |\n|---|---:|---:|\n");
+  for (const auto& candidate : selection.candidates)
+    std::printf("| %s | %.4f | %.4f |\n", candidate.name.c_str(), candidate.training.rms_px,
+                candidate.held_out.rms_px);
+  std::printf("\n%s\n\n", selection.reason.c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
   std::printf("| data | lens motions | without a lens model | physical model | with residual |\n");
   std::printf("|---|---:|---:|---:|---:|\n");
