@@ -119,11 +119,17 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
   add("physical", physical);
   const bool has_linear = fit.parameters.residual.size() != 0;
   if (has_linear) add("physical + linear residual", fit.parameters);
-  try {
-    add(has_linear ? "physical + linear + nonlinear residual" : "physical + nonlinear residual",
-        fitNonlinearResidual(fit.parameters, training, options));
-  } catch (const std::invalid_argument&) {
-    // No usable lens motion for the residual: the simpler candidates stand.
+  // Learned dynamics on top of the chain (with its linear bank when it has one), simplest first:
+  // a higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
+  const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
+  for (const auto& [set, what] : {std::pair<std::string, std::string>{"rate_bank_v1", "learned rate filter"},
+                                  {"excursion_v1", "nonlinear residual"},
+                                  {"excursion_rate_v1", "nonlinear residual + learned rate filter"}}) {
+    try {
+      add(prefix + what + " (" + set + ")", fitNonlinearResidual(fit.parameters, training, options, set));
+    } catch (const std::invalid_argument&) {
+      // No usable lens motion for the residual: the simpler candidates stand.
+    }
   }
   const bool by_held_out = !held_out.empty() && selection.candidates.front().held_out.observations > 0;
   auto key = [&](const StabiliserCandidate& c) {

@@ -37,10 +37,24 @@ constexpr double kExcursionIntegralTimeConstantsS[] = {0.03, 0.15, 0.6};
 // badly fitted stroke is small).
 constexpr double kMaxExcursion = 3.0;
 
+// The rate_bank_v1 set: leaky integrals of the pan/tilt rate (rad) at these time constants, a
+// learned higher-order linear filter from rate to lens beside the chain's own.
+constexpr double kRateBankTimeConstantsS[] = {0.002, 0.005, 0.012, 0.03, 0.07, 0.17, 0.4, 1.0, 2.5};
+constexpr int kRateBankSize = sizeof(kRateBankTimeConstantsS) / sizeof(double);
+
+bool hasExcursionFeatures(const std::string& set) {
+  return set == "excursion_v1" || set == "excursion_rate_v1";
+}
+bool hasRateBankFeatures(const std::string& set) {
+  return set == "rate_bank_v1" || set == "excursion_rate_v1";
+}
+
 }  // namespace
 
 int nonlinearFeatureCount(const std::string& feature_set) {
-  return feature_set == "excursion_v1" ? 2 * kExcursionFeaturesPerAxis : 0;
+  if (!hasExcursionFeatures(feature_set) && !hasRateBankFeatures(feature_set)) return 0;
+  return (hasExcursionFeatures(feature_set) ? 2 * kExcursionFeaturesPerAxis : 0) +
+         (hasRateBankFeatures(feature_set) ? 2 * kRateBankSize : 0);
 }
 
 std::string StabiliserParameters::validate() const {
@@ -74,7 +88,8 @@ std::string StabiliserParameters::validate() const {
     why << "residual: must be a finite 2 x " << 2 * residual_time_constants_s.size()
         << " matrix (2 x 2 per residual time constant)";
   } else if (!nonlinear_features.empty() && nonlinearFeatureCount(nonlinear_features) == 0) {
-    why << "nonlinear_features: unknown set '" << nonlinear_features << "' (known: excursion_v1)";
+    why << "nonlinear_features: unknown set '" << nonlinear_features
+        << "' (known: excursion_v1, rate_bank_v1, excursion_rate_v1)";
   } else if (nonlinear_residual.size() != 0 &&
              (nonlinear_residual.rows() != 2 ||
               nonlinear_residual.cols() != nonlinearFeatureCount(nonlinear_features) ||
@@ -125,9 +140,18 @@ LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, d
     residual_weight_.push_back(leakWeight(1.0 / tau, step_s));
   }
   if (!parameters_.nonlinear_features.empty()) {
-    for (double tau : kExcursionIntegralTimeConstantsS) {
-      nonlinear_decay_.push_back(leakDecay(1.0 / tau, step_s));
-      nonlinear_weight_.push_back(leakWeight(1.0 / tau, step_s));
+    excursion_features_ = hasExcursionFeatures(parameters_.nonlinear_features);
+    if (excursion_features_) {
+      for (double tau : kExcursionIntegralTimeConstantsS) {
+        nonlinear_decay_.push_back(leakDecay(1.0 / tau, step_s));
+        nonlinear_weight_.push_back(leakWeight(1.0 / tau, step_s));
+      }
+    }
+    if (hasRateBankFeatures(parameters_.nonlinear_features)) {
+      for (double tau : kRateBankTimeConstantsS) {
+        rate_bank_decay_.push_back(leakDecay(1.0 / tau, step_s));
+        rate_bank_weight_.push_back(leakWeight(1.0 / tau, step_s));
+      }
     }
     features_ = Eigen::VectorXd::Zero(nonlinearFeatureCount(parameters_.nonlinear_features));
   }
@@ -153,6 +177,7 @@ void LensShiftPredictor::reset() {
                              stroke_px_.y());
   shifts_.clear();
   nonlinear_state_.assign(nonlinear_decay_.size(), Eigen::Vector2d::Zero());
+  rate_bank_state_.assign(rate_bank_decay_.size(), Eigen::Vector2d::Zero());
   if (features_.size() > 0) features_.setZero();
   feature_history_.clear();
   ++resets_;
@@ -218,30 +243,40 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
     shift += focal_px_ * (p.residual * features);
   }
   if (features_.size() > 0) {
-    // excursion_v1, per axis i (other axis j), in focal-length units: u the unclipped command,
-    // e = u / stroke (bounded), c the clipped command, a the actuator's output.
-    const Eigen::Vector2d u = raw_command / focal_px_;
-    const Eigen::Vector2d limit = stroke_px_ / focal_px_;
-    const Eigen::Vector2d c = command / focal_px_;
-    const Eigen::Vector2d a = Eigen::Vector2d(actuator_x_.positionPx(), actuator_y_.positionPx()) /
-                              focal_px_;
-    Eigen::Vector2d e;
-    for (int i = 0; i < 2; ++i) e(i) = std::clamp(u(i) / limit(i), -kMaxExcursion, kMaxExcursion);
-    const Eigen::Vector2d pull = u.cwiseProduct(e.cwiseAbs2());
-    for (std::size_t k = 0; k < nonlinear_state_.size(); ++k)
-      nonlinear_state_[k] = nonlinear_decay_[k] * nonlinear_state_[k] +
-                            nonlinear_weight_[k] / kExcursionIntegralTimeConstantsS[k] * pull;
-    for (int i = 0; i < 2; ++i) {
-      const int j = 1 - i;
-      double* f = features_.data() + i * kExcursionFeaturesPerAxis;
-      f[0] = u(i);
-      f[1] = limit(i) * std::tanh(e(i));
-      f[2] = pull(i);
-      f[3] = pull(i) * e(i) * e(i);
-      f[4] = c(i);
-      f[5] = a(i);
-      f[6] = u(i) * e(j) * e(j);
-      for (std::size_t k = 0; k < nonlinear_state_.size(); ++k) f[7 + k] = nonlinear_state_[k](i);
+    int offset = 0;
+    if (excursion_features_) {
+      // excursion_v1, per axis i (other axis j), in focal-length units: u the unclipped command,
+      // e = u / stroke (bounded), c the clipped command, a the actuator's output.
+      const Eigen::Vector2d u = raw_command / focal_px_;
+      const Eigen::Vector2d limit = stroke_px_ / focal_px_;
+      const Eigen::Vector2d c = command / focal_px_;
+      const Eigen::Vector2d a =
+          Eigen::Vector2d(actuator_x_.positionPx(), actuator_y_.positionPx()) / focal_px_;
+      Eigen::Vector2d e;
+      for (int i = 0; i < 2; ++i) e(i) = std::clamp(u(i) / limit(i), -kMaxExcursion, kMaxExcursion);
+      const Eigen::Vector2d pull = u.cwiseProduct(e.cwiseAbs2());
+      for (std::size_t k = 0; k < nonlinear_state_.size(); ++k)
+        nonlinear_state_[k] = nonlinear_decay_[k] * nonlinear_state_[k] +
+                              nonlinear_weight_[k] / kExcursionIntegralTimeConstantsS[k] * pull;
+      for (int i = 0; i < 2; ++i) {
+        const int j = 1 - i;
+        double* f = features_.data() + i * kExcursionFeaturesPerAxis;
+        f[0] = u(i);
+        f[1] = limit(i) * std::tanh(e(i));
+        f[2] = pull(i);
+        f[3] = pull(i) * e(i) * e(i);
+        f[4] = c(i);
+        f[5] = a(i);
+        f[6] = u(i) * e(j) * e(j);
+        for (std::size_t k = 0; k < nonlinear_state_.size(); ++k) f[7 + k] = nonlinear_state_[k](i);
+      }
+      offset = 2 * kExcursionFeaturesPerAxis;
+    }
+    // rate_bank_v1: the leaky rate integrals (rad), x's then y's.
+    for (std::size_t k = 0; k < rate_bank_state_.size(); ++k) {
+      rate_bank_state_[k] = rate_bank_decay_[k] * rate_bank_state_[k] + rate_bank_weight_[k] * pan_tilt;
+      features_(offset + static_cast<long>(k)) = rate_bank_state_[k].x();
+      features_(offset + kRateBankSize + static_cast<long>(k)) = rate_bank_state_[k].y();
     }
     if (p.nonlinear_residual.size() != 0) shift += focal_px_ * (p.nonlinear_residual * features_);
   }

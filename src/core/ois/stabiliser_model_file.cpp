@@ -144,7 +144,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   const long m = nonlinearFeatureCount(p.nonlinear_features);
   if (!p.nonlinear_features.empty() && m == 0)
     throw StabiliserModelFileError("field 'nonlinear_features': unknown set '" +
-                                   p.nonlinear_features + "' (known: excursion_v1)");
+                                   p.nonlinear_features + "' (known: excursion_v1, rate_bank_v1, excursion_rate_v1)");
   if (static_cast<long>(nonlinear.size()) != 2 * m)
     throw StabiliserModelFileError("field 'nonlinear_residual' must have 2 x " +
                                    std::to_string(m) + " values for nonlinear_features '" +

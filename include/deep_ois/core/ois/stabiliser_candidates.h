@@ -6,10 +6,11 @@
 //  - "physical": the fitted chain alone;
 //  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
 //    returns);
-//  - "physical + linear + nonlinear residual": plus a ridge regression on nonlinear functions of
-//    the chain's state (StabiliserParameters::nonlinear_features): saturations of the command, its
-//    excursion against the stroke and leaky integrals of the excursion-weighted command, for
-//    stabilisers whose re-centring, stroke or estimator the chain does not name.
+//  - then, each by ridge regression on what that leaves (StabiliserParameters::nonlinear_features):
+//    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
+//    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,
+//    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
+//    or estimator the chain does not name; and both (excursion_rate_v1).
 // Pure C++/Eigen: no ROS.
 #pragma once
 

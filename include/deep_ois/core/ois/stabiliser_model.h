@@ -47,9 +47,9 @@ struct StabiliserParameters {
   // of rate y). Empty = none.
   std::vector<double> residual_time_constants_s;
   Eigen::MatrixXd residual;  // 2 x (2 * K), unitless (radians of the leaky integral to focal units)
-  // Learned nonlinear residual (empty name = none): shift += focal_px * nonlinear_residual *
-  // features, the features a fixed set of nonlinear functions of the chain's own state (see
-  // nonlinearFeatureCount): the unclipped command, its excursion against the stroke and
+  // Learned residual (empty name = none): shift += focal_px * nonlinear_residual * features, the
+  // features a fixed set of functions of the chain's own state (see nonlinearFeatureCount): the
+  // unclipped command, its excursion against the stroke and
   // saturations of it, the clipped command, the actuator's output, and leaky integrals of the
   // excursion-weighted command (what an excursion-dependent re-centring pulls back with). The
   // features depend only on the chain, never on the residual's output, so a ridge regression
@@ -61,7 +61,10 @@ struct StabiliserParameters {
   std::string validate() const;
 };
 
-// The known nonlinear feature sets: "excursion_v1". Returns 0 for an unknown name (and for "").
+// The known feature sets of the learned residual (0 for an unknown name and for ""):
+// "excursion_v1" (20: nonlinear functions of the chain's state), "rate_bank_v1" (18: leaky rate
+// integrals from 2 ms to 2.5 s, a learned higher-order linear filter) and "excursion_rate_v1"
+// (both, 38).
 int nonlinearFeatureCount(const std::string& feature_set);
 
 // A camera-frame angular rate sample (IMU clock, seconds; rad/s in the camera optical frame).
@@ -134,6 +137,9 @@ class LensShiftPredictor {
   // Nonlinear residual: per time constant the leaky integral of the excursion-weighted command.
   std::vector<double> nonlinear_decay_, nonlinear_weight_;
   std::vector<Eigen::Vector2d> nonlinear_state_;
+  bool excursion_features_ = false;
+  std::vector<double> rate_bank_decay_, rate_bank_weight_;
+  std::vector<Eigen::Vector2d> rate_bank_state_;
   Eigen::VectorXd features_;
   bool record_features_ = false;
   std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
