@@ -207,6 +207,10 @@ int main(int argc, char** argv) {
       ->check(deep_ois::atLeast(0));
   bool no_progress = false;
   app.add_flag("--no-progress", no_progress, "no progress bars");
+  std::string forced_candidate;
+  app.add_option("--candidate", forced_candidate,
+                 "keep the candidate whose name contains this (e.g. excursion_v1) instead of the "
+                 "best on the held-out recordings, for comparisons");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   if (gyro_config.empty())
     return command_line.usageError("--gyro-config: package deep_ois not found, so give the file");
@@ -325,8 +329,18 @@ int main(int argc, char** argv) {
   // kept (core/ois/stabiliser_candidates.h).
   const deep_ois::StabiliserSelection selection =
       deep_ois::selectStabiliser(fit, training, held_out, fit_options);
-  fit.parameters = selection.candidates[selection.kept].parameters;
-  fit.rms_px = selection.candidates[selection.kept].training.rms_px;
+  std::size_t kept = selection.kept;
+  if (!forced_candidate.empty()) {
+    kept = selection.candidates.size();
+    for (std::size_t k = 0; k < selection.candidates.size() && kept == selection.candidates.size(); ++k)
+      if (selection.candidates[k].name.find(forced_candidate) != std::string::npos) kept = k;
+    if (kept == selection.candidates.size()) {
+      std::fprintf(stderr, "train_stabiliser: --candidate: no candidate named '%s'\n", forced_candidate.c_str());
+      return 2;
+    }
+  }
+  fit.parameters = selection.candidates[kept].parameters;
+  fit.rms_px = selection.candidates[kept].training.rms_px;
 
   // ---- 3. Held-out scores and the model file. ----
   deep_ois::StabiliserModelFile model;
@@ -395,7 +409,10 @@ int main(int argc, char** argv) {
   for (const auto& candidate : selection.candidates)
     std::printf("| %s | %.4f | %.4f |\n", candidate.name.c_str(), candidate.training.rms_px,
                 candidate.held_out.rms_px);
-  std::printf("\n%s\n\n", selection.reason.c_str());
+  std::printf("\n%s\n\n", kept == selection.kept
+                                ? selection.reason.c_str()
+                                : ("kept '" + selection.candidates[kept].name +
+                                   "' as --candidate asked (" + selection.reason + ")").c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
   std::printf("| data | lens motions | without a lens model | physical model | with residual |\n");
   std::printf("|---|---:|---:|---:|---:|\n");
