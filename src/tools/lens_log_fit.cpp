@@ -168,8 +168,6 @@ int main(int argc, char** argv) {
   command_line.addNumber("--active-array-width", log_options.active_array_width_px,
                          "the sensor's active-array width, pixels")
       ->check(deep_ois::greaterThan(0));
-  command_line.addNumber("--gyro-time-column", log_options.gyro_time_column,
-                         "gyro stamp column: 1 or 5");
   command_line.addNumber("--warm-up", fit_options.warm_up_s, "seconds of gyro before a scored motion")
       ->check(deep_ois::atLeast(0));
   app.add_option("--out", out_path, "write the first fold's kept model here")->type_name("MODEL.yaml");
@@ -184,9 +182,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "lens_log_fit: %s\n", e.what());
     return 1;
   }
-  std::printf("%s: %zu gyro samples (%zu dropped, not after the previous), %zu lens rows: %zu "
-              "repeats dropped, %zu out of order (sorted); focal %.1f px\n\n",
-              folder.c_str(), log.rates.size(), log.gyro_rows_dropped, log.lens_rows,
+  std::printf("%s: %zu gyro samples, %zu lens rows: %zu repeats dropped, %zu steps back in file "
+              "order (sorted); focal %.1f px\n\n",
+              folder.c_str(), log.rates.size(), log.lens_rows,
               log.lens_repeats_dropped, log.lens_out_of_order, log.focal_px);
   const double t0 = log.rates.front().stamp_s, t_split = t0 + split_s, t_end = log.rates.back().stamp_s;
   auto recording = [&](double from, double to, const char* name) {
