@@ -395,8 +395,9 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
          << (lower ? "lower" : "upper") << " bound: the data wanted " << (lower ? "less" : "more");
     // No stabiliser moves before its gyro: frames placed too early in IMU time look like that.
     if (lower && std::string(parameter) == "sensor_lag_s")
-      line << " (a lens that moves with or before its gyro: the time offset or readout is likely "
-              "wrong; run calibrate)";
+      line << " (the lens moves with its gyro, no later: a module without sensor lag, or frames "
+              "placed too early in IMU time by a time offset or readout error; if unsure, run "
+              "calibrate)";
     review.on_bound.push_back(line.str());
     review.on_bound_parameters.push_back(parameter);
   };
@@ -735,7 +736,14 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     log("residual bank dropped: it did not lower the residual");
   }
   result.review = reviewStabiliserFit(result.parameters);
-  if (options.check_timing) checkTiming(refined, recordings, physical_options, &result.review);
+  if (options.check_timing) {
+    checkTiming(refined, recordings, physical_options, &result.review);
+    std::ostringstream line;
+    line << "timing check: the lens motion fits best " << result.review.best_lens_lag_ms
+         << " ms behind the gyro, with the readout changed by " << result.review.best_readout_change_ms
+         << " ms";
+    log(line.str());
+  }
   return result;
 }
 
