@@ -218,7 +218,7 @@ int main(int argc, char** argv) {
   for (const std::string& line : fit.review.timing)
     std::fprintf(stderr, "train_stabiliser: WARNING: %s\n", line.c_str());
   if (!fit.review.timing.empty()) calibration_suspect = true;
-  const bool implausible = !fit.review.implausible.empty();
+  bool implausible = !fit.review.implausible.empty();
 
   // ---- 3. Held-out scores and the model file. ----
   deep_ois::StabiliserModelFile model;
@@ -245,6 +245,8 @@ int main(int argc, char** argv) {
   // "No lens motion" is always a candidate: a fit that does not beat it on recordings it was not
   // trained on is refused (a camera with OIS off trains to it).
   const std::string refusal = deep_ois::refusalAgainstNoLensMotion(score);
+  // The refused fit's implausible values do not describe the model written (no lens motion).
+  if (!refusal.empty()) implausible = false;
   if (!refusal.empty()) {
     model.parameters = deep_ois::noLensMotion();
     model.training.rms_px = fit.rms_without_model_px;

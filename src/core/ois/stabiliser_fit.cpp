@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <iomanip>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -272,6 +273,10 @@ class ResidualBank {
   std::vector<double> decay_, weight_;
 };
 
+// A stabiliser cancels (about) the rotation: the gain's largest singular value is near 1 (0.8-1.1
+// on the simulator's modules, 0.97 for the generic model), whatever the axes' mapping and sign.
+constexpr double kMostGain = 1.5, kLeastGain = 0.3;
+
 // The recordings with every observation moved by shift_s + readout_change_s * (readout_fraction -
 // 0.5): a frame moved in time at its middle row, and its readout stretched about it.
 std::vector<StabiliserFitRecording> movedInTime(const std::vector<StabiliserFitRecording>& recordings,
@@ -291,6 +296,8 @@ std::vector<StabiliserFitRecording> movedInTime(const std::vector<StabiliserFitR
 void checkTiming(const StabiliserParameters& physical,
                  const std::vector<StabiliserFitRecording>& recordings,
                  const StabiliserFitOptions& options, StabiliserFitReview* review) {
+  // A lens that hardly follows the rotation (OIS off) has no timing to check: its fit is noise.
+  if (Eigen::JacobiSVD<Eigen::Matrix2d>(physical.gain).singularValues()(0) < kLeastGain) return;
   StabiliserParameters without_lag = physical;
   without_lag.sensor_lag_s = 0.0;
   // Mean Huber cost per observation used (the coverage changes a little with the shift).
@@ -410,9 +417,6 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
   if (p.pan_detection_rate_rad_s > 0.0)
     check("pan_release_corner_hz", "pan release corner", p.pan_release_corner_hz, kReleaseHz, "Hz");
 
-  // A stabiliser cancels (about) the rotation: the gain's singular values are near 1 (0.8-1.1 on
-  // the simulator's modules, 0.97 for the generic model). Whatever the axes' mapping and sign.
-  constexpr double kMostGain = 1.5, kLeastGain = 0.3;
   constexpr double kMostStrokeDeg = 3.0;  // modules travel about +-0.5 to +-1.5 deg
   const Eigen::Vector2d singular = Eigen::JacobiSVD<Eigen::Matrix2d>(p.gain).singularValues();
   std::ostringstream gain;
@@ -494,8 +498,8 @@ std::string refusalAgainstNoLensMotion(const StabiliserScore& held_out) {
   why.precision(3);
   why << "on the held-out recordings the fitted stabiliser leaves " << held_out.rms_px
       << " px RMS lens-motion residual and no lens motion " << held_out.rms_without_model_px
-      << " px: it does not beat no lens motion by " << 100.0 * kLeastHeldOutImprovement
-      << " % (the lens does not move: a camera without OIS or with OIS off, or the fit learned "
+      << " px: it does not beat no lens motion by " << std::setprecision(0)
+      << 100.0 * kLeastHeldOutImprovement << " % (the lens does not move: a camera without OIS or with OIS off, or the fit learned "
          "noise or a timing error)";
   return why.str();
 }
@@ -738,6 +742,8 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   result.review = reviewStabiliserFit(result.parameters);
   if (options.check_timing) {
     checkTiming(refined, recordings, physical_options, &result.review);
+  }
+  if (std::isfinite(result.review.best_lens_lag_ms)) {
     std::ostringstream line;
     line << "timing check: the lens motion fits best " << result.review.best_lens_lag_ms
          << " ms behind the gyro, with the readout changed by " << result.review.best_readout_change_ms
