@@ -43,7 +43,8 @@ TEST(EvaluationReport, ACompensationBeyondTheNonOisTwinIsCalledImplausible) {
   EXPECT_NEAR(gaps[1].capped_percent, 150.0, 1e-9);
   EXPECT_FALSE(gaps[2].beyond_twin);
   const std::string markdown = report.markdown();
-  const std::size_t line = markdown.find("- stabiliser model, m.yaml: 150.0 % capped, 150.0 % uncapped");
+  const std::size_t line =
+      markdown.find("- stabiliser model, m.yaml: 150.0 % capped, 150.0 % uncapped");
   ASSERT_NE(line, std::string::npos) << markdown;
   const std::string rest = markdown.substr(line, markdown.find('\n', line) - line);
   EXPECT_NE(rest.find("implausible"), std::string::npos) << rest;

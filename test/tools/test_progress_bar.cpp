@@ -11,7 +11,8 @@ namespace {
 TEST(ProgressBar, ShowsCountRateAndEta) {
   const ProgressBar bar(10, "pairs", nullptr);
   EXPECT_EQ(bar.line(5, 2.5), "[###############               ] 5/10 pairs, 2.0 pairs/s, ETA 2 s");
-  EXPECT_EQ(bar.line(10, 5.0), "[##############################] 10/10 pairs, 2.0 pairs/s, ETA 0 s");
+  EXPECT_EQ(bar.line(10, 5.0),
+            "[##############################] 10/10 pairs, 2.0 pairs/s, ETA 0 s");
   EXPECT_EQ(bar.line(0, 0.0), "[                              ] 0/10 pairs, ? pairs/s, ETA ?");
 }
 
@@ -19,7 +20,8 @@ TEST(ProgressBar, ShowsCountRateAndEta) {
 // total) gave "1447178.0 fit steps/s": no rate over a span that short.
 TEST(ProgressBar, NoRateOverTheFirstInstants) {
   const ProgressBar bar(16, "fit steps", nullptr);
-  EXPECT_EQ(bar.line(1, 1e-6), "[#                             ] 1/16 fit steps, ? fit steps/s, ETA ?");
+  EXPECT_EQ(bar.line(1, 1e-6),
+            "[#                             ] 1/16 fit steps, ? fit steps/s, ETA ?");
 }
 
 // A redirected stderr (a file) gets no carriage-return redraws.
@@ -41,7 +43,8 @@ TEST(ProgressBar, DrawsNothingIntoAFile) {
 TEST(ProgressBar, SetTotalKeepsCounting) {
   ProgressBar bar(0, "fit steps", nullptr);
   bar.setTotal(4);
-  EXPECT_EQ(bar.line(2, 1.0), "[###############               ] 2/4 fit steps, 2.0 fit steps/s, ETA 1 s");
+  EXPECT_EQ(bar.line(2, 1.0),
+            "[###############               ] 2/4 fit steps, 2.0 fit steps/s, ETA 1 s");
 }
 
 }  // namespace

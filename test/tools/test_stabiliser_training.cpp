@@ -19,7 +19,8 @@ StabiliserRecordingData someData() {
   StabiliserRecordingData data;
   data.frame_pairs = 1;
   data.recording.focal_px = 300.0;
-  data.recording.rates = {{0.0, Eigen::Vector3d(0.1, 0.2, 0.3)}, {0.01, Eigen::Vector3d(0.2, 0.1, 0.0)}};
+  data.recording.rates = {{0.0, Eigen::Vector3d(0.1, 0.2, 0.3)},
+                          {0.01, Eigen::Vector3d(0.2, 0.1, 0.0)}};
   LensMotionObservation o;
   o.t_a_s = 0.002;
   o.t_b_s = 0.008;
@@ -49,12 +50,14 @@ TEST(StabiliserTrainingReport, TrackResidualOnlyWhereThereAreTracks) {
 }
 
 TEST(StabiliserTrainingReport, TablesSayCountsRatesAndBoundsPlainly) {
-  const std::string table = lensMotionTable(
-      {{"training", 3, 900, 2.0, 0.5, 0.4}, {"held out", 1, 300, 2.1, 0.55, 0.45}});
-  EXPECT_NE(table.find("| training (3 recordings) | 900 | 2.000 | 0.500 | 0.400 |"), std::string::npos)
+  const std::string table =
+      lensMotionTable({{"training", 3, 900, 2.0, 0.5, 0.4}, {"held out", 1, 300, 2.1, 0.55, 0.45}});
+  EXPECT_NE(table.find("| training (3 recordings) | 900 | 2.000 | 0.500 | 0.400 |"),
+            std::string::npos)
       << table;
   // One recording, and the physical model's cell filled on the held-out row too.
-  EXPECT_NE(table.find("| held out (1 recording) | 300 | 2.100 | 0.550 | 0.450 |"), std::string::npos)
+  EXPECT_NE(table.find("| held out (1 recording) | 300 | 2.100 | 0.550 | 0.450 |"),
+            std::string::npos)
       << table;
 
   StabiliserParameters p;
@@ -89,8 +92,9 @@ class StabiliserTrainingCache : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() /
-           ("deep_ois_test_cache_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-            "_" + std::to_string(reinterpret_cast<std::uintptr_t>(this)));
+           ("deep_ois_test_cache_" +
+            std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
+            std::to_string(reinterpret_cast<std::uintptr_t>(this)));
     fs::create_directories(dir_);
     bag_ = (dir_ / "recording.bag").string();
     writeBag("first content");
@@ -121,7 +125,8 @@ TEST_F(StabiliserTrainingCache, AnswersOnlyForTheSameContentAndGyroConfig) {
   // A corrected readout in the gyro config: the cache must not answer with the old data.
   GyroFlowParameters corrected = gyro;
   corrected.rolling_shutter.readout_time_s = 0.012;
-  EXPECT_FALSE(readStabiliserCache(path, stabiliserCacheKey(bag_, corrected, "images"), bag_, &why));
+  EXPECT_FALSE(
+      readStabiliserCache(path, stabiliserCacheKey(bag_, corrected, "images"), bag_, &why));
   EXPECT_EQ(why, "readout_time changed (0.022 -> 0.012)");
   GyroFlowParameters offset = gyro;
   offset.rolling_shutter.time_offset_s = -0.004;

@@ -135,7 +135,8 @@ std::optional<StabiliserRecordingData> readStabiliserCache(const std::string& pa
       std::getline(in, line);
     } else if (word == "camera") {
       auto& c = data.camera;
-      in >> c.width >> c.height >> c.fx >> c.fy >> c.cx >> c.cy >> c.readout_time_s >> c.frame_rate_hz;
+      in >> c.width >> c.height >> c.fx >> c.fy >> c.cx >> c.cy >> c.readout_time_s >>
+          c.frame_rate_hz;
     } else if (word == "counts") {
       in >> data.frame_pairs >> data.pairs_without_gyro >> data.pairs_without_tracks >>
           data.pairs_without_log >> data.median_track_residual_px;
@@ -149,7 +150,8 @@ std::optional<StabiliserRecordingData> readStabiliserCache(const std::string& pa
       data.recording.rates.push_back(r);
     } else if (word == "o") {
       LensMotionObservation o;
-      in >> o.t_a_s >> o.t_b_s >> o.motion_px.x() >> o.motion_px.y() >> o.weight >> o.readout_fraction;
+      in >> o.t_a_s >> o.t_b_s >> o.motion_px.x() >> o.motion_px.y() >> o.weight >>
+          o.readout_fraction;
       data.recording.observations.push_back(o);
     } else if (word == "end") {
       complete = true;
@@ -160,7 +162,8 @@ std::optional<StabiliserRecordingData> readStabiliserCache(const std::string& pa
     if (!in) return refuse("unreadable");
   }
   if (!complete) return refuse("incomplete");
-  if (next_key != key.size()) return refuse("made with other settings (" + key[next_key].first + ")");
+  if (next_key != key.size())
+    return refuse("made with other settings (" + key[next_key].first + ")");
   return data;
 }
 

@@ -26,7 +26,8 @@ std::string recordingSummary(const std::string& bag, const StabiliserRecordingDa
   if (data.pairs_without_gyro > 0)
     line += ", " + countOf(data.pairs_without_gyro, "pair", "pairs") + " without gyro";
   if (data.pairs_without_tracks > 0)
-    line += ", " + countOf(data.pairs_without_tracks, "pair", "pairs") + " with too few tracks (left out)";
+    line += ", " + countOf(data.pairs_without_tracks, "pair", "pairs") +
+            " with too few tracks (left out)";
   if (data.pairs_without_log > 0)
     line += ", " + countOf(data.pairs_without_log, "pair", "pairs") +
             " the lens log does not cover (left out)";
@@ -45,25 +46,27 @@ std::string readoutMismatch(const StabiliserRecordingData& data, double config_r
   return "readout_time: the gyro config says " + format("%.1f", 1000.0 * config_readout_s) +
          " ms but the recording says " + format("%.1f", 1000.0 * recorded) +
          " ms (its simulator truth): the lens motions and the model are computed with the wrong "
-         "readout; set readout_time: " + format("%g", recorded) + " in the gyro config";
+         "readout; set readout_time: " +
+         format("%g", recorded) + " in the gyro config";
 }
 
-std::string stabiliserParameterTable(const StabiliserParameters& p, const StabiliserFitReview& review) {
+std::string stabiliserParameterTable(const StabiliserParameters& p,
+                                     const StabiliserFitReview& review) {
   auto bound = [&](const char* parameter) {
     return review.onBound(parameter) ? std::string(" (on the fit's bound)") : std::string();
   };
   char text[256];
   std::string out = "| parameter | value |\n|---|---|\n";
-  std::snprintf(text, sizeof(text), "| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0), p.gain(0, 1),
-                p.gain(1, 0), p.gain(1, 1));
+  std::snprintf(text, sizeof(text), "| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0),
+                p.gain(0, 1), p.gain(1, 0), p.gain(1, 1));
   out += text;
   out += "| centring corner | " + format("%.3f", p.highpass_corner_hz) + " Hz" +
          bound("highpass_corner_hz") + " |\n";
   out += "| actuator | " + format("%.1f", p.actuator_natural_hz) + " Hz" +
          bound("actuator_natural_hz") + ", damping " + format("%.2f", p.actuator_damping) +
          bound("actuator_damping") + " |\n";
-  out += "| sensor lag | " + format("%.2f", 1000.0 * p.sensor_lag_s) + " ms" + bound("sensor_lag_s") +
-         " |\n";
+  out += "| sensor lag | " + format("%.2f", 1000.0 * p.sensor_lag_s) + " ms" +
+         bound("sensor_lag_s") + " |\n";
   out += "| stroke | " + format("%.3f", p.stroke_x_deg) + bound("stroke_x_deg") + " x " +
          format("%.3f", p.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
          (p.circular_stroke ? "ellipse" : "box") + ") |\n";

@@ -26,8 +26,8 @@ using StabiliserCacheKey = std::vector<std::pair<std::string, std::string>>;
 StabiliserCacheKey stabiliserCacheKey(const std::string& bag, const GyroFlowParameters& gyro,
                                       const std::string& target);
 
-// The cache file of `bag` in `cache_dir` (named after the bag's absolute path: recordings of several
-// cameras often share file names) for `target`.
+// The cache file of `bag` in `cache_dir` (named after the bag's absolute path: recordings of
+// several cameras often share file names) for `target`.
 std::string stabiliserCachePath(const std::string& cache_dir, const std::string& bag,
                                 const std::string& target);
 
