@@ -56,6 +56,8 @@ TEST(EvaluationReport, ACompensationBeyondTheNonOisTwinIsCalledImplausible) {
 TEST(EvaluationReport, NamesRowsThatNoPairWasInScopeFor) {
   EvaluationReport report;
   report.method_scopes = {{kGyroNonOisMethod, kBenchmarkPairs},
+                          {kGyroOisMethod, kOisCameraPairs},
+                          {kGyroMethod, kUnspecifiedCameraPairs},
                           {"stabiliser model, m.yaml", kOisCameraPairs}};
   addPair(report, kGyroNonOisMethod, 0.5);
   EXPECT_EQ(report.rowsWithoutPairs(), std::vector<std::string>{"stabiliser model, m.yaml"});

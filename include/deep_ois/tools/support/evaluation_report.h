@@ -79,8 +79,9 @@ struct EvaluationReport {
   };
   std::vector<GapClosed> gapClosed() const;
 
-  // Registered rows that no pair was in scope for (e.g. the OIS camera's compensation rows on
-  // recordings annotated as of a non-OIS camera): they are not in the table.
+  // Compensation rows (scope: OIS camera pairs, other than the uncompensated gyro) that no pair was
+  // in scope for, e.g. on recordings annotated as of a non-OIS camera: they are not in the table.
+  // The gyro reference rows are not listed (which of them has pairs depends on the recordings).
   std::vector<std::string> rowsWithoutPairs() const;
 
   // The capped table (the paper's), the uncapped one, the gap closed per row (with a comment on a
