@@ -170,7 +170,8 @@ int main(int argc, char** argv) {
     for (CLI::Option* option : {stabiliser_option, model_option}) {
       if (option->count() == 0) continue;
       return command_line.usageError(
-          option->get_name() + ": its rows compensate an OIS camera and score only its pairs, "
+          option->get_name() +
+          ": its rows compensate an OIS camera and score only its pairs, "
           "but --camera non-ois says these recordings are of a camera without OIS; pass --camera "
           "ois to score the model on them anyway (what it does to a camera without OIS)");
     }

@@ -10,13 +10,12 @@
 // bags; scripts/train_camera.sh runs both.
 #include <ros/package.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -145,7 +144,8 @@ int main(int argc, char** argv) {
         if (progress) progress->update(++done);
         std::fprintf(stderr, "%strain_stabiliser: %s\n", newline,
                      deep_ois::recordingSummary(bag, *data, lens_target, cached).c_str());
-        const std::string readout = deep_ois::readoutMismatch(*data, gyro.rolling_shutter.readout_time_s);
+        const std::string readout =
+            deep_ois::readoutMismatch(*data, gyro.rolling_shutter.readout_time_s);
         if (!readout.empty()) {
           calibration_suspect = true;
           std::fprintf(stderr, "train_stabiliser: WARNING: %s: %s\n", bag.c_str(), readout.c_str());
@@ -235,7 +235,8 @@ int main(int argc, char** argv) {
   model.training.observations = fit.observations_used;
   model.training.rms_without_model_px = fit.rms_without_model_px;
   model.training.rms_px = fit.rms_px;
-  const deep_ois::StabiliserScore score = deep_ois::scoreStabiliser(fit.parameters, held_out, fit_options);
+  const deep_ois::StabiliserScore score =
+      deep_ois::scoreStabiliser(fit.parameters, held_out, fit_options);
   // The physical model alone (without its residual bank), as in the training row.
   deep_ois::StabiliserParameters physical = fit.parameters;
   physical.residual_time_constants_s.clear();
@@ -250,10 +251,13 @@ int main(int argc, char** argv) {
   if (!refusal.empty()) {
     model.parameters = deep_ois::noLensMotion();
     model.training.rms_px = fit.rms_without_model_px;
-    std::fprintf(stderr, "train_stabiliser: the fitted stabiliser is refused: %s; the model "
-                 "written is no lens motion\n", refusal.c_str());
+    std::fprintf(stderr,
+                 "train_stabiliser: the fitted stabiliser is refused: %s; the model "
+                 "written is no lens motion\n",
+                 refusal.c_str());
   } else if (held_out.empty()) {
-    std::fprintf(stderr, "train_stabiliser: note: without --held-out recordings the fit is not "
+    std::fprintf(stderr,
+                 "train_stabiliser: note: without --held-out recordings the fit is not "
                  "checked against no lens motion (a camera with OIS off fits a lens too)\n");
   }
   model.training.held_out_rms_without_model_px = score.rms_without_model_px;
@@ -299,9 +303,10 @@ int main(int argc, char** argv) {
   }
   std::printf("%s", deep_ois::lensMotionTable(rows).c_str());
   if (!refusal.empty()) {
-    std::printf("\nREFUSED: the fit above is not the model written: %s. The model written is no "
-                "lens motion (gain 0): the plain gyro.\n",
-                refusal.c_str());
+    std::printf(
+        "\nREFUSED: the fit above is not the model written: %s. The model written is no "
+        "lens motion (gain 0): the plain gyro.\n",
+        refusal.c_str());
   }
   std::printf("\ntrained in %.1f s (ground truth included; cached recordings are not recomputed)\n",
               model.training.training_time_s);

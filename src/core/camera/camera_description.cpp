@@ -67,7 +67,8 @@ CameraDescription describeCamera(const CameraModel& camera, double readout_time_
 
 double frameRateOfStampsHz(const std::vector<double>& stamps_s) {
   std::vector<double> intervals;
-  for (std::size_t f = 1; f < stamps_s.size(); ++f) intervals.push_back(stamps_s[f] - stamps_s[f - 1]);
+  for (std::size_t f = 1; f < stamps_s.size(); ++f)
+    intervals.push_back(stamps_s[f] - stamps_s[f - 1]);
   if (intervals.empty()) return 0.0;
   const double interval = median(std::move(intervals));
   return interval > 0.0 ? 1.0 / interval : 0.0;

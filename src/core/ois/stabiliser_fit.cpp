@@ -82,7 +82,8 @@ struct ParameterPacking {
     p.sensor_lag_s = std::clamp(x(7), kLagMs.lower, kLagMs.upper) / 1000.0;
     p.stroke_x_deg = std::clamp(std::exp(x(8)), kStrokeDeg.lower, kStrokeDeg.upper);
     p.stroke_y_deg = std::clamp(std::exp(x(9)), kStrokeDeg.lower, kStrokeDeg.upper);
-    if (pan) p.pan_release_corner_hz = std::clamp(std::exp(x(11)), kReleaseHz.lower, kReleaseHz.upper);
+    if (pan)
+      p.pan_release_corner_hz = std::clamp(std::exp(x(11)), kReleaseHz.lower, kReleaseHz.upper);
     return p;
   }
 };
@@ -279,8 +280,9 @@ constexpr double kMostGain = 1.5, kLeastGain = 0.3;
 
 // The recordings with every observation moved by shift_s + readout_change_s * (readout_fraction -
 // 0.5): a frame moved in time at its middle row, and its readout stretched about it.
-std::vector<StabiliserFitRecording> movedInTime(const std::vector<StabiliserFitRecording>& recordings,
-                                                double shift_s, double readout_change_s) {
+std::vector<StabiliserFitRecording> movedInTime(
+    const std::vector<StabiliserFitRecording>& recordings, double shift_s,
+    double readout_change_s) {
   std::vector<StabiliserFitRecording> moved = recordings;
   for (StabiliserFitRecording& recording : moved) {
     for (LensMotionObservation& o : recording.observations) {
@@ -314,7 +316,8 @@ void checkTiming(const StabiliserParameters& physical,
       x.push_back(k * step);
       y.push_back(f(k * step));
     }
-    const std::size_t best = static_cast<std::size_t>(std::min_element(y.begin(), y.end()) - y.begin());
+    const std::size_t best =
+        static_cast<std::size_t>(std::min_element(y.begin(), y.end()) - y.begin());
     double at = x[best];
     if (best > 0 && best + 1 < x.size()) {
       const double curvature = y[best - 1] - 2.0 * y[best] + y[best + 1];
@@ -335,7 +338,8 @@ void checkTiming(const StabiliserParameters& physical,
   // it never leads. A readout change is suspect when it is large against the readout and it pays.
   constexpr double kMostLagMs = 4.0, kMostLeadMs = 1.0;
   const double cost_without_change = cost(shift, 0.0);
-  const double gain = cost_without_change > 0.0 ? cost(shift, readout_change) / cost_without_change : 1.0;
+  const double gain =
+      cost_without_change > 0.0 ? cost(shift, readout_change) / cost_without_change : 1.0;
   const double readout_ms = 1000.0 * options.readout_time_s;
   const double change_ms = 1000.0 * readout_change;
   std::ostringstream line;
@@ -356,7 +360,8 @@ void checkTiming(const StabiliserParameters& physical,
   const double lag_ms = review->best_lens_lag_ms;
   if (lag_ms < -kMostLeadMs || lag_ms > kMostLagMs) {
     line << "time_offset: the lens motion fits best " << std::abs(lag_ms) << " ms "
-         << (lag_ms > 0.0 ? "behind" : "ahead of") << " the gyro at the times the gyro config gives ("
+         << (lag_ms > 0.0 ? "behind" : "ahead of")
+         << " the gyro at the times the gyro config gives ("
          << (lag_ms > 0.0 ? "a module's own sensor lag is 0-3 ms"
                           : "a stabiliser never moves before its gyro")
          << "): the camera-IMU time offset (or the readout) looks wrong by about "
@@ -375,7 +380,8 @@ std::string StabiliserFitOptions::validate() const {
   else if (!(step_s > 0.0 && step_s <= 0.01)) why << "step_s: must be in (0, 0.01] s";
   else if (!(warm_up_s >= 0.0)) why << "warm_up_s: must be >= 0";
   else if (!(residual_ridge >= 0.0)) why << "residual_ridge: must be >= 0";
-  else if (!(readout_time_s >= 0.0)) why << "readout_time_s: must be >= 0";
+  else if (!(readout_time_s >= 0.0))
+    why << "readout_time_s: must be >= 0";
   else {
     for (double tau : residual_time_constants_s)
       if (!(tau > 0.0)) return "residual_time_constants_s: must be positive";
@@ -409,7 +415,8 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
     review.on_bound_parameters.push_back(parameter);
   };
   check("highpass_corner_hz", "centring corner", p.highpass_corner_hz, kCornerHz, "Hz");
-  check("actuator_natural_hz", "actuator natural frequency", p.actuator_natural_hz, kActuatorHz, "Hz");
+  check("actuator_natural_hz", "actuator natural frequency", p.actuator_natural_hz, kActuatorHz,
+        "Hz");
   check("actuator_damping", "actuator damping", p.actuator_damping, kDamping, "");
   check("sensor_lag_s", "sensor lag", 1000.0 * p.sensor_lag_s, kLagMs, "ms");
   check("stroke_x_deg", "stroke x", p.stroke_x_deg, kStrokeDeg, "deg");
@@ -425,14 +432,17 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
        << p.gain(1, 1) << "] (it cancels " << 100.0 * singular(0) << " % of the rotation)";
   if (singular(0) > kMostGain) {
     review.implausible.push_back(
-        gain.str() + ": a stabiliser cancels about the rotation (gain near 1), not more; the lens "
+        gain.str() +
+        ": a stabiliser cancels about the rotation (gain near 1), not more; the lens "
         "motions are likely on the wrong scale (a lens log in other units than the image's pixels: "
         "set lens_shift_scale in the gyro config, e.g. image width / active array width) or the "
         "focal length (camera_info) is wrong");
   } else if (singular(0) < kLeastGain) {
     review.implausible.push_back(
-        gain.str() + ": the lens hardly follows the rotation; the OIS was likely off (then the "
-        "camera needs no lens model) or the lens motions are on the wrong scale (lens_shift_scale)");
+        gain.str() +
+        ": the lens hardly follows the rotation; the OIS was likely off (then the "
+        "camera needs no lens model) or the lens motions are on the wrong scale "
+        "(lens_shift_scale)");
   }
   const double stroke = std::max(p.stroke_x_deg, p.stroke_y_deg);
   if (stroke > kMostStrokeDeg) {
@@ -465,7 +475,8 @@ StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
   double sum = 0.0, sum_without = 0.0, weights = 0.0;
   StabiliserScore score;
   for (const StabiliserFitRecording& recording : recordings) {
-    const auto predicted = predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
+    const auto predicted =
+        predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
     for (std::size_t k = 0; k < predicted.size(); ++k) {
       if (!predicted[k].allFinite()) continue;
       const LensMotionObservation& o = recording.observations[k];
@@ -499,7 +510,8 @@ std::string refusalAgainstNoLensMotion(const StabiliserScore& held_out) {
   why << "on the held-out recordings the fitted stabiliser leaves " << held_out.rms_px
       << " px RMS lens-motion residual and no lens motion " << held_out.rms_without_model_px
       << " px: it does not beat no lens motion by " << std::setprecision(0)
-      << 100.0 * kLeastHeldOutImprovement << " % (the lens does not move: a camera without OIS or with OIS off, or the fit learned "
+      << 100.0 * kLeastHeldOutImprovement
+      << " % (the lens does not move: a camera without OIS or with OIS off, or the fit learned "
          "noise or a timing error)";
   return why.str();
 }
@@ -746,8 +758,8 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   if (std::isfinite(result.review.best_lens_lag_ms)) {
     std::ostringstream line;
     line << "timing check: the lens motion fits best " << result.review.best_lens_lag_ms
-         << " ms behind the gyro, with the readout changed by " << result.review.best_readout_change_ms
-         << " ms";
+         << " ms behind the gyro, with the readout changed by "
+         << result.review.best_readout_change_ms << " ms";
     log(line.str());
   }
   return result;

@@ -111,8 +111,8 @@ std::vector<EvaluationReport::GapClosed> EvaluationReport::gapClosed() const {
     const auto scope = std::find_if(method_scopes.begin(), method_scopes.end(),
                                     [&](const auto& entry) { return entry.first == method; });
     const bool compensation = scope != method_scopes.end() && scope->second == kOisCameraPairs;
-    row.beyond_twin = compensation && std::max(row.capped_percent, row.uncapped_percent) >
-                                          kMostGapClosedPercent;
+    row.beyond_twin =
+        compensation && std::max(row.capped_percent, row.uncapped_percent) > kMostGapClosedPercent;
     rows.push_back(row);
   }
   return rows;

@@ -450,7 +450,8 @@ EvaluationReport EvaluationRunner::run() {
       if (index + 1 < options_.bags.size() && !next.valid()) next = prefetch(index + 1);
       const std::string what = e.what();
       result.error = what.rfind(result.path, 0) == 0 ? what : result.path + ": " + what;
-      if (progress && progress->drawing()) std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());
+      if (progress && progress->drawing())
+        std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());
     }
   }
   if (annotated) {

@@ -1,10 +1,10 @@
 #include "deep_ois/tools/support/progress_bar.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-
-#include <unistd.h>
 
 namespace deep_ois {
 
@@ -34,8 +34,8 @@ std::string ProgressBar::line(std::size_t done, double elapsed_s) const {
   std::ostringstream out;
   out.setf(std::ios::fixed);
   out.precision(1);
-  out << "[" << std::string(filled, '#') << std::string(kBarWidth - filled, ' ') << "] " << done << "/"
-      << total_ << " " << unit_ << ", ";
+  out << "[" << std::string(filled, '#') << std::string(kBarWidth - filled, ' ') << "] " << done
+      << "/" << total_ << " " << unit_ << ", ";
   if (rate_known) {
     out << rate;
   } else {

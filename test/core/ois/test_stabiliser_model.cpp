@@ -316,7 +316,8 @@ TEST(StabiliserFit, AFitThatDoesNotBeatNoLensMotionOnHeldOutRecordingsIsRefused)
   StabiliserParameters off = knownStabiliser();
   off.gain.setZero();  // the lens never moves: only the noise of the measurement is left
   const StabiliserFitResult ois_off = fitStabiliser({observe(off, 41, 0.1)}, options);
-  const StabiliserScore off_held_out = scoreStabiliser(ois_off.parameters, {observe(off, 42, 0.1)}, options);
+  const StabiliserScore off_held_out =
+      scoreStabiliser(ois_off.parameters, {observe(off, 42, 0.1)}, options);
   const std::string refusal = refusalAgainstNoLensMotion(off_held_out);
   // A lens fitted to noise has no timing to check (it named a 16 ms time offset error).
   EXPECT_TRUE(ois_off.review.timing.empty()) << ois_off.review.timing.front();
