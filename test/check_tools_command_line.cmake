@@ -3,7 +3,8 @@
 #   --epochs 10x         -> a non-zero exit and a message naming --epochs (an unknown flag for most
 #                           tools, a malformed number for train);
 #   a numeric flag of the tool with a malformed value -> exit 2 and a message naming that flag.
-# Usage: cmake -DTOOLS=/path/tool1;/path/tool2;... -P check_tools_command_line.cmake
+# and flags that cannot work together (evaluate --camera non-ois --stabiliser) -> exit 2 naming them.
+# Usage: cmake -DTOOLS=/path/tool1;/path/tool2;... [-DSOURCE_DIR=<package>] -P check_tools_command_line.cmake
 cmake_minimum_required(VERSION 3.16)
 if(NOT TOOLS)
   message(FATAL_ERROR "pass -DTOOLS=<tool executables>")
@@ -77,6 +78,26 @@ foreach(tool_path ${TOOLS})
     endif()
   endif()
 endforeach()
+
+# Flags that cannot work together are refused naming the flag, not silently dropped.
+# SOURCE_DIR (the package) holds the files the command lines name.
+if(SOURCE_DIR)
+  foreach(tool_path ${TOOLS})
+    get_filename_component(tool "${tool_path}" NAME)
+    if(tool STREQUAL "evaluate")
+      # The stabiliser rows score OIS camera pairs only: none with --camera non-ois.
+      execute_process(COMMAND "${tool_path}" --bags "${SOURCE_DIR}/bags/sample.bag"
+                        --annotations "${SOURCE_DIR}/data/annotations/cc9pro.csv" --camera non-ois
+                        --stabiliser "${SOURCE_DIR}/models/stabiliser_generic.yaml"
+                      RESULT_VARIABLE status OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 60)
+      if(NOT status EQUAL 2)
+        string(APPEND failures "evaluate --camera non-ois --stabiliser: exit ${status} instead of 2: ${err}\n")
+      elseif(NOT err MATCHES "^evaluate: --stabiliser: .*--camera ois")
+        string(APPEND failures "evaluate --camera non-ois --stabiliser: the message does not name --stabiliser and --camera ois: ${err}\n")
+      endif()
+    endif()
+  endforeach()
+endif()
 
 if(failures)
   message(FATAL_ERROR "command lines of ${checked} tools checked:\n${failures}")

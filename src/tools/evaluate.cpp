@@ -164,6 +164,18 @@ int main(int argc, char** argv) {
   if (!camera.empty() && annotations.empty()) {
     return command_line.usageError("--camera applies to --annotations recordings only");
   }
+  // The compensation rows score an OIS camera's pairs only: asked for on recordings said to be of
+  // a camera without OIS they would be empty, so an explicit request is refused, not dropped.
+  if (camera == "non-ois") {
+    for (CLI::Option* option : {stabiliser_option, model_option}) {
+      if (option->count() == 0) continue;
+      return command_line.usageError(
+          option->get_name() +
+          ": its rows compensate an OIS camera and score only its pairs, "
+          "but --camera non-ois says these recordings are of a camera without OIS; pass --camera "
+          "ois to score the model on them anyway (what it does to a camera without OIS)");
+    }
+  }
   if (camera == "ois") {
     options.annotated_scope = deep_ois::kOisCameraPairs;
   } else if (camera == "non-ois") {
@@ -271,6 +283,12 @@ int main(int argc, char** argv) {
   }
   for (const std::string& error : report.errors)
     std::fprintf(stderr, "evaluate: %s\n", error.c_str());
+  for (const std::string& row : report.rowsWithoutPairs()) {
+    std::fprintf(stderr,
+                 "evaluate: %s: left out, no pair in its scope (it compensates an OIS camera%s)\n",
+                 row.c_str(),
+                 camera == "non-ois" ? "; --camera non-ois: pass --camera ois to score it" : "");
+  }
   for (const auto& [row, camera] : model_cameras) {
     std::fprintf(stderr, "evaluate: %s\n", deep_ois::modelCameraNote(row, camera, report.recordings).c_str());
   }

@@ -10,13 +10,12 @@
 // bags; scripts/train_camera.sh runs both.
 #include <ros/package.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -33,128 +32,16 @@
 #include "deep_ois/tools/support/dataset_hash.h"
 #include "deep_ois/tools/support/line_plot.h"
 #include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/tools/support/stabiliser_training_cache.h"
+#include "deep_ois/tools/support/stabiliser_training_report.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-constexpr int kCacheVersion = 1;
 // A median track residual above this (pixels) after the lens is fitted means the gyro's rotations
 // do not explain the images: a wrong time offset, readout or IMU -> camera rotation (with the
 // right calibration the simulator's recordings give 0.1-0.2 px, the KLT noise).
 constexpr double kCalibrationSuspectPx = 0.5;
-
-// The cache of one recording's data: a text file beside the model (resume after an interruption
-// without recomputing the ground truth of finished recordings).
-// Keyed by the bag's absolute path (recordings of several cameras often share file names).
-std::string cachePath(const std::string& cache_dir, const std::string& bag, const std::string& target) {
-  std::string key = fs::absolute(bag).lexically_normal().string();
-  for (char& c : key) {
-    if (c == '/') c = '_';
-  }
-  return cache_dir + "/" + key + "." + target + ".txt";
-}
-
-void writeCache(const std::string& path, const std::string& bag,
-                const deep_ois::StabiliserRecordingData& data) {
-  const std::string partial = path + ".partial";
-  {
-    std::ofstream out(partial);
-    out.precision(17);
-    out << "deep_ois_stabiliser_cache " << kCacheVersion << "\n" << "bag " << bag << "\n";
-    out << "size " << fs::file_size(bag) << "\n";
-    const auto& c = data.camera;
-    out << "camera " << c.width << " " << c.height << " " << c.fx << " " << c.fy << " " << c.cx
-        << " " << c.cy << " " << c.readout_time_s << " " << c.frame_rate_hz << "\n";
-    out << "counts " << data.frame_pairs << " " << data.pairs_without_gyro << " "
-        << data.pairs_without_tracks << " " << data.median_track_residual_px << "\n";
-    out << "focal " << data.recording.focal_px << "\n";
-    for (const auto& r : data.recording.rates)
-      out << "r " << r.stamp_s << " " << r.rate_rad_s.x() << " " << r.rate_rad_s.y() << " "
-          << r.rate_rad_s.z() << "\n";
-    for (const auto& o : data.recording.observations)
-      out << "o " << o.t_a_s << " " << o.t_b_s << " " << o.motion_px.x() << " " << o.motion_px.y()
-          << " " << o.weight << "\n";
-    out << "end\n";
-    if (!out) throw std::runtime_error(partial + ": write failed");
-  }
-  fs::rename(partial, path);  // complete files only
-}
-
-// The cached data when it exists, is complete and belongs to this bag (same size).
-std::optional<deep_ois::StabiliserRecordingData> readCache(const std::string& path,
-                                                           const std::string& bag) {
-  std::ifstream in(path);
-  if (!in) return std::nullopt;
-  deep_ois::StabiliserRecordingData data;
-  data.recording.name = bag;
-  std::string word, line;
-  int version = 0;
-  if (!(in >> word >> version) || word != "deep_ois_stabiliser_cache" || version != kCacheVersion)
-    return std::nullopt;
-  bool complete = false;
-  while (in >> word) {
-    if (word == "bag") {
-      std::getline(in, line);
-    } else if (word == "size") {
-      std::uintmax_t size = 0;
-      in >> size;
-      if (size != fs::file_size(bag)) return std::nullopt;
-    } else if (word == "camera") {
-      auto& c = data.camera;
-      in >> c.width >> c.height >> c.fx >> c.fy >> c.cx >> c.cy >> c.readout_time_s >> c.frame_rate_hz;
-    } else if (word == "counts") {
-      in >> data.frame_pairs >> data.pairs_without_gyro >> data.pairs_without_tracks >>
-          data.median_track_residual_px;
-    } else if (word == "focal") {
-      in >> data.recording.focal_px;
-    } else if (word == "r") {
-      deep_ois::CameraRateSample r;
-      in >> r.stamp_s >> r.rate_rad_s.x() >> r.rate_rad_s.y() >> r.rate_rad_s.z();
-      data.recording.rates.push_back(r);
-    } else if (word == "o") {
-      deep_ois::LensMotionObservation o;
-      in >> o.t_a_s >> o.t_b_s >> o.motion_px.x() >> o.motion_px.y() >> o.weight;
-      data.recording.observations.push_back(o);
-    } else if (word == "end") {
-      complete = true;
-      break;
-    } else {
-      return std::nullopt;
-    }
-    if (!in) return std::nullopt;
-  }
-  if (!complete) return std::nullopt;
-  return data;
-}
-
-// RMS of |predicted - observed| lens motion over a recording's usable observations, and with no
-// model (predicted 0); pixels.
-struct HeldOutScore {
-  double rms_px = 0.0, rms_without_px = 0.0;
-  std::size_t observations = 0;
-};
-HeldOutScore scoreHeldOut(const deep_ois::StabiliserParameters& parameters,
-                          const std::vector<deep_ois::StabiliserFitRecording>& recordings,
-                          const deep_ois::StabiliserFitOptions& options) {
-  double sum = 0.0, sum_without = 0.0, weights = 0.0;
-  HeldOutScore score;
-  for (const auto& recording : recordings) {
-    const auto predicted =
-        deep_ois::predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
-    for (std::size_t k = 0; k < predicted.size(); ++k) {
-      if (!predicted[k].allFinite()) continue;
-      const auto& o = recording.observations[k];
-      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
-      sum_without += o.weight * o.motion_px.squaredNorm();
-      weights += o.weight;
-      ++score.observations;
-    }
-  }
-  const double nan = std::nan("");
-  score.rms_px = weights > 0.0 ? std::sqrt(sum / weights) : nan;
-  score.rms_without_px = weights > 0.0 ? std::sqrt(sum_without / weights) : nan;
-  return score;
-}
 
 }  // namespace
 
@@ -168,7 +55,8 @@ int main(int argc, char** argv) {
       "MODEL_fit.png (the fit's loss curve), and "
       "keeps each recording's ground truth in a cache directory (a re-run resumes from it).",
       "Exit status: 0 done, 1 no usable recording or the fit failed, 2 usage, 3 done but some "
-      "recordings could not be read or the calibration looks wrong.");
+      "recordings could not be read, the calibration looks wrong or the fitted parameters are "
+      "implausible.");
   CLI::App& app = command_line.app();
   std::vector<std::string> bags, held_out_bags;
   const std::string package = ros::package::getPath("deep_ois");
@@ -241,31 +129,32 @@ int main(int argc, char** argv) {
     if (!no_progress) progress = std::make_unique<deep_ois::ProgressBar>(paths.size(), what);
     std::size_t done = 0;
     for (const std::string& bag : paths) {
-      const std::string cache = cachePath(cache_dir, bag, target);
+      const std::string cache = deep_ois::stabiliserCachePath(cache_dir, bag, target);
+      // A line of its own after a bar drawn on a terminal.
+      const char* newline = progress && progress->drawing() ? "\n" : "";
       try {
-        std::optional<deep_ois::StabiliserRecordingData> data = readCache(cache, bag);
+        const deep_ois::StabiliserCacheKey key = deep_ois::stabiliserCacheKey(bag, gyro, target);
+        std::string stale;
+        std::optional<deep_ois::StabiliserRecordingData> data =
+            deep_ois::readStabiliserCache(cache, key, bag, &stale);
         const bool cached = data.has_value();
         if (!data) {
+          if (stale != "no cache") {
+            std::fprintf(stderr, "%strain_stabiliser: %s: cached data not used: %s\n", newline,
+                         bag.c_str(), stale.c_str());
+          }
           data = deep_ois::readStabiliserRecording(bag, gyro, lens_target);
-          writeCache(cache, bag, *data);
+          deep_ois::writeStabiliserCache(cache, key, bag, *data);
         }
         if (progress) progress->update(++done);
-        std::fprintf(stderr,
-                     "\ntrain_stabiliser: %s: %zu pairs, %zu lens motions%s%s%s, track residual "
-                     "%.3f px%s\n",
-                     bag.c_str(), data->frame_pairs, data->recording.observations.size(),
-                     data->pairs_without_gyro
-                         ? (", " + std::to_string(data->pairs_without_gyro) + " pairs without gyro").c_str()
-                         : "",
-                     data->pairs_without_tracks
-                         ? (", " + std::to_string(data->pairs_without_tracks) +
-                            " pairs with too few tracks (left out)").c_str()
-                         : "",
-                     data->pairs_without_log
-                         ? (", " + std::to_string(data->pairs_without_log) +
-                            " pairs the lens log does not cover (left out)").c_str()
-                         : "",
-                     data->median_track_residual_px, cached ? " (cached)" : "");
+        std::fprintf(stderr, "%strain_stabiliser: %s\n", newline,
+                     deep_ois::recordingSummary(bag, *data, lens_target, cached).c_str());
+        const std::string readout =
+            deep_ois::readoutMismatch(*data, gyro.rolling_shutter.readout_time_s);
+        if (!readout.empty()) {
+          calibration_suspect = true;
+          std::fprintf(stderr, "train_stabiliser: WARNING: %s: %s\n", bag.c_str(), readout.c_str());
+        }
         if (lens_target == deep_ois::LensMotionTarget::kImages &&
             data->median_track_residual_px > kCalibrationSuspectPx) {
           calibration_suspect = true;
@@ -281,7 +170,7 @@ int main(int argc, char** argv) {
       } catch (const std::exception& e) {
         // One unreadable recording must not lose the others.
         if (progress) progress->update(++done);
-        std::fprintf(stderr, "\ntrain_stabiliser: %s (skipped)\n", e.what());
+        std::fprintf(stderr, "%strain_stabiliser: %s (skipped)\n", newline, e.what());
         ++failures;
       }
     }
@@ -310,21 +199,31 @@ int main(int argc, char** argv) {
   }
 
   // ---- 2. The fit. ----
+  fit_options.readout_time_s = gyro.rolling_shutter.readout_time_s;  // for its timing check
   deep_ois::StabiliserFitResult fit;
   try {
     std::unique_ptr<deep_ois::ProgressBar> progress;
     if (!no_progress) progress = std::make_unique<deep_ois::ProgressBar>(0, "fit steps");
     fit = deep_ois::fitStabiliser(training, fit_options, [&](std::size_t done, std::size_t total) {
       if (!progress) return;
-      if (done == 1) progress = std::make_unique<deep_ois::ProgressBar>(total, "fit steps");
+      progress->setTotal(total);  // known once the fit runs; the rate counts from the start
       progress->update(done);
     });
-    if (progress) std::fprintf(stderr, "\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "train_stabiliser: %s\n", e.what());
     return 1;
   }
   for (const std::string& line : fit.log) std::fprintf(stderr, "train_stabiliser: %s\n", line.c_str());
+  // How the fit ended: parameters on a bound of the fit, values no module has (with the cause).
+  for (const std::string& line : fit.review.on_bound)
+    std::fprintf(stderr, "train_stabiliser: note: %s\n", line.c_str());
+  for (const std::string& line : fit.review.implausible)
+    std::fprintf(stderr, "train_stabiliser: WARNING: implausible %s\n", line.c_str());
+  // The lens absorbs timing errors (the track residual stays small): the fit's timing check.
+  for (const std::string& line : fit.review.timing)
+    std::fprintf(stderr, "train_stabiliser: WARNING: %s\n", line.c_str());
+  if (!fit.review.timing.empty()) calibration_suspect = true;
+  bool implausible = !fit.review.implausible.empty();
   // Learned dynamics on top of the physical chain, scored on the held-out recordings; the best is
   // kept (core/ois/stabiliser_candidates.h).
   const deep_ois::StabiliserSelection selection =
@@ -357,9 +256,36 @@ int main(int argc, char** argv) {
   model.training.observations = fit.observations_used;
   model.training.rms_without_model_px = fit.rms_without_model_px;
   model.training.rms_px = fit.rms_px;
-  const HeldOutScore score = scoreHeldOut(fit.parameters, held_out, fit_options);
-  model.training.held_out_rms_without_model_px = score.rms_without_px;
-  model.training.held_out_rms_px = score.rms_px;
+  const deep_ois::StabiliserScore score =
+      deep_ois::scoreStabiliser(fit.parameters, held_out, fit_options);
+  // The physical model alone (without its residual bank and learned residual), as in the training
+  // row.
+  deep_ois::StabiliserParameters physical = fit.parameters;
+  physical.residual_time_constants_s.clear();
+  physical.residual.resize(0, 0);
+  physical.nonlinear_features.clear();
+  physical.nonlinear_residual.resize(0, 0);
+  const deep_ois::StabiliserScore physical_score =
+      deep_ois::scoreStabiliser(physical, held_out, fit_options);
+  // "No lens motion" is always a candidate: a fit that does not beat it on recordings it was not
+  // trained on is refused (a camera with OIS off trains to it).
+  const std::string refusal = deep_ois::refusalAgainstNoLensMotion(score);
+  // The refused fit's implausible values do not describe the model written (no lens motion).
+  if (!refusal.empty()) implausible = false;
+  if (!refusal.empty()) {
+    model.parameters = deep_ois::noLensMotion();
+    model.training.rms_px = fit.rms_without_model_px;
+    std::fprintf(stderr,
+                 "train_stabiliser: the fitted stabiliser is refused: %s; the model "
+                 "written is no lens motion\n",
+                 refusal.c_str());
+  } else if (held_out.empty()) {
+    std::fprintf(stderr,
+                 "train_stabiliser: note: without --held-out recordings the fit is not "
+                 "checked against no lens motion (a camera with OIS off fits a lens too)\n");
+  }
+  model.training.held_out_rms_without_model_px = score.rms_without_model_px;
+  model.training.held_out_rms_px = refusal.empty() ? score.rms_px : score.rms_without_model_px;
   try {
     model.training.data_sha256 = deep_ois::sha256OfFiles(bags);
   } catch (const std::exception& e) {
@@ -390,21 +316,9 @@ int main(int argc, char** argv) {
   const auto& p = fit.parameters;
   std::printf("Stabiliser model %s (%s); fit curve %s\n\n", out_path.c_str(), model.name.c_str(),
               plot_path.c_str());
-  std::printf("| parameter | value |\n|---|---|\n");
-  std::printf("| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0), p.gain(0, 1), p.gain(1, 0),
-              p.gain(1, 1));
-  std::printf("| centring corner | %.3f Hz |\n| actuator | %.1f Hz, damping %.2f |\n",
-              p.highpass_corner_hz, p.actuator_natural_hz, p.actuator_damping);
-  std::printf("| sensor lag | %.2f ms |\n| stroke | %.3f x %.3f deg (%s) |\n",
-              1000.0 * p.sensor_lag_s, p.stroke_x_deg, p.stroke_y_deg,
-              p.circular_stroke ? "ellipse" : "box");
-  std::printf("| pan detection | %s |\n",
-              p.pan_detection_rate_rad_s > 0.0
-                  ? (std::to_string(p.pan_detection_rate_rad_s) + " rad/s, release " +
-                     std::to_string(p.pan_release_corner_hz) + " Hz").c_str()
-                  : "off");
-  std::printf("| residual bank | %zu time constants |\n", p.residual_time_constants_s.size());
-  std::printf("| nonlinear residual | %s |\n\n", p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
+  std::printf("%s\n", deep_ois::stabiliserParameterTable(p, fit.review).c_str());
+  std::printf("Nonlinear residual (learned on the chain's state): %s\n\n",
+              p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
   std::printf("Candidates, lens-motion RMS residual (pixels):\n\n| candidate | training | held out |\n|---|---:|---:|\n");
   for (const auto& candidate : selection.candidates)
     std::printf("| %s | %.4f | %.4f |\n", candidate.name.c_str(), candidate.training.rms_px,
@@ -414,19 +328,34 @@ int main(int argc, char** argv) {
                                 : ("kept '" + selection.candidates[kept].name +
                                    "' as --candidate asked (" + selection.reason + ")").c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
-  std::printf("| data | lens motions | without a lens model | physical model | with residual |\n");
-  std::printf("|---|---:|---:|---:|---:|\n");
-  std::printf("| training (%zu recordings) | %zu | %.3f | %.3f | %.3f |\n", training.size(),
-              fit.observations_used, fit.rms_without_model_px, fit.rms_physical_px, fit.rms_px);
+  std::vector<deep_ois::LensMotionScoreRow> rows = {
+      {"training", training.size(), fit.observations_used, fit.rms_without_model_px,
+       fit.rms_physical_px, fit.rms_px}};
   if (!held_out.empty()) {
-    std::printf("| held out (%zu recordings) | %zu | %.3f | | %.3f |\n", held_out.size(),
-                score.observations, score.rms_without_px, score.rms_px);
+    rows.push_back({"held out", held_out.size(), score.observations, score.rms_without_model_px,
+                    physical_score.rms_px, score.rms_px});
+  }
+  std::printf("%s", deep_ois::lensMotionTable(rows).c_str());
+  if (!refusal.empty()) {
+    std::printf(
+        "\nREFUSED: the fit above is not the model written: %s. The model written is no "
+        "lens motion (gain 0): the plain gyro.\n",
+        refusal.c_str());
   }
   std::printf("\ntrained in %.1f s (ground truth included; cached recordings are not recomputed)\n",
               model.training.training_time_s);
   if (calibration_suspect) {
     std::printf("\nWARNING: the calibration does not fit some recordings (see above): the model is "
                 "only as good as the gyro's rotations; run calibrate and train again.\n");
+    for (const std::string& line : fit.review.timing) std::printf("- %s\n", line.c_str());
   }
-  return failures > 0 || calibration_suspect ? 3 : 0;
+  if (!fit.review.on_bound.empty()) {
+    std::printf("\nParameters on a bound of the fit (the data wanted them further):\n");
+    for (const std::string& line : fit.review.on_bound) std::printf("- %s\n", line.c_str());
+  }
+  if (implausible) {
+    std::printf("\nWARNING: implausible parameters, the model is likely wrong:\n");
+    for (const std::string& line : fit.review.implausible) std::printf("- %s\n", line.c_str());
+  }
+  return failures > 0 || calibration_suspect || implausible ? 3 : 0;
 }

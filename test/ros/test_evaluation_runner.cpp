@@ -212,6 +212,13 @@ TEST(EvaluationRunner, TwinsScoreOnlyTheNonOisGyroRowAndABrokenBagCostsOnlyItsel
   // The camera of each readable recording, which evaluate compares with each model row's.
   const CameraDescription camera = report.recordings[0].camera;
   ASSERT_TRUE(camera.known());
+  // The recordings' frame rate (sample.yaml: 30 fps) is known, so a model of a 60 fps camera is
+  // not reported as trained for "the camera of every recording".
+  EXPECT_NEAR(camera.frame_rate_hz, 30.0, 0.01);
+  CameraDescription sixty_fps = camera;
+  sixty_fps.frame_rate_hz = 60.0;
+  EXPECT_NE(modelCameraNote("m.yaml", sixty_fps, report.recordings).find("frame rate differs"),
+            std::string::npos);
   EXPECT_FALSE(report.recordings[1].camera.known());
   EXPECT_EQ(camera.readout_time_s, options.gyro.rolling_shutter.readout_time_s);
   EXPECT_EQ(camera.differencesTo(report.recordings[2].camera), "");

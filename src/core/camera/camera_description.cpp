@@ -1,7 +1,11 @@
 #include "deep_ois/core/camera/camera_description.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
+
+#include "deep_ois/core/common/so3_and_statistics.h"
 
 namespace deep_ois {
 namespace {
@@ -59,6 +63,15 @@ CameraDescription describeCamera(const CameraModel& camera, double readout_time_
   d.cy = camera.K()(1, 2);
   d.readout_time_s = readout_time_s;
   return d;
+}
+
+double frameRateOfStampsHz(const std::vector<double>& stamps_s) {
+  std::vector<double> intervals;
+  for (std::size_t f = 1; f < stamps_s.size(); ++f)
+    intervals.push_back(stamps_s[f] - stamps_s[f - 1]);
+  if (intervals.empty()) return 0.0;
+  const double interval = median(std::move(intervals));
+  return interval > 0.0 ? 1.0 / interval : 0.0;
 }
 
 }  // namespace deep_ois

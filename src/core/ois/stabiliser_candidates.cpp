@@ -9,34 +9,6 @@
 #include <stdexcept>
 
 namespace deep_ois {
-namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-}  // namespace
-
-LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
-                                const std::vector<StabiliserFitRecording>& recordings,
-                                const StabiliserFitOptions& options) {
-  double sum = 0.0, sum_without = 0.0, weights = 0.0;
-  LensMotionScore score;
-  for (const StabiliserFitRecording& recording : recordings) {
-    const auto predicted =
-        predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
-    for (std::size_t k = 0; k < predicted.size(); ++k) {
-      if (!predicted[k].allFinite()) continue;
-      const LensMotionObservation& o = recording.observations[k];
-      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
-      sum_without += o.weight * o.motion_px.squaredNorm();
-      weights += o.weight;
-      ++score.observations;
-    }
-  }
-  score.rms_px = weights > 0.0 ? std::sqrt(sum / weights) : kNaN;
-  score.rms_without_model_px = weights > 0.0 ? std::sqrt(sum_without / weights) : kNaN;
-  return score;
-}
-
 StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
                                           const std::vector<StabiliserFitRecording>& recordings,
                                           const StabiliserFitOptions& options,
@@ -107,8 +79,8 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
     StabiliserCandidate candidate;
     candidate.name = name;
     candidate.parameters = parameters;
-    candidate.training = scoreLensMotion(parameters, training, options);
-    candidate.held_out = scoreLensMotion(parameters, held_out, options);
+    candidate.training = scoreStabiliser(parameters, training, options);
+    candidate.held_out = scoreStabiliser(parameters, held_out, options);
     selection.candidates.push_back(candidate);
   };
   StabiliserParameters physical = fit.parameters;

@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <iomanip>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -46,6 +48,18 @@ void runOver(const StabiliserParameters& parameters, const StabiliserFitRecordin
   }
 }
 
+// The box the fit keeps each physical parameter in. A parameter that ends on one of these
+// wanted to go further: the fit reports it (reviewStabiliserFit).
+struct Bounds {
+  double lower, upper;
+};
+constexpr Bounds kCornerHz{1e-3, 50.0};
+constexpr Bounds kActuatorHz{2.0, 500.0};
+constexpr Bounds kDamping{0.05, 5.0};
+constexpr Bounds kLagMs{0.0, 50.0};
+constexpr Bounds kStrokeDeg{0.02, 20.0};
+constexpr Bounds kReleaseHz{0.05, 100.0};
+
 // The physical parameters the Levenberg-Marquardt step moves, as an unconstrained vector.
 struct ParameterPacking {
   bool pan = false;  // pan_release_corner_hz is free
@@ -62,13 +76,14 @@ struct ParameterPacking {
   }
   StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
     p.gain << x(0), x(1), x(2), x(3);
-    p.highpass_corner_hz = std::clamp(std::exp(x(4)), 1e-3, 50.0);
-    p.actuator_natural_hz = std::clamp(std::exp(x(5)), 2.0, 500.0);
-    p.actuator_damping = std::clamp(std::exp(x(6)), 0.05, 5.0);
-    p.sensor_lag_s = std::clamp(x(7), 0.0, 50.0) / 1000.0;
-    p.stroke_x_deg = std::clamp(std::exp(x(8)), 0.02, 20.0);
-    p.stroke_y_deg = std::clamp(std::exp(x(9)), 0.02, 20.0);
-    if (pan) p.pan_release_corner_hz = std::clamp(std::exp(x(11)), 0.05, 100.0);
+    p.highpass_corner_hz = std::clamp(std::exp(x(4)), kCornerHz.lower, kCornerHz.upper);
+    p.actuator_natural_hz = std::clamp(std::exp(x(5)), kActuatorHz.lower, kActuatorHz.upper);
+    p.actuator_damping = std::clamp(std::exp(x(6)), kDamping.lower, kDamping.upper);
+    p.sensor_lag_s = std::clamp(x(7), kLagMs.lower, kLagMs.upper) / 1000.0;
+    p.stroke_x_deg = std::clamp(std::exp(x(8)), kStrokeDeg.lower, kStrokeDeg.upper);
+    p.stroke_y_deg = std::clamp(std::exp(x(9)), kStrokeDeg.lower, kStrokeDeg.upper);
+    if (pan)
+      p.pan_release_corner_hz = std::clamp(std::exp(x(11)), kReleaseHz.lower, kReleaseHz.upper);
     return p;
   }
 };
@@ -259,6 +274,103 @@ class ResidualBank {
   std::vector<double> decay_, weight_;
 };
 
+// A stabiliser cancels (about) the rotation: the gain's largest singular value is near 1 (0.8-1.1
+// on the simulator's modules, 0.97 for the generic model), whatever the axes' mapping and sign.
+constexpr double kMostGain = 1.5, kLeastGain = 0.3;
+
+// The recordings with every observation moved by shift_s + readout_change_s * (readout_fraction -
+// 0.5): a frame moved in time at its middle row, and its readout stretched about it.
+std::vector<StabiliserFitRecording> movedInTime(
+    const std::vector<StabiliserFitRecording>& recordings, double shift_s,
+    double readout_change_s) {
+  std::vector<StabiliserFitRecording> moved = recordings;
+  for (StabiliserFitRecording& recording : moved) {
+    for (LensMotionObservation& o : recording.observations) {
+      const double dt = shift_s + readout_change_s * (o.readout_fraction - 0.5);
+      o.t_a_s += dt;
+      o.t_b_s += dt;
+    }
+  }
+  return moved;
+}
+
+// The timing check of the review: see StabiliserFitReview::best_lens_lag_ms.
+void checkTiming(const StabiliserParameters& physical,
+                 const std::vector<StabiliserFitRecording>& recordings,
+                 const StabiliserFitOptions& options, StabiliserFitReview* review) {
+  // A lens that hardly follows the rotation (OIS off) has no timing to check: its fit is noise.
+  if (Eigen::JacobiSVD<Eigen::Matrix2d>(physical.gain).singularValues()(0) < kLeastGain) return;
+  StabiliserParameters without_lag = physical;
+  without_lag.sensor_lag_s = 0.0;
+  // Mean Huber cost per observation used (the coverage changes a little with the shift).
+  auto cost = [&](double shift_s, double readout_change_s) {
+    const Residuals r =
+        residualsOf(without_lag, movedInTime(recordings, shift_s, readout_change_s), options);
+    return r.used > 0 ? huberCost(r.values, options.huber_px) / static_cast<double>(r.used)
+                      : std::numeric_limits<double>::infinity();
+  };
+  // The best of a grid, refined by a parabola through the best point and its neighbours.
+  auto scan = [&](const std::function<double(double)>& f, double step, int half_count) {
+    std::vector<double> x, y;
+    for (int k = -half_count; k <= half_count; ++k) {
+      x.push_back(k * step);
+      y.push_back(f(k * step));
+    }
+    const std::size_t best =
+        static_cast<std::size_t>(std::min_element(y.begin(), y.end()) - y.begin());
+    double at = x[best];
+    if (best > 0 && best + 1 < x.size()) {
+      const double curvature = y[best - 1] - 2.0 * y[best] + y[best + 1];
+      if (curvature > 0.0) at += 0.5 * step * (y[best - 1] - y[best + 1]) / curvature;
+    }
+    return at;
+  };
+  constexpr double kStepS = 0.002;
+  constexpr int kHalfCount = 10;  // +-20 ms
+  double shift = scan([&](double s) { return cost(s, 0.0); }, kStepS, kHalfCount);
+  const double readout_change = scan([&](double r) { return cost(shift, r); }, kStepS, kHalfCount);
+  shift = scan([&](double s) { return cost(s, readout_change); }, kStepS, kHalfCount);
+  // Observations fitted at earlier times (a negative shift) are a lens that lags the gyro.
+  review->best_lens_lag_ms = -1000.0 * shift;
+  review->best_readout_change_ms = 1000.0 * readout_change;
+
+  // A module's position loop lags its gyro by 0-3 ms (the simulator's noisiest Hall sensor: 3 ms);
+  // it never leads. A readout change is suspect when it is large against the readout and it pays.
+  constexpr double kMostLagMs = 4.0, kMostLeadMs = 1.0;
+  const double cost_without_change = cost(shift, 0.0);
+  const double gain =
+      cost_without_change > 0.0 ? cost(shift, readout_change) / cost_without_change : 1.0;
+  const double readout_ms = 1000.0 * options.readout_time_s;
+  const double change_ms = 1000.0 * readout_change;
+  std::ostringstream line;
+  line.setf(std::ios::fixed);
+  line.precision(1);
+  if (std::abs(change_ms) > std::max(2.0, 0.15 * readout_ms) && gain < 0.98) {
+    line << "readout_time: the lens motion fits best with the rows " << std::abs(change_ms)
+         << " ms " << (change_ms > 0.0 ? "further apart" : "closer together")
+         << " than the gyro config places them";
+    if (readout_ms > 0.0)
+      line << " (a readout of " << readout_ms + change_ms << " ms, the config says " << readout_ms
+           << " ms)";
+    line << ": the readout time looks wrong; take it from the camera (its data sheet or its "
+            "recorded readout) and train again";
+    review->timing.push_back(line.str());
+    line.str("");
+  }
+  const double lag_ms = review->best_lens_lag_ms;
+  if (lag_ms < -kMostLeadMs || lag_ms > kMostLagMs) {
+    line << "time_offset: the lens motion fits best " << std::abs(lag_ms) << " ms "
+         << (lag_ms > 0.0 ? "behind" : "ahead of")
+         << " the gyro at the times the gyro config gives ("
+         << (lag_ms > 0.0 ? "a module's own sensor lag is 0-3 ms"
+                          : "a stabiliser never moves before its gyro")
+         << "): the camera-IMU time offset (or the readout) looks wrong by about "
+         << std::abs(lag_ms) << " ms" << (lag_ms > 0.0 ? " less the module's own lag" : "")
+         << "; run calibrate on the recordings";
+    review->timing.push_back(line.str());
+  }
+}
+
 }  // namespace
 
 std::string StabiliserFitOptions::validate() const {
@@ -268,6 +380,8 @@ std::string StabiliserFitOptions::validate() const {
   else if (!(step_s > 0.0 && step_s <= 0.01)) why << "step_s: must be in (0, 0.01] s";
   else if (!(warm_up_s >= 0.0)) why << "warm_up_s: must be >= 0";
   else if (!(residual_ridge >= 0.0)) why << "residual_ridge: must be >= 0";
+  else if (!(readout_time_s >= 0.0))
+    why << "readout_time_s: must be >= 0";
   else {
     for (double tau : residual_time_constants_s)
       if (!(tau > 0.0)) return "residual_time_constants_s: must be positive";
@@ -275,6 +389,71 @@ std::string StabiliserFitOptions::validate() const {
       if (!(rate >= 0.0)) return "pan_thresholds_rad_s: must be >= 0 (0 = off)";
   }
   return why.str();
+}
+
+bool StabiliserFitReview::onBound(const std::string& parameter) const {
+  return std::find(on_bound_parameters.begin(), on_bound_parameters.end(), parameter) !=
+         on_bound_parameters.end();
+}
+
+StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
+  StabiliserFitReview review;
+  auto check = [&](const char* parameter, const char* what, double value, Bounds bounds,
+                   const char* unit) {
+    const double tolerance = 1e-6 * std::max(1.0, std::abs(bounds.upper));
+    const bool lower = value <= bounds.lower + tolerance;
+    if (!lower && value < bounds.upper - tolerance) return;
+    std::ostringstream line;
+    line << what << " " << value << (unit[0] ? " " : "") << unit << " is the fit's "
+         << (lower ? "lower" : "upper") << " bound: the data wanted " << (lower ? "less" : "more");
+    // No stabiliser moves before its gyro: frames placed too early in IMU time look like that.
+    if (lower && std::string(parameter) == "sensor_lag_s")
+      line << " (the lens moves with its gyro, no later: a module without sensor lag, or frames "
+              "placed too early in IMU time by a time offset or readout error; if unsure, run "
+              "calibrate)";
+    review.on_bound.push_back(line.str());
+    review.on_bound_parameters.push_back(parameter);
+  };
+  check("highpass_corner_hz", "centring corner", p.highpass_corner_hz, kCornerHz, "Hz");
+  check("actuator_natural_hz", "actuator natural frequency", p.actuator_natural_hz, kActuatorHz,
+        "Hz");
+  check("actuator_damping", "actuator damping", p.actuator_damping, kDamping, "");
+  check("sensor_lag_s", "sensor lag", 1000.0 * p.sensor_lag_s, kLagMs, "ms");
+  check("stroke_x_deg", "stroke x", p.stroke_x_deg, kStrokeDeg, "deg");
+  check("stroke_y_deg", "stroke y", p.stroke_y_deg, kStrokeDeg, "deg");
+  if (p.pan_detection_rate_rad_s > 0.0)
+    check("pan_release_corner_hz", "pan release corner", p.pan_release_corner_hz, kReleaseHz, "Hz");
+
+  constexpr double kMostStrokeDeg = 3.0;  // modules travel about +-0.5 to +-1.5 deg
+  const Eigen::Vector2d singular = Eigen::JacobiSVD<Eigen::Matrix2d>(p.gain).singularValues();
+  std::ostringstream gain;
+  gain.precision(3);
+  gain << "gain [" << p.gain(0, 0) << " " << p.gain(0, 1) << "; " << p.gain(1, 0) << " "
+       << p.gain(1, 1) << "] (it cancels " << 100.0 * singular(0) << " % of the rotation)";
+  if (singular(0) > kMostGain) {
+    review.implausible.push_back(
+        gain.str() +
+        ": a stabiliser cancels about the rotation (gain near 1), not more; the lens "
+        "motions are likely on the wrong scale (a lens log in other units than the image's pixels: "
+        "set lens_shift_scale in the gyro config, e.g. image width / active array width) or the "
+        "focal length (camera_info) is wrong");
+  } else if (singular(0) < kLeastGain) {
+    review.implausible.push_back(
+        gain.str() +
+        ": the lens hardly follows the rotation; the OIS was likely off (then the "
+        "camera needs no lens model) or the lens motions are on the wrong scale "
+        "(lens_shift_scale)");
+  }
+  const double stroke = std::max(p.stroke_x_deg, p.stroke_y_deg);
+  if (stroke > kMostStrokeDeg) {
+    std::ostringstream line;
+    line.precision(3);
+    line << "stroke " << p.stroke_x_deg << " x " << p.stroke_y_deg
+         << " deg: beyond what a module's lens travels (about 0.5-1.5 deg); the lens motions are "
+            "likely on the wrong scale (lens_shift_scale) or the focal length is wrong";
+    review.implausible.push_back(line.str());
+  }
+  return review;
 }
 
 std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
@@ -288,6 +467,55 @@ std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& param
             predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
           });
   return predicted;
+}
+
+StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
+                                const std::vector<StabiliserFitRecording>& recordings,
+                                const StabiliserFitOptions& options) {
+  double sum = 0.0, sum_without = 0.0, weights = 0.0;
+  StabiliserScore score;
+  for (const StabiliserFitRecording& recording : recordings) {
+    const auto predicted =
+        predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
+    for (std::size_t k = 0; k < predicted.size(); ++k) {
+      if (!predicted[k].allFinite()) continue;
+      const LensMotionObservation& o = recording.observations[k];
+      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
+      sum_without += o.weight * o.motion_px.squaredNorm();
+      weights += o.weight;
+      ++score.observations;
+    }
+  }
+  if (weights > 0.0) {
+    score.rms_px = std::sqrt(sum / weights);
+    score.rms_without_model_px = std::sqrt(sum_without / weights);
+  }
+  return score;
+}
+
+StabiliserParameters noLensMotion() {
+  StabiliserParameters p;
+  p.gain.setZero();
+  p.residual_time_constants_s.clear();
+  p.residual.resize(0, 0);
+  p.nonlinear_features.clear();
+  p.nonlinear_residual.resize(0, 0);
+  return p;
+}
+
+std::string refusalAgainstNoLensMotion(const StabiliserScore& held_out) {
+  if (!(held_out.observations > 0)) return "";
+  if (held_out.rms_px < (1.0 - kLeastHeldOutImprovement) * held_out.rms_without_model_px) return "";
+  std::ostringstream why;
+  why.setf(std::ios::fixed);
+  why.precision(3);
+  why << "on the held-out recordings the fitted stabiliser leaves " << held_out.rms_px
+      << " px RMS lens-motion residual and no lens motion " << held_out.rms_without_model_px
+      << " px: it does not beat no lens motion by " << std::setprecision(0)
+      << 100.0 * kLeastHeldOutImprovement
+      << " % (the lens does not move: a camera without OIS or with OIS off, or the fit learned "
+         "noise or a timing error)";
+  return why.str();
 }
 
 StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& recordings,
@@ -524,6 +752,17 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     result.parameters.residual.resize(0, 0);
     result.rms_px = result.rms_physical_px;
     log("residual bank dropped: it did not lower the residual");
+  }
+  result.review = reviewStabiliserFit(result.parameters);
+  if (options.check_timing) {
+    checkTiming(refined, recordings, physical_options, &result.review);
+  }
+  if (std::isfinite(result.review.best_lens_lag_ms)) {
+    std::ostringstream line;
+    line << "timing check: the lens motion fits best " << result.review.best_lens_lag_ms
+         << " ms behind the gyro, with the readout changed by "
+         << result.review.best_readout_change_ms << " ms";
+    log(line.str());
   }
   return result;
 }

@@ -54,12 +54,8 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
   }
   CameraDescription& description = data.camera;
   description = describeCamera(camera, rs.readout_time_s);
-  if (stamps_s.size() >= 2) {
-    std::vector<double> intervals;
-    for (std::size_t f = 1; f < stamps_s.size(); ++f) intervals.push_back(stamps_s[f] - stamps_s[f - 1]);
-    const double interval = median(intervals);
-    if (interval > 0.0) description.frame_rate_hz = 1.0 / interval;
-  }
+  description.frame_rate_hz = frameRateOfStampsHz(stamps_s);
+  if (!bag.truths.empty()) data.recorded_readout_time_s = bag.truths.front().readout_time;
 
   auto addPair = [&](double stamp_a_s, double stamp_b_s, const std::vector<Eigen::Vector2d>& s_a,
                      const std::vector<Eigen::Vector2d>& s_b) {
@@ -68,6 +64,8 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
       o.t_a_s = patchImuTime(rs, stamp_a_s, i);
       o.t_b_s = patchImuTime(rs, stamp_b_s, i);
       o.motion_px = s_b[static_cast<std::size_t>(i)] - s_a[static_cast<std::size_t>(i)];
+      o.readout_fraction =
+          (i + (rs.patch_time == PatchTimeReference::kPatchCentre ? 0.5 : 0.0)) / rs.patch_count;
       recording.observations.push_back(o);
     }
   };

@@ -107,7 +107,25 @@ std::vector<EvaluationReport::GapClosed> EvaluationReport::gapClosed() const {
   for (const std::string& method : methods) {
     if (method == kGyroOisMethod || method == kGyroNonOisMethod || method == kIdentityMethod)
       continue;
-    rows.push_back({method, share(table, method), share(uncapped, method)});
+    GapClosed row{method, share(table, method), share(uncapped, method), false};
+    const auto scope = std::find_if(method_scopes.begin(), method_scopes.end(),
+                                    [&](const auto& entry) { return entry.first == method; });
+    const bool compensation = scope != method_scopes.end() && scope->second == kOisCameraPairs;
+    row.beyond_twin =
+        compensation && std::max(row.capped_percent, row.uncapped_percent) > kMostGapClosedPercent;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+std::vector<std::string> EvaluationReport::rowsWithoutPairs() const {
+  std::vector<std::string> rows;
+  const auto& methods = table.methods();
+  for (const auto& [method, scope] : method_scopes) {
+    // The gyro reference rows depend on the kind of recording (twins, annotated, said to be OIS or
+    // not): one without pairs is expected. A compensation row without pairs is not.
+    if (scope != kOisCameraPairs || method == kGyroOisMethod) continue;
+    if (std::find(methods.begin(), methods.end(), method) == methods.end()) rows.push_back(method);
   }
   return rows;
 }
@@ -124,9 +142,16 @@ std::string EvaluationReport::markdown() const {
     out << "\nGap closed between the uncompensated OIS gyro and the non-OIS twin (Avg):\n\n";
     char line[256];
     for (const GapClosed& gap : gaps) {
-      std::snprintf(line, sizeof(line), "- %s: %.1f %% capped, %.1f %% uncapped\n",
+      std::snprintf(line, sizeof(line), "- %s: %.1f %% capped, %.1f %% uncapped",
                     gap.method.c_str(), gap.capped_percent, gap.uncapped_percent);
       out << line;
+      if (gap.beyond_twin) {
+        out << " (implausible: a compensation of the gyro cannot do better than the non-OIS "
+               "twin's gyro; the gyro config's time offset or readout likely does not fit these "
+               "recordings, which makes the gyro rows worse, and the model absorbed the error: "
+               "check it with calibrate)";
+      }
+      out << "\n";
     }
   }
   std::vector<std::string> notes;
@@ -151,6 +176,11 @@ std::string EvaluationReport::markdown() const {
     }
     if (capped > 0) note << "; " << capped << " worse than identity, capped";
     notes.push_back(note.str());
+  }
+  for (const std::string& method : rowsWithoutPairs()) {
+    notes.push_back("- " + method +
+                    ": no pair of these recordings is in its scope (it compensates an OIS camera's "
+                    "gyro: pairs of an OIS camera); left out of the table");
   }
   if (!notes.empty()) {
     out << "\n";

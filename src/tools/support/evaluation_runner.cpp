@@ -217,6 +217,11 @@ EvaluationReport EvaluationRunner::run() {
       const BagSequence& sequence = recording.sequence;
       const CameraModel& camera = *sequence.camera;
       result.camera = describeCamera(camera, recording.rolling_shutter.readout_time_s);
+      // The frame rate from the camera_info stamps, so a model of another rate is told apart.
+      std::vector<double> frame_stamps_s;
+      for (const ros::Time& stamp : sequence.frame_stamps)
+        frame_stamps_s.push_back(sequence.secondsSinceBase(stamp));
+      result.camera.frame_rate_hz = frameRateOfStampsHz(frame_stamps_s);
       auto fail = [&](const std::string& what) {
         throw std::runtime_error(recording.path + ": " + what);
       };
@@ -445,7 +450,8 @@ EvaluationReport EvaluationRunner::run() {
       if (index + 1 < options_.bags.size() && !next.valid()) next = prefetch(index + 1);
       const std::string what = e.what();
       result.error = what.rfind(result.path, 0) == 0 ? what : result.path + ": " + what;
-      if (progress) std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());
+      if (progress && progress->drawing())
+        std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());
     }
   }
   if (annotated) {
@@ -460,11 +466,14 @@ EvaluationReport EvaluationRunner::run() {
   }
   if (progress) {
     if (pairs_done < total_pairs) progress->update(total_pairs);  // pairs no bag held
-    std::fprintf(stderr, "\n");
+    if (progress->drawing()) std::fprintf(stderr, "\n");
   }
   report.table.orderCategories({"RE", "LT", "LL", "MF"});  // the paper's column order
   std::vector<std::string> method_order;
-  for (const AlignmentMethod& method : methods_) method_order.push_back(method.name);
+  for (const AlignmentMethod& method : methods_) {
+    method_order.push_back(method.name);
+    report.method_scopes.emplace_back(method.name, method.scope);
+  }
   report.table.orderMethods(method_order);
   report.elapsed_s = secondsSince(started);
   return report;

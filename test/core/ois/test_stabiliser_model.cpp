@@ -183,6 +183,159 @@ TEST(StabiliserFit, RecoversAKnownStabiliserFromNoisyLensMotion) {
   EXPECT_LT(std::sqrt(sum / n), 0.1);
 }
 
+// Issue 23 #4: a lens log in active-array pixels read with lens_shift_scale 1 trained silently to
+// a gain of 6.6 and a 9.8 deg stroke, with the sensor lag and the actuator damping on their bounds.
+TEST(StabiliserFit, ReviewNamesImplausibleValuesAndParametersOnABound) {
+  StabiliserParameters p = knownStabiliser();
+  p.gain << 0.0, 6.6, -6.4, 0.0;
+  p.stroke_x_deg = 9.8;
+  p.sensor_lag_s = 0.0;
+  p.actuator_damping = 0.05;
+  const StabiliserFitReview review = reviewStabiliserFit(p);
+  ASSERT_EQ(review.implausible.size(), 2u);
+  EXPECT_NE(review.implausible[0].find("gain"), std::string::npos) << review.implausible[0];
+  EXPECT_NE(review.implausible[0].find("lens_shift_scale"), std::string::npos);
+  EXPECT_NE(review.implausible[1].find("stroke 9.8"), std::string::npos) << review.implausible[1];
+  EXPECT_TRUE(review.onBound("sensor_lag_s"));
+  EXPECT_TRUE(review.onBound("actuator_damping"));
+  EXPECT_FALSE(review.onBound("highpass_corner_hz"));
+  EXPECT_EQ(review.on_bound.size(), 2u);
+  // A module as the simulator's: nothing to say.
+  const StabiliserFitReview plausible = reviewStabiliserFit(knownStabiliser());
+  EXPECT_TRUE(plausible.implausible.empty());
+  EXPECT_TRUE(plausible.on_bound.empty());
+}
+
+// The same from the fit itself: lens motions 6.6 times too large (the wrong scale) are fitted,
+// and the result says its gain is implausible.
+TEST(StabiliserFit, LensMotionsOnTheWrongScaleAreFlagged) {
+  StabiliserFitRecording recording = observe(knownStabiliser(), 21, 0.02);
+  for (LensMotionObservation& o : recording.observations) o.motion_px *= 6.6;
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.try_circular_stroke = false;
+  options.iterations = 10;
+  const StabiliserFitResult fit = fitStabiliser({recording}, options);
+  ASSERT_FALSE(fit.review.implausible.empty());
+  EXPECT_NE(fit.review.implausible[0].find("gain"), std::string::npos) << fit.review.implausible[0];
+}
+
+// Observations of `truth` on 30 fps frames whose rows were captured with `true_readout_s`, placed
+// in time with the gyro config's `config_readout_s` (issue 23 #12: a wrong readout hides in the
+// fitted lens).
+// `early_s`: the config places the frames this much before their true capture (a time offset
+// error).
+StabiliserFitRecording observeWithReadout(const StabiliserParameters& truth, unsigned seed,
+                                          double true_readout_s, double config_readout_s,
+                                          double early_s = 0.0) {
+  StabiliserFitRecording recording;
+  recording.name = "synthetic " + std::to_string(seed);
+  recording.focal_px = kFocalPx;
+  recording.rates = shake(0.0, 6.0, seed);
+  for (double stamp = 0.0; stamp + 1.0 / 30.0 < 5.9; stamp += 1.0 / 30.0) {
+    for (int i = 0; i < 6; ++i) {
+      LensMotionObservation o;
+      o.readout_fraction = (i + 0.5) / 6.0;
+      o.t_a_s = stamp + true_readout_s * o.readout_fraction;
+      o.t_b_s = o.t_a_s + 1.0 / 30.0;
+      recording.observations.push_back(o);
+    }
+  }
+  const auto motion = predictLensMotion(truth, recording, 1e-3, 0.0);
+  for (std::size_t k = 0; k < motion.size(); ++k) {
+    LensMotionObservation& o = recording.observations[k];
+    o.motion_px = motion[k];
+    const double placed =
+        o.t_a_s + (config_readout_s - true_readout_s) * o.readout_fraction - early_s;
+    o.t_b_s += placed - o.t_a_s;
+    o.t_a_s = placed;
+  }
+  return recording;
+}
+
+StabiliserFitResult fitWithReadout(double true_readout_s, double config_readout_s,
+                                   double early_s = 0.0) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.try_circular_stroke = false;
+  options.iterations = 10;
+  options.readout_time_s = config_readout_s;
+  const StabiliserParameters truth = knownStabiliser();  // 2 ms sensor lag
+  return fitStabiliser({observeWithReadout(truth, 31, true_readout_s, config_readout_s, early_s),
+                        observeWithReadout(truth, 32, true_readout_s, config_readout_s, early_s)},
+                       options);
+}
+
+TEST(StabiliserFit, TimingCheckPassesTheRightReadout) {
+  const StabiliserFitResult fit = fitWithReadout(0.012, 0.012);
+  EXPECT_TRUE(fit.review.timing.empty()) << fit.review.timing.front();
+  EXPECT_NEAR(fit.review.best_readout_change_ms, 0.0, 1.0);
+  EXPECT_NEAR(fit.review.best_lens_lag_ms, 2.0, 1.0);  // the module's own lag
+}
+
+// A 60 fps camera with a 12 ms readout trained with the default 22 ms: the lens absorbed the
+// error and the track residual looked fine; the timing check names the readout.
+TEST(StabiliserFit, TimingCheckNamesAReadoutTooLong) {
+  const StabiliserFitResult fit = fitWithReadout(0.012, 0.022);
+  EXPECT_NEAR(fit.review.best_readout_change_ms, -10.0, 2.0);
+  ASSERT_FALSE(fit.review.timing.empty());
+  EXPECT_EQ(fit.review.timing.front().rfind("readout_time:", 0), 0u) << fit.review.timing.front();
+  EXPECT_NE(fit.review.timing.front().find("config says 22.0 ms"), std::string::npos)
+      << fit.review.timing.front();
+}
+
+// A 30 ms camera trained with 22 ms: the fit hid the error as a longer sensor lag.
+TEST(StabiliserFit, TimingCheckNamesAReadoutTooShort) {
+  const StabiliserFitResult fit = fitWithReadout(0.030, 0.022);
+  EXPECT_NEAR(fit.review.best_readout_change_ms, 8.0, 2.0);
+  ASSERT_FALSE(fit.review.timing.empty());
+  EXPECT_EQ(fit.review.timing.front().rfind("readout_time:", 0), 0u) << fit.review.timing.front();
+}
+
+// Issue 25: "no lens motion" is always a candidate. A camera with OIS off (lens motions that are
+// noise) fits some lens anyway; on held-out recordings it does not beat no lens motion and is
+// refused, with the reason. A camera with OIS keeps its fit.
+// A time offset 6 ms late: the lens seems to lag its gyro by 8 ms, more than a module's sensor
+// lag (the fit hid it as a sensor lag); the readout is right and not named.
+TEST(StabiliserFit, TimingCheckNamesATimeOffsetError) {
+  const StabiliserFitResult late = fitWithReadout(0.012, 0.012, -0.006);
+  EXPECT_NEAR(late.review.best_lens_lag_ms, 8.0, 1.0);
+  ASSERT_EQ(late.review.timing.size(), 1u);
+  EXPECT_EQ(late.review.timing.front().rfind("time_offset:", 0), 0u) << late.review.timing.front();
+  // 6 ms early: the actuator's own delay (about 6 ms for the 30 Hz, 0.6 damping truth) absorbs a
+  // lead that large, so the timing check cannot tell it; the fit ends on its bounds instead.
+  const StabiliserFitResult early = fitWithReadout(0.012, 0.012, 0.006);
+  for (const std::string& line : early.review.timing)
+    EXPECT_EQ(line.rfind("readout_time:", 0), std::string::npos) << line;
+  EXPECT_TRUE(early.review.onBound("sensor_lag_s"));
+}
+
+TEST(StabiliserFit, AFitThatDoesNotBeatNoLensMotionOnHeldOutRecordingsIsRefused) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.try_circular_stroke = false;
+  options.iterations = 10;
+  StabiliserParameters off = knownStabiliser();
+  off.gain.setZero();  // the lens never moves: only the noise of the measurement is left
+  const StabiliserFitResult ois_off = fitStabiliser({observe(off, 41, 0.1)}, options);
+  const StabiliserScore off_held_out =
+      scoreStabiliser(ois_off.parameters, {observe(off, 42, 0.1)}, options);
+  const std::string refusal = refusalAgainstNoLensMotion(off_held_out);
+  // A lens fitted to noise has no timing to check (it named a 16 ms time offset error).
+  EXPECT_TRUE(ois_off.review.timing.empty()) << ois_off.review.timing.front();
+  EXPECT_NE(refusal.find("does not beat no lens motion"), std::string::npos)
+      << "held out: " << off_held_out.rms_px << " px vs " << off_held_out.rms_without_model_px;
+  // No lens motion predicts exactly that.
+  const StabiliserScore none = scoreStabiliser(noLensMotion(), {observe(off, 42, 0.1)}, options);
+  EXPECT_EQ(none.rms_px, none.rms_without_model_px);
+
+  const StabiliserFitResult ois_on = fitStabiliser({observe(knownStabiliser(), 43, 0.1)}, options);
+  const StabiliserScore on_held_out =
+      scoreStabiliser(ois_on.parameters, {observe(knownStabiliser(), 44, 0.1)}, options);
+  EXPECT_EQ(refusalAgainstNoLensMotion(on_held_out), "")
+      << on_held_out.rms_px << " px vs " << on_held_out.rms_without_model_px;
+}
+
 TEST(StabiliserFit, RefusesDataWithoutAUsableObservation) {
   StabiliserFitRecording recording = observe(knownStabiliser(), 5, 0.0);
   for (auto& o : recording.observations) o.t_a_s = o.t_b_s = 100.0;  // outside the gyro stream
@@ -225,6 +378,11 @@ TEST(StabiliserModelFile, RoundTripsEveryFieldAndNamesABadOne) {
   }
   EXPECT_THROW(StabiliserModelFile::fromYaml("format: something_else\n"), StabiliserModelFileError);
   EXPECT_THROW(StabiliserModelFile::load("/nonexistent/model.yaml"), StabiliserModelFileError);
+}
+
+TEST(CameraDescription, FrameRateFromStampsIgnoresADroppedFrame) {
+  EXPECT_NEAR(frameRateOfStampsHz({0.0, 1.0 / 30, 2.0 / 30, 4.0 / 30, 5.0 / 30}), 30.0, 1e-9);
+  EXPECT_EQ(frameRateOfStampsHz({1.0}), 0.0);  // unknown
 }
 
 TEST(CameraDescription, SaysHowAnotherCameraDiffers) {

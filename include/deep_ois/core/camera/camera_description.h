@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "deep_ois/core/camera/camera_model.h"
 
@@ -31,5 +32,9 @@ struct CameraDescription {
 
 // The size and intrinsics of `camera` with the given readout; frame rate unknown (0).
 CameraDescription describeCamera(const CameraModel& camera, double readout_time_s);
+
+// A recording's frame rate from its frame stamps (seconds, in order): 1 / the median interval, so
+// that dropped frames do not lower it; 0 (unknown) with fewer than two frames.
+double frameRateOfStampsHz(const std::vector<double>& stamps_s);
 
 }  // namespace deep_ois

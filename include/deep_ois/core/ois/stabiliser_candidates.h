@@ -21,16 +21,6 @@
 
 namespace deep_ois {
 
-// Lens-motion RMS error of a model over recordings (pixels), and of "no lens model" (motion 0).
-struct LensMotionScore {
-  double rms_px = 0.0;
-  double rms_without_model_px = 0.0;
-  std::size_t observations = 0;
-};
-LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
-                                const std::vector<StabiliserFitRecording>& recordings,
-                                const StabiliserFitOptions& options);
-
 // `base` plus a nonlinear residual (feature set `feature_set`) fitted by ridge regression (weight
 // `ridge` relative to each feature's energy, Huber weights as options.huber_px) on the lens
 // motion `base` leaves in `recordings`. Throws std::invalid_argument when no observation is usable.
@@ -43,8 +33,8 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
 struct StabiliserCandidate {
   std::string name;
   StabiliserParameters parameters;
-  LensMotionScore training;
-  LensMotionScore held_out;  // observations 0 without held-out recordings
+  StabiliserScore training;  // scoreStabiliser (core/ois/stabiliser_fit.h)
+  StabiliserScore held_out;  // observations 0 without held-out recordings
 };
 
 struct StabiliserSelection {

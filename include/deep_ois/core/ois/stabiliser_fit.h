@@ -13,6 +13,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,9 @@ struct LensMotionObservation {
   double t_b_s = 0.0;
   Eigen::Vector2d motion_px = Eigen::Vector2d::Zero();
   double weight = 1.0;
+  // Where the observed row patch lies in its frame's readout (0 first row, 1 last row): a wrong
+  // readout time misplaces t_a and t_b in proportion to it (the fit's timing check).
+  double readout_fraction = 0.5;
 };
 
 // One recording: its gyro stream (camera frame, increasing stamps) and what was observed.
@@ -50,9 +54,42 @@ struct StabiliserFitOptions {
   // Observations in the first warm_up_s of a recording's gyro stream are not used: the model
   // starts from a centred lens, the real stabiliser did not.
   double warm_up_s = 1.0;
+  // The timing check of the review (a few dozen cost evaluations after the fit).
+  bool check_timing = true;
+  // The readout time the observations were placed with (the gyro config's), seconds: the timing
+  // check names a readout that fits better in proportion to it; 0 = unknown.
+  double readout_time_s = 0.0;
 
   std::string validate() const;
 };
+
+// What a fit's parameters say beyond its residual (a fit says how it ended): each list holds one
+// sentence per finding, for the training report.
+struct StabiliserFitReview {
+  // Parameters that ended on a bound of the fit (they wanted to go further), e.g. "sensor lag
+  // 0.00 ms is the fit's lower bound"; `on_bound_parameters` names them as StabiliserParameters
+  // does ("sensor_lag_s", "actuator_damping", ...) for tables.
+  std::vector<std::string> on_bound;
+  std::vector<std::string> on_bound_parameters;
+  // Values outside what a camera module does (a gain far from 1, a stroke beyond a module's
+  // travel), each with its likely cause.
+  std::vector<std::string> implausible;
+  // The timing check (fitStabiliser only): the observations moved in time against the gyro, with
+  // the fitted physical model and no sensor lag. A time shift of the whole frame (at its middle
+  // row) and a change of the readout (rows moved in proportion to their place in the readout) are
+  // scanned. The lens must then lag the gyro by a module's sensor lag (a time offset error adds to
+  // it), and the readout must need no change. Milliseconds; NaN when not checked.
+  double best_lens_lag_ms = std::numeric_limits<double>::quiet_NaN();
+  double best_readout_change_ms = std::numeric_limits<double>::quiet_NaN();
+  // A sentence per suspect setting (time_offset, readout_time) with what the data prefer.
+  std::vector<std::string> timing;
+
+  bool onBound(const std::string& parameter) const;
+};
+
+// Reviews fitted parameters: bounds of the fit reached (pan_release_corner_hz only with pan
+// detection on, the only case the fit moves it) and implausible values.
+StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& parameters);
 
 struct StabiliserFitResult {
   StabiliserParameters parameters;
@@ -67,6 +104,7 @@ struct StabiliserFitResult {
   // The RMS residual (pixels) after every accepted refinement step of the model kept (the first
   // refinement, the full one, and the variant's when one was kept): the fit's loss curve.
   std::vector<double> rms_history;
+  StabiliserFitReview review;  // of `parameters`
 };
 
 // Throws std::invalid_argument when the options are invalid, a recording has no focal length or
@@ -74,6 +112,28 @@ struct StabiliserFitResult {
 StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& recordings,
                                   const StabiliserFitOptions& options,
                                   const ProgressCallback& progress = {});
+
+// A model's RMS lens-motion residual on recordings (pixels, weighted by the observations'
+// weights) beside that of no lens motion (motion 0), over the observations the model predicts.
+struct StabiliserScore {
+  double rms_px = std::numeric_limits<double>::quiet_NaN();
+  double rms_without_model_px = std::numeric_limits<double>::quiet_NaN();
+  std::size_t observations = 0;
+};
+StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
+                                const std::vector<StabiliserFitRecording>& recordings,
+                                const StabiliserFitOptions& options);
+
+// The model of a camera whose lens does not move (no OIS, or OIS off): gain 0, no residual bank.
+// Always a candidate: a fit must beat it on recordings it was not trained on.
+StabiliserParameters noLensMotion();
+
+// A fit must lower the held-out residual of no lens motion by this share to be kept (a lens fitted
+// to noise or to timing errors does not; issue 25: an OIS-off recording fitted 97 % gains).
+constexpr double kLeastHeldOutImprovement = 0.05;
+// Empty when the fit's held-out score beats no lens motion by kLeastHeldOutImprovement; otherwise
+// why it is refused, with both residuals.
+std::string refusalAgainstNoLensMotion(const StabiliserScore& held_out);
 
 // The model's predicted lens motion for each observation of `recording` (in input order; NaN for
 // those it cannot predict: before the gyro stream's warm-up or outside it).

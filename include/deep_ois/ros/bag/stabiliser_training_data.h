@@ -30,6 +30,10 @@ struct StabiliserRecordingData {
   std::size_t pairs_without_tracks = 0; // too few inlier tracks for the images' estimate
   std::size_t pairs_without_log = 0;    // kLensLog: the log does not cover the pair (a gap)
   double median_track_residual_px = 0.0;  // of the images' estimate (0 for the simulator truth)
+  // The readout time the recording itself states (the simulator's truth carries the camera's),
+  // seconds; kNotRecorded when it states none. Compared with the gyro config's readout.
+  static constexpr double kNotRecorded = -1.0;
+  double recorded_readout_time_s = kNotRecorded;
 };
 
 // Throws std::runtime_error naming the bag and the problem (unreadable, no camera_info, no IMU or

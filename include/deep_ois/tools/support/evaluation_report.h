@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "deep_ois/core/camera/camera_description.h"
@@ -48,6 +49,9 @@ struct EvaluationReport {
   // Failures per method by reason, e.g. "SIFT + RANSAC" -> {"too few matches (< 8)": 12}.
   std::map<std::string, std::map<std::string, std::size_t>> failure_reasons;
   std::vector<GhostSample> ghosts;
+  // Every row registered, with its PairScope flags (the runner's methods, in order): a row for
+  // OIS cameras compensates the gyro; one for all pairs sees the images.
+  std::vector<std::pair<std::string, unsigned>> method_scopes;
   double elapsed_s = 0.0;  // the whole run
   double reading_s = 0.0;  // reading and decoding the recordings (ahead, overlapping the rest)
   std::map<std::string, double> method_s;  // of which each method's estimates (scoring excluded)
@@ -62,15 +66,27 @@ struct EvaluationReport {
   // Per row other than the two gyro rows, the share of the gap between the uncompensated OIS gyro
   // and the non-OIS twin that the row closed, on the Avg, capped and uncapped:
   // 100 (gyro_OIS - row) / (gyro_OIS - gyro_non-OIS). Empty unless both gyro rows are present.
+  // A row that compensates the gyro of an OIS camera (scope OIS camera pairs only) cannot beat
+  // the non-OIS twin's gyro by more than noise: the twin is what a perfect compensation gives.
+  // `beyond_twin` marks such a row above kMostGapClosedPercent, a sign that the gyro config
+  // (time offset, readout) does not fit the recordings and the model absorbed the error.
+  static constexpr double kMostGapClosedPercent = 110.0;
   struct GapClosed {
     std::string method;
     double capped_percent = 0.0;
     double uncapped_percent = 0.0;
+    bool beyond_twin = false;
   };
   std::vector<GapClosed> gapClosed() const;
 
-  // The capped table (the paper's), the uncapped one, the gap closed per row, then a note per
-  // method that had failures or capped pairs, and the problems.
+  // Compensation rows (scope: OIS camera pairs, other than the uncompensated gyro) that no pair was
+  // in scope for, e.g. on recordings annotated as of a non-OIS camera: they are not in the table.
+  // The gyro reference rows are not listed (which of them has pairs depends on the recordings).
+  std::vector<std::string> rowsWithoutPairs() const;
+
+  // The capped table (the paper's), the uncapped one, the gap closed per row (with a comment on a
+  // compensation beyond the twin), then a note per method that had failures or capped pairs or
+  // no pair at all, and the problems.
   std::string markdown() const;
   std::string json() const;
   // One line per pair and method: recording,stamp_a,stamp_b,category,method,distance_px,
