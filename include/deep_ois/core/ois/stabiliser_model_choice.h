@@ -1,0 +1,73 @@
+// Which stabiliser model to use: the candidates (a fresh fit, the model found before for this
+// camera, the shipped generic one, and always "no lens motion") scored on held-out lens motions,
+// and the incumbent kept unless a candidate is clearly better there.
+//
+// Why "no lens motion" is always a candidate: a camera without OIS, or with OIS off, has a lens
+// that does not move, and a fit on its images still finds a "lens" (it absorbs the calibration's
+// and the tracker's errors; on the OIS-off CC9 a fit cancelled 79-97 % of the rotation and made the
+// output 2.7 times worse than the plain gyro). Scored on data it was not fitted to, such a fit
+// loses to the model that predicts no motion. The same rule serves train_stabiliser and the live
+// pipeline's online learner. Pure C++/Eigen: no ROS.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/stabiliser_fit.h"
+
+namespace deep_ois {
+
+// A stabiliser whose lens never moves (gain 0, no residual): the compensation is the plain gyro.
+StabiliserParameters noLensMotionParameters();
+bool isNoLensMotion(const StabiliserParameters& parameters);
+
+// RMS of |predicted - observed| lens motion (pixels, weighted) over the recordings' observations
+// the model can predict (after the warm-up), and of |observed| (no lens motion).
+struct LensMotionScore {
+  double rms_px = 0.0;
+  double rms_without_px = 0.0;
+  std::size_t observations = 0;  // 0: nothing scored (both RMS are NaN)
+};
+LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
+                                const std::vector<StabiliserFitRecording>& recordings,
+                                double step_s = 1e-3, double warm_up_s = 1.0);
+
+// Splits each recording in time: its observations ending in the last `held_out_fraction` of its
+// observed span go to held_out (with the whole gyro stream, for the warm-up), the others to
+// training. Recordings without observations are left out.
+void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,
+                           double held_out_fraction, std::vector<StabiliserFitRecording>* training,
+                           std::vector<StabiliserFitRecording>* held_out);
+
+struct StabiliserCandidate {
+  std::string name;  // "fit", "no lens motion", "generic", ... (for messages)
+  StabiliserParameters parameters;
+};
+
+struct StabiliserChoiceOptions {
+  // A candidate replaces the incumbent only when its held-out RMS is below the incumbent's by this
+  // fraction (it must be clearly better: the held-out window is small and noisy).
+  double min_relative_improvement = 0.05;
+  // ... and by at least this much, pixels (below the tracker's noise nothing is measured).
+  double min_improvement_px = 0.005;
+  double step_s = 1e-3;
+  double warm_up_s = 1.0;
+};
+
+struct StabiliserChoice {
+  std::size_t chosen = 0;            // index into the candidates
+  bool replaced_incumbent = false;   // chosen != incumbent
+  std::vector<LensMotionScore> scores;  // per candidate
+  std::string reason;                // one sentence: the scores and why this one
+};
+
+// Scores every candidate on `held_out` and keeps `incumbent` unless the best other candidate is
+// better by the options' margins. With nothing to score (no held-out observation) the incumbent
+// stays. Throws std::invalid_argument for an empty candidate list or an incumbent out of range.
+StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& candidates,
+                                       std::size_t incumbent,
+                                       const std::vector<StabiliserFitRecording>& held_out,
+                                       const StabiliserChoiceOptions& options = {});
+
+}  // namespace deep_ois

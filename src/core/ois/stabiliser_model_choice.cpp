@@ -1,0 +1,124 @@
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace deep_ois {
+
+StabiliserParameters noLensMotionParameters() {
+  StabiliserParameters p;
+  p.gain.setZero();
+  p.residual_time_constants_s.clear();
+  p.residual.resize(0, 0);
+  p.pan_detection_rate_rad_s = 0.0;
+  return p;
+}
+
+bool isNoLensMotion(const StabiliserParameters& parameters) {
+  return parameters.gain.isZero(0.0) &&
+         (parameters.residual.size() == 0 || parameters.residual.isZero(0.0));
+}
+
+LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
+                                const std::vector<StabiliserFitRecording>& recordings, double step_s,
+                                double warm_up_s) {
+  double sum = 0.0, sum_without = 0.0, weights = 0.0;
+  LensMotionScore score;
+  for (const auto& recording : recordings) {
+    if (recording.observations.empty()) continue;
+    const auto predicted = predictLensMotion(parameters, recording, step_s, warm_up_s);
+    for (std::size_t k = 0; k < predicted.size(); ++k) {
+      if (!predicted[k].allFinite()) continue;
+      const auto& o = recording.observations[k];
+      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
+      sum_without += o.weight * o.motion_px.squaredNorm();
+      weights += o.weight;
+      ++score.observations;
+    }
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  score.rms_px = weights > 0.0 ? std::sqrt(sum / weights) : nan;
+  score.rms_without_px = weights > 0.0 ? std::sqrt(sum_without / weights) : nan;
+  return score;
+}
+
+void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,
+                           double held_out_fraction, std::vector<StabiliserFitRecording>* training,
+                           std::vector<StabiliserFitRecording>* held_out) {
+  for (const auto& recording : recordings) {
+    if (recording.observations.empty()) continue;
+    double first = recording.observations.front().t_b_s, last = first;
+    for (const auto& o : recording.observations) {
+      first = std::min(first, o.t_b_s);
+      last = std::max(last, o.t_b_s);
+    }
+    const double split = last - held_out_fraction * (last - first);
+    StabiliserFitRecording early = recording, late = recording;
+    early.observations.clear();
+    late.observations.clear();
+    late.name += " (held-out end)";
+    for (const auto& o : recording.observations) (o.t_b_s > split ? late : early).observations.push_back(o);
+    if (!early.observations.empty()) training->push_back(std::move(early));
+    if (!late.observations.empty()) held_out->push_back(std::move(late));
+  }
+}
+
+StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& candidates,
+                                       std::size_t incumbent,
+                                       const std::vector<StabiliserFitRecording>& held_out,
+                                       const StabiliserChoiceOptions& options) {
+  if (candidates.empty()) throw std::invalid_argument("chooseStabiliserModel: no candidate");
+  if (incumbent >= candidates.size())
+    throw std::invalid_argument("chooseStabiliserModel: incumbent " + std::to_string(incumbent) +
+                                " of " + std::to_string(candidates.size()) + " candidates");
+  StabiliserChoice choice;
+  choice.chosen = incumbent;
+  for (const auto& candidate : candidates)
+    choice.scores.push_back(scoreLensMotion(candidate.parameters, held_out, options.step_s, options.warm_up_s));
+  std::ostringstream why;
+  why.precision(3);
+  why << "held-out lens motion RMS:";
+  for (std::size_t c = 0; c < candidates.size(); ++c)
+    why << (c ? "," : "") << " " << candidates[c].name << " " << std::fixed << choice.scores[c].rms_px << " px";
+  const double kept = choice.scores[incumbent].rms_px;
+  if (choice.scores[incumbent].observations == 0 || !std::isfinite(kept)) {
+    why << "; nothing held out to score: " << candidates[incumbent].name << " kept";
+    choice.reason = why.str();
+    return choice;
+  }
+  std::size_t best = incumbent;
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    if (std::isfinite(choice.scores[c].rms_px) && choice.scores[c].rms_px < choice.scores[best].rms_px) best = c;
+  }
+  auto clearlyBelow = [&options](double score, double reference) {
+    return score < std::min(reference * (1.0 - options.min_relative_improvement),
+                            reference - options.min_improvement_px);
+  };
+  // The simplest explanation when the data cannot tell: "no lens motion" is preferred to a
+  // candidate that is not clearly better than it (a fit on an OIS-off camera's noise).
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    if (c != best && isNoLensMotion(candidates[c].parameters) && std::isfinite(choice.scores[c].rms_px) &&
+        !clearlyBelow(choice.scores[best].rms_px, choice.scores[c].rms_px)) {
+      best = c;
+      break;
+    }
+  }
+  const double needed = std::min(kept * (1.0 - options.min_relative_improvement), kept - options.min_improvement_px);
+  if (best != incumbent && choice.scores[best].rms_px < needed) {
+    choice.chosen = best;
+    choice.replaced_incumbent = true;
+    why << "; " << candidates[best].name << " replaces " << candidates[incumbent].name;
+  } else if (best != incumbent) {
+    why << "; " << candidates[incumbent].name << " kept: " << candidates[best].name << " is not better by "
+        << 100.0 * options.min_relative_improvement << " % and " << options.min_improvement_px << " px";
+  } else {
+    why << "; " << candidates[incumbent].name << " kept (the best)";
+  }
+  choice.reason = why.str();
+  return choice;
+}
+
+}  // namespace deep_ois
