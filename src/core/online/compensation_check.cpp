@@ -1,5 +1,6 @@
 #include "deep_ois/core/online/compensation_check.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <limits>
 #include <sstream>
