@@ -24,6 +24,7 @@
 
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/ros/bag/stabiliser_training_data.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
@@ -135,24 +136,9 @@ struct HeldOutScore {
 HeldOutScore scoreHeldOut(const deep_ois::StabiliserParameters& parameters,
                           const std::vector<deep_ois::StabiliserFitRecording>& recordings,
                           const deep_ois::StabiliserFitOptions& options) {
-  double sum = 0.0, sum_without = 0.0, weights = 0.0;
-  HeldOutScore score;
-  for (const auto& recording : recordings) {
-    const auto predicted =
-        deep_ois::predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
-    for (std::size_t k = 0; k < predicted.size(); ++k) {
-      if (!predicted[k].allFinite()) continue;
-      const auto& o = recording.observations[k];
-      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
-      sum_without += o.weight * o.motion_px.squaredNorm();
-      weights += o.weight;
-      ++score.observations;
-    }
-  }
-  const double nan = std::nan("");
-  score.rms_px = weights > 0.0 ? std::sqrt(sum / weights) : nan;
-  score.rms_without_px = weights > 0.0 ? std::sqrt(sum_without / weights) : nan;
-  return score;
+  const deep_ois::LensMotionScore score =
+      deep_ois::scoreLensMotion(parameters, recordings, options.step_s, options.warm_up_s);
+  return {score.rms_px, score.rms_without_px, score.observations};
 }
 
 }  // namespace
@@ -320,6 +306,18 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (const std::string& line : fit.log) std::fprintf(stderr, "train_stabiliser: %s\n", line.c_str());
+  // "No lens motion" must be beaten on data the fit did not see: an OIS-off camera trains to it.
+  const deep_ois::NoLensMotionCheck lens_check =
+      deep_ois::checkFitAgainstNoLensMotion(fit.parameters, training, held_out, fit_options);
+  std::fprintf(stderr, "train_stabiliser: check against no lens motion %s\n", lens_check.reason.c_str());
+  if (lens_check.refused) {
+    std::fprintf(stderr,
+                 "train_stabiliser: the fit is REFUSED (it does not predict the lens motion better than "
+                 "no lens motion): writing 'no lens motion' (the compensation is then the plain gyro: a "
+                 "camera without OIS or with OIS off)\n");
+    fit.parameters = deep_ois::noLensMotionParameters();
+    fit.rms_px = fit.rms_physical_px = fit.rms_without_model_px;
+  }
 
   // ---- 3. Held-out scores and the model file. ----
   deep_ois::StabiliserModelFile model;
@@ -391,6 +389,9 @@ int main(int argc, char** argv) {
   if (!held_out.empty()) {
     std::printf("| held out (%zu recordings) | %zu | %.3f | | %.3f |\n", held_out.size(),
                 score.observations, score.rms_without_px, score.rms_px);
+  }
+  if (lens_check.refused) {
+    std::printf("\nThe fit was refused for 'no lens motion' (%s).\n", lens_check.reason.c_str());
   }
   std::printf("\ntrained in %.1f s (ground truth included; cached recordings are not recomputed)\n",
               model.training.training_time_s);

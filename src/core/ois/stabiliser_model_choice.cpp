@@ -122,3 +122,39 @@ StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& c
 }
 
 }  // namespace deep_ois
+
+namespace deep_ois {
+
+NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted,
+                                              const std::vector<StabiliserFitRecording>& training,
+                                              const std::vector<StabiliserFitRecording>& held_out,
+                                              const StabiliserFitOptions& fit_options,
+                                              const StabiliserChoiceOptions& choice_options) {
+  StabiliserChoiceOptions options = choice_options;
+  options.step_s = fit_options.step_s;
+  options.warm_up_s = fit_options.warm_up_s;
+  NoLensMotionCheck check;
+  StabiliserParameters candidate = fitted;
+  std::vector<StabiliserFitRecording> scored = held_out;
+  std::string where = "the held-out recordings";
+  if (held_out.empty()) {
+    std::vector<StabiliserFitRecording> early;
+    splitRecordingsInTime(training, 0.25, &early, &scored);
+    where = "the last quarter of each training recording (fitted again on the first three quarters)";
+    try {
+      candidate = fitStabiliser(early, fit_options).parameters;
+    } catch (const std::exception& e) {
+      check.refused = true;
+      check.reason = std::string("the fit on the first three quarters failed (") + e.what() +
+                     "): nothing shows that the lens moves";
+      return check;
+    }
+  }
+  const StabiliserChoice choice =
+      chooseStabiliserModel({{"fit", candidate}, {"no lens motion", noLensMotionParameters()}}, 1, scored, options);
+  check.refused = !choice.replaced_incumbent;
+  check.reason = "on " + where + ": " + choice.reason;
+  return check;
+}
+
+}  // namespace deep_ois

@@ -71,3 +71,22 @@ StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& c
                                        const StabiliserChoiceOptions& options = {});
 
 }  // namespace deep_ois
+
+namespace deep_ois {
+
+// train_stabiliser's check of a fit against "no lens motion": on the held-out recordings when
+// there are some, else on the last quarter of each training recording with a second fit on the
+// first three quarters (the fit must predict lens motion it was not fitted to). Refused when it is
+// not clearly better there (the choice's margins): the camera's lens does not move as far as its
+// images can tell (no OIS, OIS off, or a ground truth that only holds calibration errors).
+struct NoLensMotionCheck {
+  bool refused = false;
+  std::string reason;  // the scores and the verdict, one sentence
+};
+NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted,
+                                              const std::vector<StabiliserFitRecording>& training,
+                                              const std::vector<StabiliserFitRecording>& held_out,
+                                              const StabiliserFitOptions& fit_options,
+                                              const StabiliserChoiceOptions& choice_options = {});
+
+}  // namespace deep_ois

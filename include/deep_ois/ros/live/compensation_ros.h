@@ -25,6 +25,7 @@
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
+#include "deep_ois/ros/live/online_learning_ros.h"
 
 namespace deep_ois {
 
@@ -101,6 +102,8 @@ class CompensationRos {
   std::unique_ptr<CompensationModel> model_;
   std::unique_ptr<CompensationStream> stream_;
   std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
+  // With a stabiliser model: the per-pair checks, the fallback and the online learning.
+  std::unique_ptr<OnlineLearningRos> learning_;
   // The model's camera against the stream's, checked on the first flow (and when the camera
   // changes): empty when they match, else the difference.
   std::string camera_check_;
