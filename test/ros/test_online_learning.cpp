@@ -6,7 +6,7 @@
 // with nothing learned and must swap, within the stream, to a model that is better on its
 // held-out window: a fit close to the true stabiliser, or "no lens motion" for the OIS-off
 // camera; the model is kept in ~learning_dir, and the per-pair checks are published.
-#include <deep_ois/CompensationCheck.h>
+#include <deep_ois/CompensationPairCheck.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -125,9 +125,9 @@ TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   SyntheticOisCamera camera(ois, readout_s, time_offset_s);
 
   std::mutex mutex;
-  std::vector<CompensationCheckConstPtr> checks;
-  ros::Subscriber check_sub = nh.subscribe<CompensationCheck>(
-      "/deep_ois/compensation_check", 2000, [&](const CompensationCheckConstPtr& m) {
+  std::vector<CompensationPairCheckConstPtr> checks;
+  ros::Subscriber check_sub = nh.subscribe<CompensationPairCheck>(
+      "/deep_ois/compensation_check", 2000, [&](const CompensationPairCheckConstPtr& m) {
         std::lock_guard<std::mutex> lock(mutex);
         checks.push_back(m);
       });

@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <sstream>
 
-#include <deep_ois/CompensationCheck.h>
+#include <deep_ois/CompensationPairCheck.h>
 
 #include "deep_ois/ros/messages/conversions.h"
 
@@ -58,7 +58,7 @@ OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParam
                                      StabiliserModelFile shipped, LiveDiagnostics& diagnostics,
                                      const std::string& log_name)
     : nh_(nh), params_(params), shipped_(std::move(shipped)), diagnostics_(diagnostics), log_name_(log_name) {
-  check_pub_ = nh_.advertise<CompensationCheck>("compensation_check", 30);
+  check_pub_ = nh_.advertise<CompensationPairCheck>("compensation_check", 30);
   diagnostics_.setValue("learning", params_.learning ? "on (waiting for the first pair)" : "off");
 }
 
@@ -160,7 +160,7 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
     if (check_pub_.getNumSubscribers() == 0) continue;
-    auto msg = boost::make_shared<CompensationCheck>();
+    auto msg = boost::make_shared<CompensationPairCheck>();
     msg->header.stamp.fromSec(verdict.stamp_b_s);
     msg->header.frame_id = frame_id_;
     msg->previous_stamp.fromSec(verdict.stamp_a_s);

@@ -53,7 +53,8 @@ struct OnlineLearningOptions {
   // A window whose RMS pan/tilt rate is below this (rad/s) is still: nothing to learn.
   double still_rate_rad_s = 0.03;
   double cpu_share = 0.3;            // of one core, tracking and fitting together, on average
-  std::size_t max_queued_pairs = 30; // pairs waiting for the tracking thread
+  // Pairs waiting for the tracking thread (each holds its two frames until tracked).
+  std::size_t max_queued_pairs = 10;
   int tracking_width_px = 480;       // frames wider than this are tracked on a reduced copy
   StabiliserFitOptions fit = onlineFitOptions();
   LensShiftOptions lens;             // patch count and readout come from each pair's timing
