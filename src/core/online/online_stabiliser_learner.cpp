@@ -70,6 +70,21 @@ StabiliserFitOptions OnlineLearningOptions::onlineFitOptions() {
   return fit;
 }
 
+CornerDetectorOptions OnlineLearningOptions::learningCorners() {
+  CornerDetectorOptions corners;
+  corners.min_corners_per_cell = 4;
+  corners.max_corners_per_cell = 4;
+  return corners;
+}
+
+KltOptions OnlineLearningOptions::learningKlt() {
+  KltOptions klt;
+  klt.window_size_px = 15;
+  klt.pyramid_levels = 2;
+  klt.max_iterations = 20;
+  return klt;
+}
+
 std::string OnlineLearningOptions::validate() const {
   std::ostringstream why;
   if (!(window_s > 0.1)) why << "window_s must be above 0.1 s (got " << window_s << ")";
@@ -93,6 +108,7 @@ OnlineStabiliserLearner::OnlineStabiliserLearner(OnlineLearningOptions options,
     : options_(std::move(options)), priors_(std::move(priors)), fallback_(options_.fallback) {
   const std::string problem = options_.validate();
   if (!problem.empty()) throw std::invalid_argument("online stabiliser learning: " + problem);
+  tracker_ = FeatureTracker(options_.corners, options_.klt);
   if (priors_.empty() || initial >= priors_.size())
     throw std::invalid_argument("online stabiliser learning: the model in use (" + std::to_string(initial) +
                                 ") must be one of the " + std::to_string(priors_.size()) + " priors");
@@ -110,7 +126,8 @@ OnlineStabiliserLearner::OnlineStabiliserLearner(OnlineLearningOptions options,
   for (const auto& prior : priors_) has_still = has_still || isNoLensMotion(prior.parameters);
   if (!has_still) priors_.push_back({"no lens motion", noLensMotionParameters()});
   status_.state = options_.learning ? "collecting" : "off";
-  started_s_ = credit_stamp_s_ = wallNow();
+  started_s_ = wallNow();
+  credit_stamp_s_ = clockNow();
   tracking_thread_ = std::thread([this] { trackingLoop(); });
   fit_thread_ = std::thread([this] { fitLoop(); });
 }
@@ -151,6 +168,11 @@ std::vector<PairVerdict> OnlineStabiliserLearner::takeVerdicts() {
   std::vector<PairVerdict> out;
   out.swap(verdicts_);
   return out;
+}
+
+std::size_t OnlineStabiliserLearner::queued() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return queue_.size();
 }
 
 OnlineLearningStatus OnlineStabiliserLearner::status() const {
@@ -197,14 +219,23 @@ void OnlineStabiliserLearner::charge(double cpu_s) {
   status_.cpu_s += cpu_s;
 }
 
+double OnlineStabiliserLearner::clockNow() const {
+  return options_.budget_clock ? options_.budget_clock() : wallNow();
+}
+
+bool OnlineStabiliserLearner::withinBudget() {
+  const double now = clockNow();
+  credit_s_ = std::min(credit_s_ + options_.cpu_share * std::max(0.0, now - credit_stamp_s_),
+                       options_.cpu_share * kBudgetBurstS);
+  credit_stamp_s_ = now;
+  return credit_s_ >= 0.0;
+}
+
 bool OnlineStabiliserLearner::waitForBudget() {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     if (stopping_) return false;
-    const double now = wallNow();
-    credit_s_ = std::min(credit_s_ + options_.cpu_share * (now - credit_stamp_s_), options_.cpu_share * kBudgetBurstS);
-    credit_stamp_s_ = now;
-    if (credit_s_ >= 0.0) return true;
+    if (withinBudget()) return true;
     // Sleeps until the share has paid the debt back (woken early only to stop).
     const double wait_s = std::min(-credit_s_ / options_.cpu_share, 1.0);
     wake_fit_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; });
@@ -222,13 +253,16 @@ void OnlineStabiliserLearner::trackingLoop() {
       if (stopping_) return;
       tracking_busy_ = true;
     }
-    // Over the budget the pairs that arrive meanwhile overflow the queue (counted there).
-    if (!waitForBudget()) return;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (queue_.empty()) continue;  // dropped by restartTimeline while waiting
+      if (queue_.empty()) continue;  // dropped by restartTimeline
       pair = std::move(queue_.front());
       queue_.pop_front();
+      // Over the budget, pairs are skipped until it is back, but a window being built is finished.
+      if (window_stamps_s_.empty() && !withinBudget()) {
+        ++status_.pairs_over_budget;
+        continue;
+      }
     }
     const double cpu_start = threadCpuNow();
     try {

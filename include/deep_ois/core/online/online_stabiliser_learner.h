@@ -12,8 +12,9 @@
 // Threads: submit() only moves a pair into a bounded queue (it never waits for tracking or a fit;
 // a full queue drops the pair, counted). A tracking thread tracks, checks and builds the windows;
 // a fit thread fits. Both share one CPU budget (a share of one core, measured on their own thread
-// CPU time): over it, they wait, and the pairs that come meanwhile are dropped (counted). The
-// destructor stops both (it waits for a fit in progress to end).
+// CPU time): over it, the fit waits, and the tracking skips pairs (counted) until the budget is
+// back, but only between windows (a window of consecutive pairs is tracked whole: a pair skipped
+// inside one would cut it). The destructor stops both (it waits for a fit in progress to end).
 //
 // A still camera learns nothing and loses nothing: a window whose gyro barely moves is not kept
 // (its lens motion says nothing about the stabiliser), and without new data no fit runs. Pure
@@ -25,6 +26,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <opencv2/core.hpp>
@@ -53,9 +55,15 @@ struct OnlineLearningOptions {
   // A window whose RMS pan/tilt rate is below this (rad/s) is still: nothing to learn.
   double still_rate_rad_s = 0.03;
   double cpu_share = 0.3;            // of one core, tracking and fitting together, on average
+  // The clock the budget accrues on, seconds (empty: wall time). A replay gives its replay time.
+  std::function<double()> budget_clock;
   // Pairs waiting for the tracking thread (each holds its two frames until tracked).
   std::size_t max_queued_pairs = 10;
   int tracking_width_px = 480;       // frames wider than this are tracked on a reduced copy
+  // The tracker: fewer corners and a smaller KLT than the offline ground truth's (the learning
+  // runs within a CPU budget; ~190 tracks a pair still give ~30 per row patch).
+  CornerDetectorOptions corners = learningCorners();
+  KltOptions klt = learningKlt();
   StabiliserFitOptions fit = onlineFitOptions();
   LensShiftOptions lens;             // patch count and readout come from each pair's timing
   StabiliserChoiceOptions choice;
@@ -70,6 +78,8 @@ struct OnlineLearningOptions {
   // The fit's defaults, cheaper than train_stabiliser's (fewer pan-detection thresholds, no
   // elliptic stroke variant, fewer iterations): it runs every few seconds in the background.
   static StabiliserFitOptions onlineFitOptions();
+  static CornerDetectorOptions learningCorners();
+  static KltOptions learningKlt();
   std::string validate() const;
 };
 
@@ -111,6 +121,7 @@ struct PairVerdict {
 struct OnlineLearningStatus {
   std::string state;  // "off", "collecting", "fitting", "waiting for motion", "over budget"
   std::size_t pairs_submitted = 0, pairs_dropped_busy = 0, pairs_checked = 0, pairs_unusable = 0;
+  std::size_t pairs_over_budget = 0;  // skipped by the tracking while over the CPU budget
   std::size_t pairs_falling_back = 0;  // checked pairs after which the plain gyro was in use
   std::size_t windows_kept = 0, windows_still = 0, windows_failed = 0, windows_dropped = 0;
   std::size_t pairs_without_tracks = 0;  // left out of the lens motions (too few inlier tracks)
@@ -142,6 +153,7 @@ class OnlineStabiliserLearner {
   // The checks made since the last call, in pair order.
   std::vector<PairVerdict> takeVerdicts();
   OnlineLearningStatus status() const;
+  std::size_t queued() const;  // pairs waiting for the tracking thread
   // Learning on or off (the checks go on); a fit in progress ends first.
   void setLearning(bool on);
   void setCpuShare(double share);
@@ -160,6 +172,8 @@ class OnlineStabiliserLearner {
   void fitOnce(std::vector<std::shared_ptr<const Window>> windows);
   // Blocks while the CPU budget is spent (or until stopping); returns false when stopping.
   bool waitForBudget();
+  bool withinBudget();  // under mutex_: updates the credit, true when not over the budget
+  double clockNow() const;
   void charge(double cpu_s);
 
   OnlineLearningOptions options_;
