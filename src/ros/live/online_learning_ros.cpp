@@ -95,6 +95,8 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.camera.readout_time_s = gyro.readout_time;
   std::error_code ignored;
   fs::create_directories(fs::path(model_path_).parent_path(), ignored);
+  ROS_DEBUG_NAMED("compensation", "%s: learning held out %.1f s, buffer %.1f s", log_name_.c_str(),
+                  options.held_out_s, options.buffer_s);
   learner_ = std::make_unique<OnlineStabiliserLearner>(options, priors, 0);
   version_in_use_ = 0;
   if (!stored_problem.empty()) {
@@ -102,8 +104,10 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
                    "replaced when a better model is learned", log_name_.c_str(), model_path_.c_str(),
                    stored_problem.c_str(), params_.model_path.c_str());
   }
-  ROS_INFO_NAMED("compensation", "%s: online learning %s for this camera; model in use: %s (%s)", log_name_.c_str(),
-                 params_.learning ? "on" : "off", priors.front().name.c_str(),
+  ROS_INFO_NAMED("compensation", "%s: online learning %s for this camera (%.0f %% of a core, %.0f s kept, %.0f s "
+                 "held out, a fit every %.0f s of new data); model in use: %s (%s)", log_name_.c_str(),
+                 params_.learning ? "on" : "off", 100.0 * options.cpu_share, options.buffer_s, options.held_out_s,
+                 options.refit_every_s, priors.front().name.c_str(),
                  priors.size() > 1 ? model_path_.c_str() : params_.model_path.c_str());
   diagnostics_.setValue("learned model file", model_path_);
 }
