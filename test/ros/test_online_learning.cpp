@@ -7,8 +7,13 @@
 // held-out window: a fit close to the true stabiliser, or "no lens motion" for the OIS-off
 // camera; the model is kept in ~learning_dir, and the per-pair checks are published.
 #include <deep_ois/CompensationPairCheck.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <signal.h>
+#include <ros/network.h>
+#include <xmlrpcpp/XmlRpc.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 
@@ -113,8 +118,85 @@ class SyntheticOisCamera {
   double fed_s_ = -1.5;
 };
 
+// The process id of a node (its XML-RPC getPid), or 0.
+int pidOf(const std::string& node) {
+  XmlRpc::XmlRpcValue request, response, payload;
+  request[0] = ros::this_node::getName();
+  request[1] = node;
+  if (!ros::master::execute("lookupNode", request, response, payload, false)) return 0;
+  std::string host, path;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return 0;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue args, result;
+  args[0] = ros::this_node::getName();
+  if (!client.execute("getPid", args, result) || result.size() < 3) return 0;
+  return static_cast<int>(result[2]);
+}
+
+// A kill during a fit leaves the last good model file: the nodelet manager is killed (SIGKILL) the
+// moment /diagnostics says the learner is fitting, after it has written a learned model once.
+TEST(OnlineLearning, AKillDuringAFitKeepsTheLastGoodModelFile) {
+  ros::NodeHandle nh, private_nh("~");
+  bool kill_during_fit = false;
+  private_nh.param("kill_during_fit", kill_during_fit, false);
+  if (!kill_during_fit) GTEST_SKIP() << "~kill_during_fit is false (online_learning_kill.test sets it)";
+  std::string learning_dir;
+  ASSERT_TRUE(nh.getParam("/deep_ois/compensation/learning_dir", learning_dir));
+  double readout_s = 0.0, time_offset_s = 0.0;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", time_offset_s);
+  SyntheticOisCamera camera(true, readout_s, time_offset_s);
+  std::atomic<bool> fitting{false};
+  ros::Subscriber diagnostics_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
+        for (const auto& status : m->status)
+          for (const auto& kv : status.values)
+            if (kv.key == "learning" && kv.value == "fitting") fitting = true;
+      });
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const int pid = pidOf("/deep_ois/manager");
+  ASSERT_GT(pid, 0) << "no pid for /deep_ois/manager";
+  const ros::Time base = ros::Time::now();
+  bool killed = false;
+  std::string model_path;
+  harness->stream(
+      kStreamS,
+      [&](live_test::FrameEdit& edit) {
+        camera.render((edit.image->header.stamp - base).toSec(), *edit.image);
+        if (killed) return;
+        std::error_code no_dir_yet;
+        if (model_path.empty() && std::filesystem::is_directory(learning_dir, no_dir_yet)) {
+          for (const auto& entry : std::filesystem::directory_iterator(learning_dir))
+            if (entry.path().extension() == ".yaml") model_path = entry.path().string();
+        }
+        // Once a model was written, the next fit is killed mid-way.
+        if (!model_path.empty() && fitting.exchange(false)) {
+          ::kill(pid, SIGKILL);
+          killed = true;
+        } else if (model_path.empty()) {
+          fitting = false;
+        }
+      },
+      [&](sensor_msgs::Imu& imu) {
+        const Eigen::Vector3d w = camera.imuRate((imu.header.stamp - base).toSec());
+        imu.angular_velocity.x = w.x();
+        imu.angular_velocity.y = w.y();
+        imu.angular_velocity.z = w.z();
+        return true;
+      });
+  ASSERT_TRUE(killed) << "no fit seen after the first model was written";
+  const StabiliserModelFile kept = StabiliserModelFile::load(model_path);  // throws on a partial file
+  std::printf("[ measured ] killed during a fit; the model file holds '%s'\n", kept.name.c_str());
+  EXPECT_FALSE(isNoLensMotion(kept.parameters));
+}
+
 TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   ros::NodeHandle nh, private_nh("~");
+  bool kill_during_fit = false;
+  private_nh.param("kill_during_fit", kill_during_fit, false);
+  if (kill_during_fit) GTEST_SKIP() << "the kill test runs alone";
   bool ois = true;
   std::string learning_dir;
   ASSERT_TRUE(private_nh.getParam("ois", ois));
