@@ -249,7 +249,8 @@ int main(int argc, char** argv) {
   }
   for (std::size_t w = 0; w < windows; ++w) {
     const WindowMeans g = at(plain, w), f = at(kFixedMethod, w), o = at(kOnlineMethod, w);
-    if (!o.pairs) continue;
+    // A last window of a few pairs (the recording's end) says nothing.
+    if (o.pairs < static_cast<std::size_t>(5.0 * window_s)) continue;
     const std::string span = std::to_string(static_cast<int>(w * window_s)) + "-" +
                              std::to_string(static_cast<int>((w + 1) * window_s));
     if (!no_ois) {
