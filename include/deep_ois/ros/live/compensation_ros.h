@@ -42,8 +42,13 @@ namespace deep_ois {
 // of the earlier ones (CompensationStream); a gap (a pair never received, a bag that loops)
 // restarts the history, as at start-up.
 //
+// With a stabiliser model, each pair is also checked against the images and learned from
+// (OnlineLearningRos: `compensation_check`, the fallback to the plain gyro, the model swapped when
+// a better one is learned; docs/online_learning.md).
+//
 // Threading: callbacks run on the node handle's queue; one mutex guards the state. The network
-// runs inside the callback (a few ms with the fast preset).
+// runs inside the callback (a few ms with the fast preset); the online learning's tracking and
+// fits run in its own threads and never block a callback.
 class CompensationRos {
  public:
   // Loads the model; throws ModelFileError naming the file and the problem, or
