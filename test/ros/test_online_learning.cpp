@@ -190,6 +190,8 @@ TEST(OnlineLearning, AKillDuringAFitKeepsTheLastGoodModelFile) {
   const StabiliserModelFile kept = StabiliserModelFile::load(model_path);  // throws on a partial file
   std::printf("[ measured ] killed during a fit; the model file holds '%s'\n", kept.name.c_str());
   EXPECT_FALSE(isNoLensMotion(kept.parameters));
+  std::error_code ignored;
+  std::filesystem::remove_all(learning_dir, ignored);
 }
 
 TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
@@ -268,6 +270,8 @@ TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   EXPECT_GT(late, 0u);
   EXPECT_GE(late_not_worse, late * 9 / 10);
   EXPECT_EQ(harness->nonFiniteOutputs(), 0u);
+  std::error_code ignored;
+  std::filesystem::remove_all(learning_dir, ignored);
 }
 
 }  // namespace
