@@ -32,6 +32,8 @@ packages=(
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
   # the tools: flag parsing, the evaluation JSON, the data-set SHA-256
   libcli11-dev nlohmann-json3-dev libssl-dev
+  # convert_recording's video input: OpenCV's FFmpeg backend (HEVC, H.264)
+  libopencv-videoio-dev
   # the compensation network (CPU libtorch 1.13)
   libtorch-dev
 )

@@ -162,6 +162,28 @@ int main(int argc, char** argv) {
     const deep_ois::CalibrationResult result = deep_ois::calibrateCameraImu(bag.data, options);
     const deep_ois::CameraImuCalibration& c = result.calibration;
 
+    if (!result.ok()) {
+      // Only the refusal and the figures that led to it: a refused estimate's values (placeholders
+      // when the refinement never ran) are not results.
+      std::fprintf(stderr, "calibrate: refused, %s not written:\n", out_path.c_str());
+      for (const std::string& refusal : result.refusals) std::fprintf(stderr, "  - %s\n", refusal.c_str());
+      std::fprintf(stderr, "  figures: %s: %zu frames, %zu frame pairs tracked", bag_path.c_str(), bag.frames,
+                   bag.data.pairs.size());
+      if (result.pairs_used > 0) std::fprintf(stderr, ", %d pairs and %d tracks refined", result.pairs_used, result.tracks_used);
+      std::fprintf(stderr, "; gyro RMS about its principal axes %.3f %.3f %.3f rad/s",
+                   result.rate_rms_rad_s(0), result.rate_rms_rad_s(1), result.rate_rms_rad_s(2));
+      if (result.median_image_rotation_px > 0.0)
+        std::fprintf(stderr, "; median image rotation %.2f px per pair", result.median_image_rotation_px);
+      if (result.iterations > 0) {
+        std::fprintf(stderr, "; statistical 1-sigma: offset %.3f ms, readout %.3f ms, mount (%.3f %.3f %.3f) deg",
+                     result.statistical.time_offset_s * 1e3, result.statistical.readout_time_s * 1e3,
+                     result.statistical.rotation_rad(0) * kRadToDeg, result.statistical.rotation_rad(1) * kRadToDeg,
+                     result.statistical.rotation_rad(2) * kRadToDeg);
+      }
+      std::fprintf(stderr, "\n");
+      for (const std::string& note : result.notes) std::fprintf(stderr, "  note: %s\n", note.c_str());
+      return 1;
+    }
     std::printf(
         "calibrate: %s: %zu frames, %d of %zu pairs used, %d tracks; lens shift handling %s\n",
         bag_path.c_str(), bag.frames, result.pairs_used, bag.data.pairs.size(), result.tracks_used,
@@ -174,8 +196,9 @@ int main(int argc, char** argv) {
                     ? "held"
                     : ("#" + std::to_string(result.coarse_permutation_index)).c_str(),
                 result.initial_median_residual_px);
-    std::printf("  refined in %d iterations: median residual %.3f px, %.1f %% inliers\n",
-                result.iterations, result.median_residual_px, 100.0 * result.inlier_fraction);
+    std::printf("  refined in %d iterations (%s): median residual %.3f px, %.1f %% inliers\n", result.iterations,
+                result.converged ? "converged" : "iteration cap reached, NOT converged", result.median_residual_px,
+                100.0 * result.inlier_fraction);
     // The 1-sigma printed is the honest one (statistical, inflated, plus the systematic part that
     // every recording shares); the statistical part in brackets is what the refusals judge.
     std::printf("  time offset     %+9.3f ms  +- %.3f ms (statistical %.3f)%s\n", c.time_offset_s * 1e3,
@@ -197,6 +220,10 @@ int main(int argc, char** argv) {
     // their ridge by a millisecond at a 1-sigma of 0.2-0.3 ms (docs/calibration_uncertainty.md).
     for (const std::string& note : result.notes) std::printf("  note: %s\n", note.c_str());
     printMatrix(c.imu_to_camera_rotation);
+    if (result.nearest_permutation_index >= 0) {
+      std::printf("  the mount is %.2f deg from the nearest axis permutation (#%d)\n", result.mount_from_permutation_deg,
+                  result.nearest_permutation_index);
+    }
     if (bag.tf_imu_to_camera_rotation) {
       std::printf(
           "  the bag's /tf_static differs by %.3f deg\n",
@@ -205,12 +232,6 @@ int main(int argc, char** argv) {
     }
     std::printf("  time: %.2f s reading and tracking (%.2f s KLT), %.2f s estimating\n", reading_s,
                 bag.tracking_seconds, result.seconds);
-    if (!result.ok()) {
-      std::fprintf(stderr, "calibrate: refused, %s not written:\n", out_path.c_str());
-      for (const std::string& refusal : result.refusals)
-        std::fprintf(stderr, "  - %s\n", refusal.c_str());
-      return 1;
-    }
     std::string lens_yaml;
     if (lens_shift) {
       const deep_ois::LensShiftLogCalibration lens =

@@ -1,35 +1,75 @@
-// Converts a phone recording (gyro CSV + frame stamp list + frame images + intrinsics, the layout
-// of ../shared/data/cc9pro) into the rosbag a robot would have recorded, for the nodelets and the
-// evaluator.
+// Converts a phone recording into the rosbag a robot would have recorded, for the nodelets, the
+// calibration, training and the evaluator. Formats: the folder layout of ../shared/data/cc9pro
+// (gyro CSV + frame stamp list + frame images + intrinsics), VideoIMUCapture (video +
+// video_meta.pb3) and Google's DVS logs (text logs, no video).
 //
-// Flags: --help (run without arguments, it prints them too). The work is done by
-// writePhoneRecordingBag (deep_ois/ros/bag/phone_recording_bag.h), which documents what the bag
-// holds.
+// Flags: --help (run without arguments, it prints them too). One writer for all formats:
+// writeRecordingBag (deep_ois/ros/bag/phone_recording_bag.h), which documents what the bag holds;
+// the importers are in deep_ois/ros/bag/phone_logger_import.h.
 #include <rosbag/bag.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/calibration/calibration_yaml.h"
+#include "deep_ois/core/recording/phone_recording.h"
+#include "deep_ois/ros/bag/phone_logger_import.h"
 #include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/progress_bar.h"
 
 constexpr char kDescription[] =
-    "Converts a phone recording (gyro CSV + frame stamp list + frame images + intrinsics, the "
-    "layout "
-    "of ../shared/data/cc9pro) into the rosbag a robot would have recorded (image, camera_info, "
-    "IMU "
-    "and /tf_static topics), for the nodelets and the evaluator.";
+    "Converts a phone recording into the rosbag a robot would have recorded (image, camera_info, "
+    "IMU, /tf_static and lens-shift topics): the folder layout of ../shared/data/cc9pro, "
+    "VideoIMUCapture (video + video_meta.pb3) or Google's DVS logs (docs/real_recordings.md). For "
+    "the phone formats it also writes the gyro flow parameters the metadata gives (readout, mount, "
+    "lens-log convention) beside the bag.";
+
+namespace fs = std::filesystem;
+
+// The one file in `directory` whose name ends in one of `suffixes` ("" when none); throws when
+// several do.
+std::string findBySuffix(const std::string& directory, std::initializer_list<const char*> suffixes) {
+  std::string found;
+  for (const fs::directory_entry& entry : fs::directory_iterator(directory)) {
+    const std::string name = entry.path().filename().string();
+    for (const char* suffix : suffixes) {
+      const std::string s(suffix);
+      if (name.size() >= s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0) {
+        if (!found.empty()) {
+          throw deep_ois::RecordingFormatError(directory, 0, "two candidates: " + found + " and " + entry.path().string());
+        }
+        found = entry.path().string();
+      }
+    }
+  }
+  return found;
+}
+
+// What --recording DIR holds: a VideoIMUCapture recording (a .pb3 or a video), DVS logs or the
+// folder layout.
+std::string detectFormat(const std::string& directory) {
+  if (!findBySuffix(directory, {".pb3"}).empty() || !findBySuffix(directory, {".mp4", ".MP4", ".mkv", ".mov"}).empty())
+    return "videoimucapture";
+  for (const fs::directory_entry& entry : fs::directory_iterator(directory))
+    if (entry.path().filename().string().rfind("frame_timestamps_", 0) == 0) return "dvs";
+  return "folder";
+}
 
 int main(int argc, char** argv) {
   deep_ois::PhoneRecordingFiles files;
   deep_ois::PhoneRecordingBagOptions options;
   std::string recording, gyro, frame_stamps, images, out, imu_to_camera, compression = "lz4";
-  bool quiet = false;
+  std::string format = "auto", video, metadata, gyro_config_out, image_size = "1920x1080";
+  bool quiet = false, without_images = false;
+  deep_ois::VideoImportOptions video_options;
+  deep_ois::DvsImportOptions dvs_options;
+  int frame_shift = 0;
   deep_ois::ToolCommandLine command_line("convert_recording", kDescription,
                                          "Exit status: 0 written, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
@@ -62,13 +102,60 @@ int main(int argc, char** argv) {
   app.add_option("--camera-info", files.camera_info,
                  "ROS camera calibration (YAML/INI as written by camera_calibration), e.g. "
                  "config/cameras/cc9pro.yaml")
-      ->required()
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
   app.add_option("--out", out, "output bag")->required()->type_name("FILE.bag");
+  app.add_option("--format", format,
+                 "what --recording holds: 'folder' (the cc9pro layout; needs --camera-info), "
+                 "'videoimucapture' (a video + video_meta.pb3), 'dvs' (Google's DVS text logs) or "
+                 "'auto' (from the files in it)")
+      ->check(deep_ois::oneOf({"auto", "folder", "videoimucapture", "dvs"}))
+      ->capture_default_str();
+  app.add_option("--video", video, "VideoIMUCapture: the video (HEVC/H.264); default: the one in --recording")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE");
+  app.add_option("--metadata", metadata, "VideoIMUCapture: video_meta.pb3; default: the one in --recording")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE");
+  app.add_flag("--without-images", without_images,
+               "write no images: camera_info per frame stamp, gyro, lens log (for train_stabiliser "
+               "--target log). The folder layout without frames/ (or without --images) is converted so "
+               "too");
+  app.add_flag("--drop-uncovered-frames", options.drop_uncovered_frames,
+               "leave out (and count) the frames whose stamp the gyro does not cover, e.g. a gyro that "
+               "starts a few ms after the first frame; without it such a recording is refused");
+  command_line.addNumber("--from", options.span_from_s,
+                         "keep the frames from this many seconds after the first frame (e.g. a held-out part)")
+      ->type_name("SECONDS");
+  command_line.addNumber("--to", options.span_to_s,
+                         "keep the frames before this many seconds after the first frame")
+      ->type_name("SECONDS");
+  app.add_option("--gyro-config-out", gyro_config_out,
+                 "videoimucapture/dvs: where to write the gyro flow parameters the metadata gives "
+                 "(default: OUT with .gyro_flow.yaml in place of .bag)")
+      ->type_name("FILE.yaml");
+  command_line.addNumber("--image-scale", video_options.image_scale,
+                         "videoimucapture: scale the frames (and intrinsics) by this, 0 < s <= 1")
+      ->capture_default_str();
+  app.add_flag("--grey", video_options.grey, "videoimucapture: write mono8 frames (calibrate reads grey)");
+  command_line.addNumber("--max-frames", video_options.max_frames,
+                         "videoimucapture: the first N video frames only (0: all)")
+      ->capture_default_str();
+  command_line.addNumber("--frame-shift", frame_shift,
+                         "videoimucapture: video frame j is metadata row j - N, in place of a pairing the "
+                         "gyro check does not confirm (the found pairing and its confidence are printed)");
+  app.add_option("--image-size", image_size,
+                 "dvs: the image size the camera_info describes (the logs have no video)")
+      ->capture_default_str()
+      ->type_name("WxH");
+  command_line.addNumber("--active-array-width", dvs_options.active_array_width_px,
+                         "dvs: the sensor's active-array width, px (the OIS log's unit; Pixel 4: 4032)")
+      ->capture_default_str();
+
   app.add_option("--imu-to-camera", imu_to_camera,
-                 "R_cam_imu, 9 comma-separated row-major values (default: the cc9pro's "
-                 "0,-1,0,-1,0,0,0,0,-1)")
+                 "R_cam_imu, 9 comma-separated row-major values (default: folder layout the cc9pro's "
+                 "0,-1,0,-1,0,0,0,0,-1; videoimucapture the Android back camera's for its "
+                 "SENSOR_ORIENTATION; dvs -1,0,0,0,1,0,0,0,-1)")
       ->check(deep_ois::commaSeparatedNumbers(9))
       ->type_name("R");
   app.add_option("--image-topic", options.image_topic, "image topic")
@@ -116,22 +203,75 @@ int main(int argc, char** argv) {
   options.compression = compression == "lz4"   ? rosbag::compression::LZ4
                         : compression == "bz2" ? rosbag::compression::BZ2
                                                : rosbag::compression::Uncompressed;
-  if (!recording.empty()) {
-    const deep_ois::PhoneRecordingFiles layout = deep_ois::cc9proLayout(recording);
-    files.gyro_csv = layout.gyro_csv;
-    files.frame_stamps = layout.frame_stamps;
-    files.images_dir = layout.images_dir;
-    if (files.lens_shift_csv.empty()) files.lens_shift_csv = layout.lens_shift_csv;
+  if (frame_shift != 0 || app.count("--frame-shift") > 0) video_options.forced_shift = frame_shift;
+  video_options.without_images = without_images;
+  if (gyro_config_out.empty()) {
+    gyro_config_out = out.size() > 4 && out.compare(out.size() - 4, 4, ".bag") == 0 ? out.substr(0, out.size() - 4) : out;
+    gyro_config_out += ".gyro_flow.yaml";
   }
-  if (!gyro.empty()) files.gyro_csv = gyro;
-  if (!frame_stamps.empty()) files.frame_stamps = frame_stamps;
-  if (!images.empty()) files.images_dir = images;
-  if (files.gyro_csv.empty() || files.frame_stamps.empty() || files.images_dir.empty()) {
-    return command_line.usageError(
-        "give --recording DIR, or all of --gyro, --frame-stamps and --images");
+  try {
+    if (format == "auto") format = !video.empty() || !metadata.empty() ? "videoimucapture"
+                                   : recording.empty()                 ? "folder"
+                                                                       : detectFormat(recording);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "convert_recording: %s\n", e.what());
+    return 1;
+  }
+  if (format == "folder") {
+    if (!recording.empty()) {
+      const deep_ois::PhoneRecordingFiles layout = deep_ois::cc9proLayout(recording);
+      files.gyro_csv = layout.gyro_csv;
+      files.frame_stamps = layout.frame_stamps;
+      files.images_dir = layout.images_dir;
+      if (files.lens_shift_csv.empty()) files.lens_shift_csv = layout.lens_shift_csv;
+    }
+    if (!gyro.empty()) files.gyro_csv = gyro;
+    if (!frame_stamps.empty()) files.frame_stamps = frame_stamps;
+    if (!images.empty()) files.images_dir = images;
+    if (without_images) files.images_dir.clear();
+    if (files.gyro_csv.empty() || files.frame_stamps.empty()) {
+      return command_line.usageError("give --recording DIR, or --gyro and --frame-stamps (and --images)");
+    }
+    if (files.camera_info.empty()) return command_line.usageError("the folder layout needs --camera-info FILE");
+  } else if (format == "dvs") {
+    if (recording.empty()) return command_line.usageError("--format dvs needs --recording DIR (the log folder)");
+    const std::size_t x = image_size.find('x');
+    try {
+      if (x == std::string::npos) throw std::invalid_argument(image_size);
+      dvs_options.image_width_px = std::stoi(image_size.substr(0, x));
+      dvs_options.image_height_px = std::stoi(image_size.substr(x + 1));
+    } catch (const std::exception&) {
+      return command_line.usageError("--image-size: expected WxH, e.g. 1920x1080, got '" + image_size + "'");
+    }
+    if (dvs_options.image_width_px <= 0 || dvs_options.image_height_px <= 0)
+      return command_line.usageError("--image-size: width and height must be positive");
   }
 
   try {
+    std::optional<deep_ois::ImportedRecording> imported;
+    if (format == "videoimucapture") {
+      if (!recording.empty()) {
+        if (metadata.empty()) metadata = findBySuffix(recording, {".pb3"});
+        if (video.empty()) video = findBySuffix(recording, {".mp4", ".MP4", ".mkv", ".mov"});
+      }
+      if (video.empty() && metadata.empty()) {
+        return command_line.usageError("videoimucapture: give --recording DIR or --video and --metadata");
+      }
+      if (without_images) video.clear();
+      video_options.progress_note = [&](const std::string& note) {
+        if (!quiet) std::fprintf(stderr, "convert_recording: %s\n", note.c_str());
+      };
+      imported = deep_ois::importVideoImuCapture(video, metadata, video_options);
+    } else if (format == "dvs") {
+      imported = deep_ois::importDvsLogs(recording, dvs_options);
+    }
+    if (imported) {
+      // The logger's mount unless the user gives one.
+      if (imu_to_camera.empty()) options.imu_to_camera_rotation = imported->imu_to_camera_rotation;
+      for (const std::string& note : imported->notes) std::printf("convert_recording: %s\n", note.c_str());
+      std::printf("convert_recording: IMU-to-camera rotation: %s\n",
+                  imu_to_camera.empty() ? imported->imu_to_camera_source.c_str() : "--imu-to-camera");
+    }
     std::unique_ptr<deep_ois::ProgressBar> bar;
     auto progress = [&](int done, int total) {
       if (quiet) return;
@@ -139,12 +279,31 @@ int main(int argc, char** argv) {
         bar = std::make_unique<deep_ois::ProgressBar>(static_cast<std::size_t>(total), "frames");
       bar->update(static_cast<std::size_t>(done));
     };
+    std::string gyro_yaml;
+    if (imported) {
+      if (!imu_to_camera.empty()) imported->imu_to_camera_rotation = options.imu_to_camera_rotation;
+      gyro_yaml = deep_ois::importedGyroFlowYaml(*imported, out);
+    }
     const deep_ois::PhoneRecordingBagStats stats =
-        deep_ois::writePhoneRecordingBag(files, out, options, progress);
+        imported ? deep_ois::writeRecordingBag(std::move(imported->content), out, options, progress)
+                 : deep_ois::writePhoneRecordingBag(files, out, options, progress);
+    if (stats.lens_shift_repeats_dropped > 0 || stats.lens_shift_steps_back > 0) {
+      std::printf(
+          "convert_recording: lens-shift log: %d repeated samples dropped (a copy of an earlier sample within 2 "
+          "ms: Android's per-frame OIS batches), %d steps back in file order, sorted\n",
+          stats.lens_shift_repeats_dropped, stats.lens_shift_steps_back);
+    }
+    if (imported) {
+      deep_ois::writeTextFile(gyro_config_out, gyro_yaml);
+      std::printf("convert_recording: gyro flow parameters (readout %.3f ms, mount, lens-log convention): %s\n",
+                  imported->readout_s * 1e3, gyro_config_out.c_str());
+    }
+    if (stats.frames_outside_span > 0)
+      std::printf("convert_recording: %d frames outside --from/--to left out\n", stats.frames_outside_span);
     std::printf(
-        "convert_recording: %s: %d frames (indices %d..%d, %d missing) %dx%d %s, stamps %u.%09u .. "
+        "convert_recording: %s: %d frames%s (indices %d..%d, %d missing) %dx%d %s, stamps %u.%09u .. "
         "%u.%09u s, %d IMU messages, %d lens-shift samples, %.1f s%s\n",
-        out.c_str(), stats.frames, stats.first_frame_index, stats.last_frame_index,
+        out.c_str(), stats.frames, stats.images ? "" : " without images (camera_info only)", stats.first_frame_index, stats.last_frame_index,
         stats.skipped_frame_indices, stats.width_px, stats.height_px, stats.encoding.c_str(),
         stats.first_frame_stamp.sec, stats.first_frame_stamp.nsec, stats.last_frame_stamp.sec,
         stats.last_frame_stamp.nsec, stats.imu_messages, stats.lens_shift_messages, bar ? bar->elapsedSeconds() : 0.0,
@@ -155,6 +314,7 @@ int main(int argc, char** argv) {
             : "");
     return 0;
   } catch (const std::exception& e) {
+    std::fflush(stdout);  // what was said before the error comes first
     std::fprintf(stderr, "convert_recording: %s\n", e.what());
     return 1;
   }

@@ -3,6 +3,9 @@
 // scripts/soak.sh to watch the live pipeline's output rate and the manager's memory.
 //
 //   live_rate_monitor --pid PID [--period S (60)] [--periods N (0 = until killed)] TOPIC...
+//
+// After the last period (with --periods) a line of totals, and each later topic's total as a
+// share of the first topic's (the soak: compensated flows per gyro flow).
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
@@ -67,14 +70,24 @@ int main(int argc, char** argv) {
   for (const std::string& topic : topics) std::printf(" %s", topic.c_str());
   std::printf("\n");
   std::fflush(stdout);
+  std::vector<long> totals(topics.size(), 0);
   for (int k = 1; ros::ok() && (periods == 0 || k <= periods); ++k) {
     ros::WallDuration(period_s).sleep();
     std::printf("%-7d %-7ld", k, residentMegabytes(pid));
     for (std::size_t t = 0; t < topics.size(); ++t) {
-      std::printf(" %*ld", static_cast<int>(topics[t].size()), counts[t]->exchange(0));
+      const long count = counts[t]->exchange(0);
+      totals[t] += count;
+      std::printf(" %*ld", static_cast<int>(topics[t].size()), count);
     }
     std::printf("\n");
     std::fflush(stdout);
+  }
+  std::printf("%-7s %-7s", "total", "");
+  for (std::size_t t = 0; t < topics.size(); ++t) std::printf(" %*ld", static_cast<int>(topics[t].size()), totals[t]);
+  std::printf("\n");
+  for (std::size_t t = 1; t < topics.size(); ++t) {
+    std::printf("%s: %ld per %ld on %s (%.1f %%)\n", topics[t].c_str(), totals[t], totals[0], topics[0].c_str(),
+                totals[0] > 0 ? 100.0 * static_cast<double>(totals[t]) / static_cast<double>(totals[0]) : 0.0);
   }
   return 0;
 }

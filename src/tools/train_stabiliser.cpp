@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
+#include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
@@ -192,6 +193,10 @@ int main(int argc, char** argv) {
       ->check(deep_ois::atLeast(0));
   bool no_progress = false;
   app.add_flag("--no-progress", no_progress, "no progress bars");
+  std::string forced_candidate;
+  app.add_option("--candidate", forced_candidate,
+                 "keep the candidate whose name contains this (e.g. excursion_v1) instead of the "
+                 "best on the held-out recordings, for comparisons");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   if (gyro_config.empty())
     return command_line.usageError("--gyro-config: package deep_ois not found, so give the file");
@@ -306,7 +311,24 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (const std::string& line : fit.log) std::fprintf(stderr, "train_stabiliser: %s\n", line.c_str());
-  // "No lens motion" must be beaten on data the fit did not see: an OIS-off camera trains to it.
+  // Learned dynamics on top of the physical chain, scored on the held-out recordings; the best is
+  // kept (core/ois/stabiliser_candidates.h).
+  const deep_ois::StabiliserSelection selection =
+      deep_ois::selectStabiliser(fit, training, held_out, fit_options);
+  std::size_t kept = selection.kept;
+  if (!forced_candidate.empty()) {
+    kept = selection.candidates.size();
+    for (std::size_t k = 0; k < selection.candidates.size() && kept == selection.candidates.size(); ++k)
+      if (selection.candidates[k].name.find(forced_candidate) != std::string::npos) kept = k;
+    if (kept == selection.candidates.size()) {
+      std::fprintf(stderr, "train_stabiliser: --candidate: no candidate named '%s'\n", forced_candidate.c_str());
+      return 2;
+    }
+  }
+  fit.parameters = selection.candidates[kept].parameters;
+  fit.rms_px = selection.candidates[kept].training.rms_px;
+  // The model kept must beat "no lens motion" on data it was not fitted to: an OIS-off camera
+  // trains to it (without --held-out, the check refits the physical chain on 3/4 of each recording).
   const deep_ois::NoLensMotionCheck lens_check =
       deep_ois::checkFitAgainstNoLensMotion(fit.parameters, training, held_out, fit_options);
   std::fprintf(stderr, "train_stabiliser: check against no lens motion %s\n", lens_check.reason.c_str());
@@ -380,7 +402,16 @@ int main(int argc, char** argv) {
                   ? (std::to_string(p.pan_detection_rate_rad_s) + " rad/s, release " +
                      std::to_string(p.pan_release_corner_hz) + " Hz").c_str()
                   : "off");
-  std::printf("| residual bank | %zu time constants |\n\n", p.residual_time_constants_s.size());
+  std::printf("| residual bank | %zu time constants |\n", p.residual_time_constants_s.size());
+  std::printf("| nonlinear residual | %s |\n\n", p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
+  std::printf("Candidates, lens-motion RMS residual (pixels):\n\n| candidate | training | held out |\n|---|---:|---:|\n");
+  for (const auto& candidate : selection.candidates)
+    std::printf("| %s | %.4f | %.4f |\n", candidate.name.c_str(), candidate.training.rms_px,
+                candidate.held_out.rms_px);
+  std::printf("\n%s\n\n", kept == selection.kept
+                                ? selection.reason.c_str()
+                                : ("kept '" + selection.candidates[kept].name +
+                                   "' as --candidate asked (" + selection.reason + ")").c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
   std::printf("| data | lens motions | without a lens model | physical model | with residual |\n");
   std::printf("|---|---:|---:|---:|---:|\n");

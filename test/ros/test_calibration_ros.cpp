@@ -9,6 +9,8 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <filesystem>
+#include <opencv2/imgproc.hpp>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -20,7 +22,9 @@
 #include "deep_ois/core/calibration/lens_shift_log_calibration.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/parameter_source.h"
+#include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "deep_ois/tools/support/simulation_bag_writer.h"
+#include "run_command.h"
 
 namespace deep_ois {
 namespace {
@@ -236,6 +240,54 @@ TEST(CalibrateBag, LensShiftLogConventionRecoveredFromTheImages) {
   const LensShiftLogCalibration none = calibrateLensShiftLog(bag.data, known, {});
   EXPECT_FALSE(none.ok);
   EXPECT_NE(none.problem.find("no lens-shift log"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace deep_ois
+
+namespace deep_ois {
+namespace {
+
+// Issue 23 #9: a refused calibrate prints the refusal and the figures that led to it, and no
+// estimate (it printed "time offset -14.547 ms +- 0.000 ms" and "0 tracks" from a refinement that
+// never ran). A still camera: 40 identical textured frames and a gyro that reads only noise.
+TEST(CalibrateTool, RefusalPrintsTheReasonAndItsFiguresOnly) {
+  const std::string dir = ::testing::TempDir() + "/calibrate_refusal";
+  std::filesystem::create_directories(dir);
+  const std::string bag_path = dir + "/still.bag";
+  RecordingContent content;
+  content.gyro_source = "gyro";
+  for (int k = 0; k < 400; ++k) {
+    ImuSample sample;
+    sample.stamp_s = 100.0 + 0.005 * k;
+    sample.angular_velocity_rad_s = Eigen::Vector3d(1e-4 * std::sin(k), 1e-4 * std::cos(k), 0.0);
+    content.gyro.push_back(sample);
+  }
+  content.frames_source = "frames";
+  for (int f = 0; f < 40; ++f) content.frames.push_back({f, 100.2 + f / 30.0, "frame " + std::to_string(f)});
+  cv::Mat texture(240, 320, CV_8UC1);
+  cv::randu(texture, 0, 255);
+  cv::GaussianBlur(texture, texture, cv::Size(0, 0), 2.0);
+  content.read_image = [texture](std::size_t) { return texture.clone(); };
+  content.camera_info = makePinholeCameraInfo(320, 240, 300, 300, 159.5, 119.5);
+  PhoneRecordingBagOptions options;
+  options.imu_to_camera_rotation = Eigen::Matrix3d::Identity();
+  writeRecordingBag(std::move(content), bag_path, options);
+
+  std::string output;
+  EXPECT_EQ(test::runCommand(std::string(DEEP_OIS_CALIBRATE_EXE) + " --quiet --bag " + bag_path + " --out " + dir +
+                                 "/cal.yaml 2>&1",
+                             output),
+            1)
+      << output;
+  EXPECT_NE(output.find("calibrate: refused, " + dir + "/cal.yaml not written"), std::string::npos) << output;
+  EXPECT_NE(output.find("the camera hardly rotates"), std::string::npos) << output;
+  EXPECT_NE(output.find("figures: " + bag_path + ": 40 frames"), std::string::npos) << output;
+  EXPECT_NE(output.find("gyro RMS about its principal axes"), std::string::npos) << output;
+  // No estimate, no placeholder.
+  for (const char* placeholder : {"time offset ", "readout time ", "R_cam_imu", "+- 0.000", " 0 tracks", "refined in"})
+    EXPECT_EQ(output.find(placeholder), std::string::npos) << "'" << placeholder << "' in:\n" << output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/cal.yaml"));
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "cc9pro_reference.h"
+#include "run_command.h"
 #include "deep_ois/core/recording/phone_recording.h"
 #include "deep_ois/ros/bag/bag_sequence.h"
 #include "deep_ois/ros/bag/phone_recording_bag.h"
@@ -230,8 +231,131 @@ TEST_F(TinyRecording, LensShiftCsvBecomesTheLensShiftTopic) {
   std::ofstream(dir_ + "/lens_shift.txt") << "t,x,y\n1.0,2,3\n1.1,2\n";
   EXPECT_NE(conversionError().find("lens_shift.txt:3: expected 3 comma-separated fields"), std::string::npos)
       << conversionError();
-  std::ofstream(dir_ + "/lens_shift.txt") << "1.0,2,3\n0.9,2,3\n";
-  EXPECT_NE(conversionError().find("lens_shift.txt:2"), std::string::npos) << conversionError();
+  // Two lens positions at one instant: no order can be right.
+  std::ofstream(dir_ + "/lens_shift.txt") << "4328040.3,2,3\n4328040.3,2,4\n";
+  EXPECT_NE(conversionError().find("lens_shift.txt:2: stamp 4328040.300000000 s is also the stamp of line 1"),
+            std::string::npos)
+      << conversionError();
+}
+
+// Issue 23 #3: Android delivers OisSample[] per frame, each batch starting with a copy of the
+// previous batch's last sample, its stamp off by microseconds (up to ~1 ms): the stamps step back in
+// file order. Such a log converts, sorted, the copies dropped, counted and said.
+TEST_F(TinyRecording, RepeatedOisSamplesOfAndroidBatchesAreSortedDroppedAndCounted) {
+  {
+    std::ofstream lens(dir_ + "/lens_shift.txt");
+    lens << std::setprecision(18);
+    int written = 0;
+    for (int batch = 0; batch < 50; ++batch) {
+      // Batch b holds samples 5b .. 5b+4 (5 ms apart); from batch 1 on it starts with a copy of the
+      // previous batch's last sample, 20 us (or, every 10th batch, 900 us) earlier than the original.
+      if (batch > 0) {
+        const int k = 5 * batch - 1;
+        const long long off_us = batch % 10 == 0 ? 900 : 20;
+        lens << (kStartUs + 5000LL * k - off_us) * 1e-6 << "," << 0.25 * k << "," << -0.5 * k << "\n";
+        ++written;
+      }
+      for (int k = 5 * batch; k < 5 * batch + 5; ++k) {
+        lens << (kStartUs + 5000LL * k) * 1e-6 << "," << 0.25 * k << "," << -0.5 * k << "\n";
+        ++written;
+      }
+    }
+    ASSERT_EQ(written, 250 + 49);
+  }
+  files_ = cc9proLayout(dir_);
+  files_.camera_info = dir_ + "/camera.yaml";
+  options_.imu_margin_s = 10.0;  // every sample in the bag
+  const PhoneRecordingBagStats stats = writePhoneRecordingBag(files_, bag_path_, options_);
+  EXPECT_EQ(stats.lens_shift_repeats_dropped, 49);
+  EXPECT_EQ(stats.lens_shift_steps_back, 49);
+  EXPECT_EQ(stats.lens_shift_messages, 250);
+  rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+  int k = 0;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery("/camera/lens_shift"))) {
+    const auto sample = m.instantiate<LensShiftSample>();
+    ASSERT_TRUE(sample);
+    // The original (first delivered) of each repeated sample is kept, at its own stamp.
+    EXPECT_LE(std::abs((sample->header.stamp - fromMicroseconds(kStartUs + 5000LL * k)).toNSec()), 1) << k;
+    EXPECT_DOUBLE_EQ(sample->x, 0.25 * k);
+    ++k;
+  }
+  EXPECT_EQ(k, 250);
+}
+
+// Issue 23 #2: a recording of logs alone (no frames/ folder: the gyro, the frame stamps and the lens
+// log, for train_stabiliser --target log) converts without placeholder images: camera_info per
+// frame stamp, no image topic.
+TEST_F(TinyRecording, RecordingWithoutFramesConvertsToCameraInfoAlone) {
+  fs::remove_all(dir_ + "/frames");
+  files_ = cc9proLayout(dir_);
+  files_.camera_info = dir_ + "/camera.yaml";
+  EXPECT_TRUE(files_.images_dir.empty());
+  const PhoneRecordingBagStats stats = writePhoneRecordingBag(files_, bag_path_, options_);
+  EXPECT_FALSE(stats.images);
+  EXPECT_EQ(stats.frames, 10);
+  rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+  EXPECT_EQ(rosbag::View(bag, rosbag::TopicQuery("/camera/image_raw")).size(), 0u);
+  int k = 0;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery("/camera/camera_info"))) {
+    const auto info = m.instantiate<sensor_msgs::CameraInfo>();
+    ASSERT_TRUE(info);
+    EXPECT_LE(std::abs((info->header.stamp - fromMicroseconds(frameStampUs(k))).toNSec()), 1);
+    EXPECT_EQ(info->width, static_cast<unsigned>(kWidth));
+    ++k;
+  }
+  EXPECT_EQ(k, 10);
+  bag.close();
+  // What train_stabiliser --target log reads: the frame stamps from camera_info, without images.
+  const BagSequence sequence = readBagSequence(bag_path_, {}, BagReadFailure::kThrow, nullptr);
+  EXPECT_EQ(sequence.frame_stamps.size(), 10u);
+  ASSERT_TRUE(sequence.camera);
+}
+
+// Frames and gyro stamped on two clocks (here: the gyro in Unix time, the frames on the boot clock)
+// are said as such, naming both files, not as a gyro that starts late.
+TEST_F(TinyRecording, StampsOnTwoClocksAreSaid) {
+  {
+    std::ofstream gyro(dir_ + "/gyro.txt");
+    for (int k = 0; k < 200; ++k) gyro << std::setprecision(18) << "0,0,0.5," << 1.7e9 + 0.005 * k << "\n";
+  }
+  const std::string error = conversionError();
+  EXPECT_NE(error.find("stamps on two clocks"), std::string::npos) << error;
+  EXPECT_NE(error.find(dir_ + "/framestamp.txt"), std::string::npos) << error;
+  EXPECT_NE(error.find(dir_ + "/gyro.txt"), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(bag_path_));
+}
+
+// Issue 23 #1: the tool suggests --drop-uncovered-frames; the tool must take it.
+TEST_F(TinyRecording, ToolTakesTheDropUncoveredFramesFlagItSuggests) {
+  {
+    std::ofstream gyro(dir_ + "/gyro.txt");
+    for (int k = 0; k < 200; ++k) {
+      gyro << std::setprecision(18) << 0.001 << "," << 0.0 << "," << 0.5 << ","
+           << (kStartUs + 200000LL + 3 * 33313LL + 4000LL + 5000LL * k) * 1e-6 << "\n";
+    }
+  }
+  const std::string command = std::string(DEEP_OIS_CONVERT_RECORDING_EXE) + " --quiet --recording " + dir_ +
+                              " --camera-info " + dir_ + "/camera.yaml --out " + bag_path_;
+  std::string output;
+  EXPECT_NE(test::runCommand(command + " 2>&1", output), 0);
+  EXPECT_NE(output.find("--drop-uncovered-frames leaves them out"), std::string::npos) << output;
+  EXPECT_EQ(test::runCommand(command + " --drop-uncovered-frames 2>&1", output), 0) << output;
+  EXPECT_NE(output.find("3 frames"), std::string::npos) << output;
+  EXPECT_NE(output.find("dropped 1 frames the gyro does not cover"), std::string::npos) << output;
+  rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
+  EXPECT_EQ(rosbag::View(bag, rosbag::TopicQuery("/camera/image_raw")).size(), 3u);
+}
+
+// Issue 23 #2 through the tool: no frames/ folder converts (the summary says so).
+TEST_F(TinyRecording, ToolConvertsARecordingWithoutFrames) {
+  fs::remove_all(dir_ + "/frames");
+  std::string output;
+  EXPECT_EQ(test::runCommand(std::string(DEEP_OIS_CONVERT_RECORDING_EXE) + " --quiet --recording " + dir_ +
+                                 " --camera-info " + dir_ + "/camera.yaml --out " + bag_path_ + " 2>&1",
+                             output),
+            0)
+      << output;
+  EXPECT_NE(output.find("10 frames without images (camera_info only)"), std::string::npos) << output;
 }
 
 TEST_F(TinyRecording, MonoImagesOffsetsTopicsAndFrames) {

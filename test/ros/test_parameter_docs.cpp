@@ -34,6 +34,7 @@ std::string writeYaml(const std::string& name, const std::string& text) {
 
 // Documented default of one parameter: the cell's text before any " (...)" note, unquoted.
 std::string cleanDefault(std::string text) {
+  while (!text.empty() && text.front() == ' ') text.erase(text.begin());
   const std::size_t note = text.find(" (");
   if (note != std::string::npos && text.front() != '(') text = text.substr(0, note);
   std::string out;

@@ -606,6 +606,53 @@ CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOp
 CalibrationResult calibrateCameraImu(const CalibrationData& data, const CalibrationOptions& options) {
   CalibrationResult result = calibrateOnce(data, options);
   CameraImuCalibration& c = result.calibration;
+  if (!result.converged && result.iterations >= options.max_iterations) {
+    result.notes.push_back("the refinement stopped at its iteration cap (" + std::to_string(options.max_iterations) +
+                           " iterations) without converging");
+  }
+  // A mount that wandered off the axis permutation the search found must earn it: a refinement
+  // that does not lower the residual below that of the permutation held has not found a mount, it
+  // has drifted along a weakly determined direction (and its 1-sigma, from the curvature there,
+  // would be confidently wrong).
+  if (options.estimate_rotation && result.iterations > 0) {
+    result.nearest_permutation_index = nearestSignedAxisPermutation(c.imu_to_camera_rotation);
+    const Eigen::Matrix3d& permutation =
+        signedAxisPermutations()[static_cast<std::size_t>(result.nearest_permutation_index)];
+    result.mount_from_permutation_deg = rotationAngleBetween(permutation, c.imu_to_camera_rotation) * kRadToDeg;
+    const double sigma_deg = c.rotation_sigma_rad.maxCoeff() * kRadToDeg;
+    if (result.mount_from_permutation_deg > std::max(2.0, 3.0 * sigma_deg)) {
+      CalibrationOptions held = options;
+      held.estimate_rotation = false;
+      held.imu_to_camera_rotation = permutation;
+      const CalibrationResult at_permutation = calibrateOnce(data, held);
+      result.seconds += at_permutation.seconds;
+      std::ostringstream why;
+      why << std::fixed << std::setprecision(3) << "mount: the refinement ended "
+          << std::setprecision(1) << result.mount_from_permutation_deg << " deg from the nearest axis permutation"
+          << (result.converged ? "" : " without converging (iteration cap " + std::to_string(options.max_iterations) + ")")
+          << ", with a 1-sigma of " << std::setprecision(2) << sigma_deg << " deg, but holding that permutation fits ";
+      // Unconverged, the refined mount is where the iteration cap stopped a drift, whatever its
+      // residual: a mount off the axes must be a converged minimum that fits better.
+      const bool fits_as_well = at_permutation.median_residual_px <= 1.01 * result.median_residual_px;
+      if (fits_as_well || !result.converged) {
+        why << (fits_as_well ? "as well" : "only " + std::to_string(static_cast<int>(std::lround(
+                                                100.0 * (at_permutation.median_residual_px / result.median_residual_px - 1.0)))) +
+                                                " % worse")
+            << " (median residual " << std::setprecision(3) << at_permutation.median_residual_px << " px against "
+            << result.median_residual_px << " px)" << (fits_as_well ? "" : " and the refinement did not converge")
+            << ": the data do not determine the mount beyond the permutation, so the refined mount and its "
+               "1-sigma are not to be trusted. If the IMU is mounted along the camera's axes (a phone), hold it: "
+               "--rotation ";
+        for (int i = 0; i < 9; ++i) why << (i ? "," : "") << static_cast<int>(std::lround(permutation(i / 3, i % 3)));
+        result.refusals.push_back(why.str());
+        result.status = CalibrationStatus::kRefused;
+      } else {
+        why << "worse (median residual " << std::setprecision(3) << at_permutation.median_residual_px << " px against "
+            << result.median_residual_px << " px): the mount is off the camera's axes";
+        result.notes.push_back(why.str());
+      }
+    }
+  }
   if (!options.estimate_readout_time || !(options.readout_boundary_s > 0.0) ||
       !(c.readout_time_s < options.readout_boundary_s)) {
     return result;
@@ -823,13 +870,19 @@ CalibrationResult calibrateOnce(const CalibrationData& data, const CalibrationOp
         lambda *= 10.0;
       }
     }
-    if (!accepted) break;
+    if (!accepted) {
+      result.converged = true;  // no step lowers the cost: a minimum (to the damping's resolution)
+      break;
+    }
     weights = cauchyWeights(trial.residual_norms_px, options, nullptr);
     // Converged when the step no longer matters: 1 us, 1e-5 rad/s, 1e-6 rad.
     const bool small = std::abs(step(kOffset)) < 1e-6 && std::abs(step(kReadout)) < 1e-6 &&
                        step.segment<3>(kBias).norm() < 1e-5 && step.segment<3>(kRotation).norm() < 1e-6;
     quiet_iterations = small ? quiet_iterations + 1 : 0;
-    if (quiet_iterations >= 2) break;
+    if (quiet_iterations >= 2) {
+      result.converged = true;
+      break;
+    }
   }
 
   // ---- Uncertainty and observability. ------------------------------------------------------

@@ -29,7 +29,33 @@ Eigen::Vector2d limitToStroke(const Eigen::Vector2d& command, const Eigen::Vecto
   return r > 1.0 ? Eigen::Vector2d(command / r) : command;
 }
 
+// The excursion_v1 set: 10 features per axis (see nonlinearFeatureCount's users below).
+constexpr int kExcursionFeaturesPerAxis = 10;
+// Leaky integrals of the excursion-weighted command (seconds).
+constexpr double kExcursionIntegralTimeConstantsS[] = {0.03, 0.15, 0.6};
+// Excursions beyond this many strokes are not weighted further (keeps the powers bounded when a
+// badly fitted stroke is small).
+constexpr double kMaxExcursion = 3.0;
+
+// The rate_bank_v1 set: leaky integrals of the pan/tilt rate (rad) at these time constants, a
+// learned higher-order linear filter from rate to lens beside the chain's own.
+constexpr double kRateBankTimeConstantsS[] = {0.002, 0.005, 0.012, 0.03, 0.07, 0.17, 0.4, 1.0, 2.5};
+constexpr int kRateBankSize = sizeof(kRateBankTimeConstantsS) / sizeof(double);
+
+bool hasExcursionFeatures(const std::string& set) {
+  return set == "excursion_v1" || set == "excursion_rate_v1";
+}
+bool hasRateBankFeatures(const std::string& set) {
+  return set == "rate_bank_v1" || set == "excursion_rate_v1";
+}
+
 }  // namespace
+
+int nonlinearFeatureCount(const std::string& feature_set) {
+  if (!hasExcursionFeatures(feature_set) && !hasRateBankFeatures(feature_set)) return 0;
+  return (hasExcursionFeatures(feature_set) ? 2 * kExcursionFeaturesPerAxis : 0) +
+         (hasRateBankFeatures(feature_set) ? 2 * kRateBankSize : 0);
+}
 
 std::string StabiliserParameters::validate() const {
   std::ostringstream why;
@@ -61,6 +87,15 @@ std::string StabiliserParameters::validate() const {
               !residual.allFinite())) {
     why << "residual: must be a finite 2 x " << 2 * residual_time_constants_s.size()
         << " matrix (2 x 2 per residual time constant)";
+  } else if (!nonlinear_features.empty() && nonlinearFeatureCount(nonlinear_features) == 0) {
+    why << "nonlinear_features: unknown set '" << nonlinear_features
+        << "' (known: excursion_v1, rate_bank_v1, excursion_rate_v1)";
+  } else if (nonlinear_residual.size() != 0 &&
+             (nonlinear_residual.rows() != 2 ||
+              nonlinear_residual.cols() != nonlinearFeatureCount(nonlinear_features) ||
+              !nonlinear_residual.allFinite())) {
+    why << "nonlinear_residual: must be a finite 2 x " << nonlinearFeatureCount(nonlinear_features)
+        << " matrix for nonlinear_features '" << nonlinear_features << "'";
   } else {
     for (double tau : residual_time_constants_s) {
       if (!positive(tau)) {
@@ -104,6 +139,22 @@ LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, d
     residual_decay_.push_back(leakDecay(1.0 / tau, step_s));
     residual_weight_.push_back(leakWeight(1.0 / tau, step_s));
   }
+  if (!parameters_.nonlinear_features.empty()) {
+    excursion_features_ = hasExcursionFeatures(parameters_.nonlinear_features);
+    if (excursion_features_) {
+      for (double tau : kExcursionIntegralTimeConstantsS) {
+        nonlinear_decay_.push_back(leakDecay(1.0 / tau, step_s));
+        nonlinear_weight_.push_back(leakWeight(1.0 / tau, step_s));
+      }
+    }
+    if (hasRateBankFeatures(parameters_.nonlinear_features)) {
+      for (double tau : kRateBankTimeConstantsS) {
+        rate_bank_decay_.push_back(leakDecay(1.0 / tau, step_s));
+        rate_bank_weight_.push_back(leakWeight(1.0 / tau, step_s));
+      }
+    }
+    features_ = Eigen::VectorXd::Zero(nonlinearFeatureCount(parameters_.nonlinear_features));
+  }
   // A fractional lag: the acted command is interpolated between the two stored around it (so the
   // fit sees a smooth cost in the lag).
   const double lag_steps = parameters_.sensor_lag_s / step_s;
@@ -125,11 +176,18 @@ void LensShiftPredictor::reset() {
   actuator_y_ = LensActuator(parameters_.actuator_natural_hz, parameters_.actuator_damping, step_s_,
                              stroke_px_.y());
   shifts_.clear();
+  nonlinear_state_.assign(nonlinear_decay_.size(), Eigen::Vector2d::Zero());
+  rate_bank_state_.assign(rate_bank_decay_.size(), Eigen::Vector2d::Zero());
+  if (features_.size() > 0) features_.setZero();
+  feature_history_.clear();
   ++resets_;
 }
 
 bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
   if (!std::isfinite(sample.stamp_s) || !sample.rate_rad_s.allFinite()) return false;
+  // A jump back further than a gap (a replayed bag looping, a clock reset): the history no
+  // longer leads to this sample, start over from it. A smaller step back is a stray sample.
+  if (started_ && sample.stamp_s < last_stamp_s_ - max_gap_s) reset();
   if (started_ && !(sample.stamp_s > last_stamp_s_)) return false;
   if (started_ && sample.stamp_s - last_stamp_s_ > max_gap_s) reset();
   if (!started_) {
@@ -140,6 +198,7 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
     steps_ = 0;
     clock_s_ = sample.stamp_s;
     shifts_.push_back(Eigen::Vector2d::Zero());
+    if (record_features_) feature_history_.push_back(features_);
     return true;
   }
   // Internal steps up to the new sample, the rate interpolated at each step's middle.
@@ -164,9 +223,9 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
   }
   theta_ = (panning_ ? decay_pan_ : decay_hold_) * theta_ +
            (panning_ ? weight_pan_ : weight_hold_) * pan_tilt;
-  const Eigen::Vector2d command = limitToStroke(
-      focal_px_ * (p.gain * Eigen::Vector2d(std::tan(theta_.x()), std::tan(theta_.y()))),
-      stroke_px_, p.circular_stroke);
+  const Eigen::Vector2d raw_command =
+      focal_px_ * (p.gain * Eigen::Vector2d(std::tan(theta_.x()), std::tan(theta_.y())));
+  const Eigen::Vector2d command = limitToStroke(raw_command, stroke_px_, p.circular_stroke);
   // Holds lag_steps_ + 2 commands after the push: front = lag_steps_ + 1 steps old.
   pending_commands_.push_back(command);
   const Eigen::Vector2d acted =
@@ -183,11 +242,64 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
     }
     shift += focal_px_ * (p.residual * features);
   }
+  if (features_.size() > 0) {
+    int offset = 0;
+    if (excursion_features_) {
+      // excursion_v1, per axis i (other axis j), in focal-length units: u the unclipped command,
+      // e = u / stroke (bounded), c the clipped command, a the actuator's output.
+      const Eigen::Vector2d u = raw_command / focal_px_;
+      const Eigen::Vector2d limit = stroke_px_ / focal_px_;
+      const Eigen::Vector2d c = command / focal_px_;
+      const Eigen::Vector2d a =
+          Eigen::Vector2d(actuator_x_.positionPx(), actuator_y_.positionPx()) / focal_px_;
+      Eigen::Vector2d e;
+      for (int i = 0; i < 2; ++i) e(i) = std::clamp(u(i) / limit(i), -kMaxExcursion, kMaxExcursion);
+      const Eigen::Vector2d pull = u.cwiseProduct(e.cwiseAbs2());
+      for (std::size_t k = 0; k < nonlinear_state_.size(); ++k)
+        nonlinear_state_[k] = nonlinear_decay_[k] * nonlinear_state_[k] +
+                              nonlinear_weight_[k] / kExcursionIntegralTimeConstantsS[k] * pull;
+      for (int i = 0; i < 2; ++i) {
+        const int j = 1 - i;
+        double* f = features_.data() + i * kExcursionFeaturesPerAxis;
+        f[0] = u(i);
+        f[1] = limit(i) * std::tanh(e(i));
+        f[2] = pull(i);
+        f[3] = pull(i) * e(i) * e(i);
+        f[4] = c(i);
+        f[5] = a(i);
+        f[6] = u(i) * e(j) * e(j);
+        for (std::size_t k = 0; k < nonlinear_state_.size(); ++k) f[7 + k] = nonlinear_state_[k](i);
+      }
+      offset = 2 * kExcursionFeaturesPerAxis;
+    }
+    // rate_bank_v1: the leaky rate integrals (rad), x's then y's.
+    for (std::size_t k = 0; k < rate_bank_state_.size(); ++k) {
+      rate_bank_state_[k] = rate_bank_decay_[k] * rate_bank_state_[k] + rate_bank_weight_[k] * pan_tilt;
+      features_(offset + static_cast<long>(k)) = rate_bank_state_[k].x();
+      features_(offset + kRateBankSize + static_cast<long>(k)) = rate_bank_state_[k].y();
+    }
+    if (p.nonlinear_residual.size() != 0) shift += focal_px_ * (p.nonlinear_residual * features_);
+  }
   // From an integer step count: summing step_s_ on epoch-sized stamps would drift (ulp ~ 2e-7 s).
   ++steps_;
   clock_s_ = start_s_ + static_cast<double>(steps_) * step_s_;
   shifts_.push_back(shift);
   while (shifts_.size() > history_steps_) shifts_.pop_front();
+  if (record_features_) {
+    feature_history_.push_back(features_);
+    while (feature_history_.size() > history_steps_) feature_history_.pop_front();
+  }
+}
+
+Eigen::VectorXd LensShiftPredictor::featuresAt(double t_s) const {
+  if (feature_history_.empty()) return features_;
+  const double last = static_cast<double>(feature_history_.size() - 1);
+  const double position = last - (clock_s_ - t_s) / step_s_;
+  if (!(position > 0.0)) return feature_history_.front();
+  if (position >= last) return feature_history_.back();
+  const std::size_t j = static_cast<std::size_t>(position);
+  const double alpha = position - static_cast<double>(j);
+  return (1.0 - alpha) * feature_history_[j] + alpha * feature_history_[j + 1];
 }
 
 bool LensShiftPredictor::covers(double t_s) const {

@@ -13,13 +13,16 @@ StabiliserParameters noLensMotionParameters() {
   p.gain.setZero();
   p.residual_time_constants_s.clear();
   p.residual.resize(0, 0);
+  p.nonlinear_features.clear();
+  p.nonlinear_residual.resize(0, 0);
   p.pan_detection_rate_rad_s = 0.0;
   return p;
 }
 
 bool isNoLensMotion(const StabiliserParameters& parameters) {
   return parameters.gain.isZero(0.0) &&
-         (parameters.residual.size() == 0 || parameters.residual.isZero(0.0));
+         (parameters.residual.size() == 0 || parameters.residual.isZero(0.0)) &&
+         (parameters.nonlinear_residual.size() == 0 || parameters.nonlinear_residual.isZero(0.0));
 }
 
 LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,

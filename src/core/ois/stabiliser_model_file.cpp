@@ -71,6 +71,15 @@ std::string StabiliserModelFile::toYaml() const {
   for (long r = 0; r < p.residual.rows(); ++r)
     for (long c = 0; c < p.residual.cols(); ++c) residual.push_back(p.residual(r, c));
   out << YAML::Key << "residual" << YAML::Value << YAML::Flow << residual;
+  if (!p.nonlinear_features.empty()) {
+    // Optional: files without it (every model before the learned nonlinear residual) still load.
+    out << YAML::Key << "nonlinear_features" << YAML::Value << p.nonlinear_features;
+    std::vector<double> nonlinear;
+    for (long r = 0; r < p.nonlinear_residual.rows(); ++r)
+      for (long c = 0; c < p.nonlinear_residual.cols(); ++c)
+        nonlinear.push_back(p.nonlinear_residual(r, c));
+    out << YAML::Key << "nonlinear_residual" << YAML::Value << YAML::Flow << nonlinear;
+  }
   out << YAML::EndMap;
   writeCameraDescription(out, camera);
   const StabiliserTrainingRecord& t = training;
@@ -134,6 +143,20 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   for (long r = 0; r < p.residual.rows(); ++r)
     for (long c = 0; c < p.residual.cols(); ++c)
       p.residual(r, c) = residual[static_cast<std::size_t>(r * 2 * k + c)];
+  p.nonlinear_features = optional<std::string>(s, "nonlinear_features", "");
+  const auto nonlinear = optional<std::vector<double>>(s, "nonlinear_residual", {});
+  const long m = nonlinearFeatureCount(p.nonlinear_features);
+  if (!p.nonlinear_features.empty() && m == 0)
+    throw StabiliserModelFileError("field 'nonlinear_features': unknown set '" +
+                                   p.nonlinear_features + "' (known: excursion_v1, rate_bank_v1, excursion_rate_v1)");
+  if (static_cast<long>(nonlinear.size()) != 2 * m)
+    throw StabiliserModelFileError("field 'nonlinear_residual' must have 2 x " +
+                                   std::to_string(m) + " values for nonlinear_features '" +
+                                   p.nonlinear_features + "'");
+  p.nonlinear_residual.resize(m > 0 ? 2 : 0, m);
+  for (long r = 0; r < p.nonlinear_residual.rows(); ++r)
+    for (long c = 0; c < m; ++c)
+      p.nonlinear_residual(r, c) = nonlinear[static_cast<std::size_t>(r * m + c)];
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
   try {

@@ -114,7 +114,8 @@ std::vector<ImuSample> loadGyroCsv(const std::string& path) {
   return parseGyroCsv(in, path);
 }
 
-std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::string& source_name) {
+std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::string& source_name,
+                                                  std::vector<int>* lines) {
   static const char* const kFieldNames[] = {"t (s)", "x", "y", "cxx", "cxy", "cyy"};
   std::vector<LensShiftLogSample> samples;
   std::string text;
@@ -144,8 +145,9 @@ std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::s
     sample.stamp_s = values[0];
     sample.logged = Eigen::Vector2d(values[1], values[2]);
     if (fields.size() == 6) sample.covariance = (Eigen::Matrix2d() << values[3], values[4], values[4], values[5]).finished();
-    if (!samples.empty()) checkIncreasing(sample.stamp_s, samples.back().stamp_s, previous_line, source_name, line);
+    // Order is not checked here: a phone's log repeats samples out of order (repairLensShiftLog).
     samples.push_back(sample);
+    if (lines) lines->push_back(line);
     previous_line = line;
   }
   if (in.bad()) throw RecordingFormatError(source_name, line + 1, "read error");
@@ -153,9 +155,9 @@ std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::s
   return samples;
 }
 
-std::vector<LensShiftLogSample> loadLensShiftCsv(const std::string& path) {
+std::vector<LensShiftLogSample> loadLensShiftCsv(const std::string& path, std::vector<int>* lines) {
   std::ifstream in = openOrThrow(path);
-  return parseLensShiftCsv(in, path);
+  return parseLensShiftCsv(in, path, lines);
 }
 
 std::vector<double> parseFrameStamps(std::istream& in, const std::string& source_name) {

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/sim/stabiliser_controller.h"
 
 namespace deep_ois {
 namespace sim {
@@ -54,17 +55,6 @@ Eigen::Vector2d interpolate(const std::vector<std::pair<double, Eigen::Vector2d>
   const auto before = after - 1;
   const double alpha = (t - before->first) / (after->first - before->first);
   return (1.0 - alpha) * before->second + alpha * after->second;
-}
-
-// The point of the stroke nearest to `command`: per axis for a box, radially for an ellipse.
-Eigen::Vector2d clampToStroke(const Eigen::Vector2d& command, double limit_x, double limit_y,
-                              StrokeShape shape) {
-  if (shape == StrokeShape::kBox) {
-    return Eigen::Vector2d(std::clamp(command.x(), -limit_x, limit_x),
-                           std::clamp(command.y(), -limit_y, limit_y));
-  }
-  const double r = std::hypot(command.x() / limit_x, command.y() / limit_y);
-  return r > 1.0 ? Eigen::Vector2d(command / r) : command;
 }
 
 }  // namespace
@@ -116,6 +106,29 @@ std::string OisConfig::validate() const {
     why << "pi_plant_natural_hz, pi_plant_damping, pi_kp: must be positive, pi_ki >= 0";
   } else if (position_loop == "pi" && !(control_rate_hz >= 20.0 * pi_plant_natural_hz * std::sqrt(1.0 + pi_kp))) {
     why << "control_rate_hz: a pi position loop needs at least 20 x its closed-loop frequency";
+  } else if (controller != "highpass" && controller != "kalman") {
+    why << "controller: must be highpass or kalman (got '" << controller << "')";
+  } else if (controller == "kalman" && !positive(kalman_bandwidth_hz)) {
+    why << "kalman_bandwidth_hz: must be positive (got " << kalman_bandwidth_hz << " Hz)";
+  } else if (!std::isfinite(kalman_manoeuvre_deg) || kalman_manoeuvre_deg < 0.0 ||
+             !(kalman_manoeuvre_factor >= 1.0) || !std::isfinite(kalman_manoeuvre_factor)) {
+    why << "kalman_manoeuvre_deg: must be >= 0 degrees (0 = off) and kalman_manoeuvre_factor >= 1";
+  } else if (!std::isfinite(excursion_recentring_gain) || excursion_recentring_gain < 0.0 ||
+             !positive(excursion_recentring_power)) {
+    why << "excursion_recentring_gain: must be >= 0 (0 = off), excursion_recentring_power > 0";
+  } else if (!std::isfinite(digital_rate_hz) || digital_rate_hz < 0.0 ||
+             digital_rate_hz > control_rate_hz) {
+    why << "digital_rate_hz: must be in [0, control_rate_hz], 0 = continuous (got "
+        << digital_rate_hz << " Hz)";
+  } else if (!std::isfinite(digital_delay_s) || digital_delay_s < 0.0 || digital_delay_s > 0.05) {
+    why << "digital_delay_s: must be in [0, 0.05] s (got " << digital_delay_s << ")";
+  } else if (!std::isfinite(command_lsb_deg) || command_lsb_deg < 0.0 || command_lsb_deg > 0.5) {
+    why << "command_lsb_deg: must be in [0, 0.5] degrees, 0 = not quantised (got "
+        << command_lsb_deg << ")";
+  } else if (!std::isfinite(mount_rotation_deg) || std::abs(mount_rotation_deg) > 45.0) {
+    why << "mount_rotation_deg: must be within +-45 degrees (got " << mount_rotation_deg << ")";
+  } else if (!std::isfinite(actuator_cross_coupling) || std::abs(actuator_cross_coupling) > 0.5) {
+    why << "actuator_cross_coupling: must be within +-0.5 (got " << actuator_cross_coupling << ")";
   } else if (!std::isfinite(hall_lag_s) || hall_lag_s < 0.0 || hall_lag_s > 0.1) {
     why << "hall_lag_s: must be in [0, 0.1] s (got " << hall_lag_s << ")";
   } else if (!positive(control_rate_hz) ||
@@ -207,22 +220,18 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
     return;
   }
 
-  const double wc = 2.0 * kPi * config_.highpass_corner_hz;
-  const double wc_pan = 2.0 * kPi * config_.pan_release_corner_hz;
-  // The leaky integrator's decay and the weight of a step's mean rate, for a corner w.
-  auto decayOf = [dt](double w) { return std::exp(-w * dt); };
-  auto rateWeightOf = [dt](double w) { return w > 0.0 ? -std::expm1(-w * dt) / w : dt; };
-  const double decay_hold = decayOf(wc), weight_hold = rateWeightOf(wc);
-  const double decay_pan = decayOf(wc_pan), weight_pan = rateWeightOf(wc_pan);
-  const double pan_smoothing = -std::expm1(-dt / config_.pan_detection_time_constant_s);
-
   std::mt19937 rng(seed);
+  // The stabiliser's gyro: turned by the mount's rotation about the optical axis, with its noise.
+  const double mount = config_.mount_rotation_deg * kPi / 180.0;
+  const double mount_c = std::cos(mount), mount_s = std::sin(mount);
   auto measuredRate = [&](int j) {
     const Eigen::Vector3d w = motion.angularVelocity(start_s_ + j * dt);
     // Only pitch and tilt rates matter to the stabilizer; noise on both.
     const double noise_x = config_.gyro_noise_rad_s * gaussian(rng);
     const double noise_y = config_.gyro_noise_rad_s * gaussian(rng);
-    return Eigen::Vector2d(w.x() + noise_x, w.y() + noise_y);
+    if (mount == 0.0) return Eigen::Vector2d(w.x() + noise_x, w.y() + noise_y);
+    return Eigen::Vector2d(mount_c * w.x() + mount_s * w.y() + noise_x,
+                           -mount_s * w.x() + mount_c * w.y() + noise_y);
   };
 
   LensActuator actuator_x(config_.actuator_natural_hz, config_.actuator_damping, dt,
@@ -231,20 +240,23 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
                           stroke_limit_y_px_);
   const bool pi_loop = config_.position_loop == "pi";
   PiLensLoop pi_x(config_, dt, stroke_limit_px_), pi_y(config_, dt, stroke_limit_y_px_);
-  const double scale_px = config_.gain * focal_px;
-  // Commands waiting out the Hall sensor's delay (the loop reacts to them that much later).
-  const int lag_steps = static_cast<int>(std::lround(config_.hall_lag_s * config_.control_rate_hz));
+  StabiliserController controller(config_, focal_px);
+  // Commands waiting out the Hall sensor's delay and the digital loop's (the loop reacts to them
+  // that much later).
+  const int lag_steps = static_cast<int>(
+      std::lround((config_.hall_lag_s + config_.digital_delay_s) * config_.control_rate_hz));
   std::vector<Eigen::Vector2d> pending(static_cast<std::size_t>(lag_steps) + 1,
                                        Eigen::Vector2d::Zero());
-  Eigen::Vector2d theta = Eigen::Vector2d::Zero();  // high-passed (x, y) angles, rad
+  // A digital loop updates every `tick` control steps from the gyro sample of that step.
+  const int tick = config_.digital_rate_hz > 0.0
+                       ? std::max(1, static_cast<int>(std::lround(config_.control_rate_hz /
+                                                                  config_.digital_rate_hz)))
+                       : 0;
   Eigen::Vector2d rate = measuredRate(0);
-  double smoothed_rate = 0.0;  // low-passed |pan/tilt rate|, rad/s, for the pan detector
-  bool panning = false;
+  Eigen::Vector2d command = controller.command();
   for (int j = 0; j < steps; ++j) {
     // The command of step j is held until the controller's next update (zero-order hold).
-    const Eigen::Vector2d command = clampToStroke(
-        Eigen::Vector2d(scale_px * std::tan(theta.y()), -scale_px * std::tan(theta.x())),
-        stroke_limit_px_, stroke_limit_y_px_, config_.stroke_shape);
+    if (tick == 0) command = controller.command();
     pending[static_cast<std::size_t>(j % (lag_steps + 1))] = command;
     // What the loop acts on: the command of lag_steps ago, against a noisy position reading (the
     // lens settles where the reading equals the command: off by the reading's noise).
@@ -254,17 +266,23 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
       const double noise_y = gaussian(rng);
       effective -= config_.hall_noise_px * Eigen::Vector2d(noise_x, noise_y);
     }
-    shift_grid_[j + 1] =
+    Eigen::Vector2d lens =
         pi_loop ? Eigen::Vector2d(pi_x.advance(effective.x()), pi_y.advance(effective.y()))
                 : Eigen::Vector2d(actuator_x.advance(effective.x()), actuator_y.advance(effective.y()));
-    const Eigen::Vector2d next_rate = measuredRate(j + 1);
-    if (config_.pan_detection_rate_rad_s > 0.0) {
-      smoothed_rate += pan_smoothing * (next_rate.norm() - smoothed_rate);
-      if (!panning && smoothed_rate > config_.pan_detection_rate_rad_s) panning = true;
-      if (panning && smoothed_rate < 0.7 * config_.pan_detection_rate_rad_s) panning = false;
+    if (config_.actuator_cross_coupling != 0.0) {
+      const double c = config_.actuator_cross_coupling;
+      lens = Eigen::Vector2d(lens.x() + c * lens.y(), lens.y() + c * lens.x());
     }
-    theta = (panning ? decay_pan : decay_hold) * theta +
-            (panning ? weight_pan : weight_hold) * 0.5 * (rate + next_rate);
+    shift_grid_[j + 1] = lens;
+    const Eigen::Vector2d next_rate = measuredRate(j + 1);
+    if (tick == 0) {
+      controller.advance(0.5 * (rate + next_rate), next_rate, dt);
+    } else if ((j + 1) % tick == 0) {
+      // The digital controller sees only its own samples: the rate of this step, held over its
+      // period (no anti-aliasing), then commands once.
+      controller.advance(next_rate, next_rate, tick * dt);
+      command = controller.command();
+    }
     rate = next_rate;
   }
 }

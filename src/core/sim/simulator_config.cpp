@@ -198,6 +198,18 @@ void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
         .read("pi_plant_damping", o.pi_plant_damping)
         .read("pi_kp", o.pi_kp)
         .read("pi_ki", o.pi_ki)
+        .read("controller", o.controller)
+        .read("kalman_bandwidth_hz", o.kalman_bandwidth_hz)
+        .read("kalman_manoeuvre_deg", o.kalman_manoeuvre_deg)
+        .read("kalman_manoeuvre_factor", o.kalman_manoeuvre_factor)
+        .read("excursion_recentring_gain", o.excursion_recentring_gain)
+        .read("excursion_recentring_power", o.excursion_recentring_power)
+        .read("soft_stroke", o.soft_stroke)
+        .read("digital_rate_hz", o.digital_rate_hz)
+        .read("digital_delay_s", o.digital_delay_s)
+        .read("command_lsb_deg", o.command_lsb_deg)
+        .read("mount_rotation_deg", o.mount_rotation_deg)
+        .read("actuator_cross_coupling", o.actuator_cross_coupling)
         .read("lens_shift_csv", o.lens_shift_csv)
         .finish();
     if (!parseStrokeShape(stroke_shape, &o.stroke_shape)) {

@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <random>
@@ -310,14 +311,19 @@ TEST(CameraImuCalibration, AReadoutAtItsBoundWidensTheIntervalsToHoldTheGlobalSh
   const SyntheticRecording recording = globalShutterRecording();
   const CalibrationResult result = calibrateCameraImu(recording.data, CalibrationOptions());
   ASSERT_TRUE(result.ok()) << result.reason();
-  ASSERT_EQ(result.notes.size(), 1u) << "no note on the readout bound";
+  // (Other notes, e.g. on the mount being off the camera's axes, may accompany it.)
+  auto boundNotes = [](const CalibrationResult& r) {
+    return std::count_if(r.notes.begin(), r.notes.end(),
+                         [](const std::string& note) { return note.find("at its lower bound") != std::string::npos; });
+  };
+  ASSERT_EQ(boundNotes(result), 1) << "no note on the readout bound";
   CalibrationOptions held;
   held.estimate_readout_time = false;
   held.readout_time_s = 0.0;
   const CalibrationResult global = calibrateCameraImu(recording.data, held);
   ASSERT_TRUE(global.ok()) << global.reason();
   const CameraImuCalibration& c = result.calibration;
-  EXPECT_TRUE(global.notes.empty());
+  EXPECT_EQ(boundNotes(global), 0);
   // The reported intervals reach the other answer.
   EXPECT_GE(c.time_offset_sigma_s + 1e-12,
             std::abs(c.time_offset_s - global.calibration.time_offset_s));
@@ -326,7 +332,7 @@ TEST(CameraImuCalibration, AReadoutAtItsBoundWidensTheIntervalsToHoldTheGlobalSh
   CalibrationOptions usual;
   usual.readout_boundary_s = 0.0;
   const CalibrationResult plain = calibrateCameraImu(recording.data, usual);
-  EXPECT_TRUE(plain.notes.empty());
+  EXPECT_EQ(boundNotes(plain), 0);
   EXPECT_LE(plain.calibration.time_offset_sigma_s, c.time_offset_sigma_s + 1e-12);
 }
 

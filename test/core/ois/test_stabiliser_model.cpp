@@ -5,12 +5,14 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <random>
 
 #include "deep_ois/core/camera/camera_description.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
+#include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
@@ -267,6 +269,156 @@ TEST(StabiliserCompensator, ComposesThePredictedLensShiftsWithTheGyroRotations) 
     EXPECT_LT((result.shift_a_px[i] - compensator.predictor().lensShiftAt(times_a[i])).norm(), 1e-12);
   }
   EXPECT_THROW(lensShiftHomographies(K, rotations, result.shift_a_px, {}), std::invalid_argument);
+}
+
+
+// ---- The learned nonlinear residual and the candidate selection ----
+
+// The known chain plus a soft saturation of x's command and y pulled back by the leaky integral of
+// its excursion-weighted command (the shape of an excursion-dependent re-centring); `seed` adds
+// small terms on every feature.
+StabiliserParameters withNonlinearResidual(unsigned seed) {
+  StabiliserParameters p = knownStabiliser();
+  p.nonlinear_features = "excursion_v1";
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> coefficient(-1e-5, 1e-5);
+  p.nonlinear_residual = Eigen::MatrixXd::NullaryExpr(2, nonlinearFeatureCount("excursion_v1"),
+                                                      [&]() { return coefficient(rng); });
+  p.nonlinear_residual(0, 1) = 0.1;    // x: + 0.1 stroke tanh(excursion)
+  p.nonlinear_residual(1, 18) = -0.01;  // y: - 0.01 x the 0.15 s leaky pull of y
+  return p;
+}
+
+TEST(NonlinearResidual, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
+  const StabiliserParameters p = withNonlinearResidual(3);
+  ASSERT_EQ(p.validate(), "");
+  const auto rates = shake(10.0, 3.0, 1);
+  LensShiftPredictor whole(p, kFocalPx), framewise(p, kFocalPx), physical(knownStabiliser(), kFocalPx);
+  for (const auto& r : rates) whole.addRate(r), physical.addRate(r);
+  double max_difference = 0.0, learned_part = 0.0;
+  std::size_t k = 0;
+  for (double frame_end = 10.0; k < rates.size(); frame_end += 1.0 / 30.0) {
+    while (k < rates.size() && rates[k].stamp_s <= frame_end) framewise.addRate(rates[k++]);
+  }
+  for (double t = 12.6; t < 12.95; t += 0.01) {
+    max_difference = std::max(max_difference, (framewise.lensShiftAt(t) - whole.lensShiftAt(t)).norm());
+    learned_part = std::max(learned_part, (whole.lensShiftAt(t) - physical.lensShiftAt(t)).norm());
+  }
+  EXPECT_EQ(framewise.resets(), 0);
+  EXPECT_LT(max_difference, 1e-12);
+  EXPECT_GT(learned_part, 0.01);  // the residual acts (it is not a no-op)
+
+  // A gap: centred lens, zero features, as a fresh model.
+  CameraRateSample after{whole.newestStamp() + 0.5, Eigen::Vector3d(0.3, -0.2, 0.0)};
+  EXPECT_TRUE(whole.addRate(after));
+  EXPECT_EQ(whole.resets(), 1);
+  EXPECT_NEAR(whole.lensShiftAt(after.stamp_s).norm(), 0.0, 1e-12);
+  // Time jumps back (a bag replayed from its start): it starts over from the new sample and then
+  // predicts exactly as a fresh model fed the same samples.
+  LensShiftPredictor fresh(p, kFocalPx);
+  for (const auto& r : rates) {
+    if (r.stamp_s > 11.0) break;
+    const int before = whole.resets();
+    EXPECT_TRUE(whole.addRate(r));
+    if (&r == &rates.front()) {
+      EXPECT_EQ(whole.resets(), before + 1);
+    }
+    fresh.addRate(r);
+  }
+  EXPECT_LT((whole.lensShiftAt(10.95) - fresh.lensShiftAt(10.95)).norm(), 1e-12);
+  // A stray sample a little back is ignored, not a reset.
+  const int resets = whole.resets();
+  EXPECT_FALSE(whole.addRate({whole.newestStamp() - 0.01, Eigen::Vector3d::Zero()}));
+  EXPECT_EQ(whole.resets(), resets);
+}
+
+TEST(NonlinearResidual, RoundTripsItsFileAndNamesABadOne) {
+  StabiliserModelFile file;
+  file.name = "nonlinear";
+  file.parameters = withNonlinearResidual(4);
+  file.parameters.residual_time_constants_s = {0.01, 0.1};
+  file.parameters.residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
+  file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
+  file.training.data_files = {"a.bag"};
+  const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
+  EXPECT_EQ(back.parameters.nonlinear_features, "excursion_v1");
+  EXPECT_TRUE(back.parameters.nonlinear_residual.isApprox(file.parameters.nonlinear_residual, 1e-9));
+  EXPECT_EQ(back.camera.summary(), file.camera.summary());
+  EXPECT_EQ(back.training.data_files, file.training.data_files);
+  // Same predictions from the file as from memory.
+  LensShiftPredictor a(file.parameters, kFocalPx), b(back.parameters, kFocalPx);
+  for (const auto& r : shake(0.0, 2.0, 7)) a.addRate(r), b.addRate(r);
+  EXPECT_LT((a.lensShiftAt(1.9) - b.lensShiftAt(1.9)).norm(), 1e-6);
+
+  std::string yaml = file.toYaml();
+  yaml.replace(yaml.find("excursion_v1"), 12, "excursion_v9");
+  try {
+    StabiliserModelFile::fromYaml(yaml);
+    FAIL() << "an unknown feature set was accepted";
+  } catch (const StabiliserModelFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("nonlinear_features"), std::string::npos) << e.what();
+  }
+}
+
+// A stabiliser the chain alone does not describe (the chain plus a nonlinear term): given the
+// chain, the ridge fit recovers the rest and the selection keeps it on held-out data; on the plain
+// chain it keeps a simpler candidate (the learned part does not pay for itself).
+TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.try_circular_stroke = false;
+  options.iterations = 15;
+  const StabiliserParameters truth = withNonlinearResidual(5);
+  const std::vector<StabiliserFitRecording> training = {observe(truth, 21, 0.02), observe(truth, 22, 0.02)};
+  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 23, 0.0)};
+  StabiliserFitResult fit;  // the physical chain as a converged fit would give it
+  fit.parameters = knownStabiliser();
+  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
+  ASSERT_GE(selection.candidates.size(), 2u);  // the linear bank is left out when it does not help
+  for (const auto& c : selection.candidates)
+    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
+                c.training.rms_px, c.held_out.rms_px);
+  std::printf("[ figures  ] %s\n", selection.reason.c_str());
+  // physical, rate filter, nonlinear, both: the nonlinear set is what the truth has.
+  ASSERT_EQ(selection.candidates.size(), 4u);
+  EXPECT_NE(selection.candidates[2].name.find("excursion_v1"), std::string::npos);
+  EXPECT_EQ(selection.kept, 2u);  // "both" is no better: the simpler one is kept
+  EXPECT_LT(selection.candidates[2].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
+  EXPECT_LT(selection.candidates[2].held_out.rms_px, 0.5 * selection.candidates[1].held_out.rms_px);
+  EXPECT_NE(selection.reason.find("held-out"), std::string::npos);
+
+  const std::vector<StabiliserFitRecording> plain = {observe(knownStabiliser(), 31, 0.05)};
+  const StabiliserFitResult plain_fit = fitStabiliser(plain, options);
+  const StabiliserSelection plain_selection =
+      selectStabiliser(plain_fit, plain, {observe(knownStabiliser(), 32, 0.05)}, options);
+  std::printf("[ figures  ] plain chain: %s\n", plain_selection.reason.c_str());
+  EXPECT_EQ(plain_selection.candidates[plain_selection.kept].name.find("nonlinear"), std::string::npos);
+}
+
+
+// The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
+// included. The largest feature set, fed 30 s of 400 Hz gyro as 900 frames.
+TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
+  StabiliserParameters p = knownStabiliser();
+  p.residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
+  p.residual = Eigen::MatrixXd::Constant(2, 10, 0.01);
+  p.nonlinear_features = "excursion_rate_v1";
+  p.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount(p.nonlinear_features), 1e-3);
+  const auto rates = shake(0.0, 30.0, 9);
+  LensShiftPredictor predictor(p, kFocalPx);
+  const auto start = std::chrono::steady_clock::now();
+  double sink = 0.0;
+  std::size_t k = 0;
+  int frames = 0;
+  for (double frame_end = 0.0; k < rates.size(); frame_end += 1.0 / 30.0, ++frames) {
+    while (k < rates.size() && rates[k].stamp_s <= frame_end) predictor.addRate(rates[k++]);
+    for (int patch = 0; patch < 8; ++patch) sink += predictor.lensShiftAt(frame_end - 0.002 * patch).x();
+  }
+  const double us_per_frame =
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() / frames;
+  std::printf("[ figures  ] excursion_rate_v1 model: %.1f us per frame (30 fps, 400 Hz gyro, 8 patches)%s\n",
+              us_per_frame, std::isfinite(sink) ? "" : " (non-finite)");
+  EXPECT_LT(us_per_frame, 500.0);
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
+#include "deep_ois/core/sim/stabiliser_controller.h"
 #include "test_helpers.h"
 #include "sim_test_helpers.h"
 
@@ -484,6 +485,161 @@ TEST(OisModel, ValidatesTheNewFields) {
   EXPECT_TRUE(parseStrokeShape("circle", &shape));
   EXPECT_EQ(StrokeShape::kCircle, shape);
   EXPECT_FALSE(parseStrokeShape("square", &shape));
+}
+
+
+// ---- The controller family (core/sim/stabiliser_controller.h) ----
+
+// The intended-motion estimator stabilises a shake inside its band as the high-pass does, and its
+// manoeuvre gate lets go during a deliberate pan.
+TEST(OisController, KalmanEstimatorStabilisesAndItsGateLetsGoAtAPan) {
+  OisConfig kalman;
+  kalman.controller = "kalman";
+  kalman.kalman_bandwidth_hz = 0.5;
+  OisConfig off;
+  off.enabled = false;
+  const CameraMotion shake(shakeOnly(2.0, 8.0), 12, -0.25, 8.0);
+  const double ratio = residualRatio(shake, OisModel(kalman, shake, kFocalPx, 1),
+                                     OisModel(off, shake, kFocalPx, 1));
+  EXPECT_LT(ratio, 0.25);
+  // Not the high-pass under another name.
+  const OisModel highpass(OisConfig(), shake, kFocalPx, 1), estimator(kalman, shake, kFocalPx, 1);
+  double difference = 0.0;
+  for (double t = 1.0; t < 7.0; t += 0.01) difference += (highpass.lensShift(t) - estimator.lensShift(t)).norm();
+  EXPECT_GT(difference / 600.0, 0.05);
+
+  CameraMotionConfig pan_config = test::stillMotionConfig();
+  pan_config.pan_peak_rad_s = 0.3;
+  pan_config.pan_period_s = 3.0;
+  const CameraMotion pan(pan_config, 2, 0.0, 6.0);
+  kalman.stroke_limit_deg = 5.0;  // wide, so the end stop does not hide the difference
+  OisConfig gated = kalman;
+  gated.kalman_manoeuvre_deg = 0.3;
+  const double held = largestShift(OisModel(kalman, pan, kFocalPx, 3), 6.0).z();
+  const double released = largestShift(OisModel(gated, pan, kFocalPx, 3), 6.0).z();
+  std::printf("[ figures  ] kalman: 2-8 Hz residual ratio %.3f; pan excursion %.2f px, gated %.2f px\n",
+              ratio, held, released);
+  EXPECT_LT(released, 0.7 * held);
+}
+
+// Excursion-dependent re-centring pulls the lens back harder the further out it is; a soft stroke
+// approaches the limit without a corner and never passes it.
+TEST(OisController, ExcursionRecentringAndSoftStroke) {
+  CameraMotionConfig pan_config = test::stillMotionConfig();
+  pan_config.pan_peak_rad_s = 0.3;
+  pan_config.pan_period_s = 3.0;
+  const CameraMotion pan(pan_config, 2, 0.0, 6.0);
+  OisConfig plain;
+  plain.highpass_corner_hz = 0.3;
+  plain.stroke_limit_deg = 5.0;
+  OisConfig pulled = plain;
+  pulled.excursion_recentring_gain = 20.0;
+  const double plain_px = largestShift(OisModel(plain, pan, kFocalPx, 3), 6.0).z();
+  const double pulled_px = largestShift(OisModel(pulled, pan, kFocalPx, 3), 6.0).z();
+  EXPECT_LT(pulled_px, 0.8 * plain_px);
+  // Small shakes (far from the stroke) are stabilised about as without it.
+  const CameraMotion shake(shakeOnly(2.0, 8.0), 12, -0.25, 6.0);
+  OisConfig off;
+  off.enabled = false;
+  const OisModel none(off, shake, kFocalPx, 1);
+  EXPECT_LT(residualRatio(shake, OisModel(pulled, shake, kFocalPx, 1), none),
+            1.2 * residualRatio(shake, OisModel(plain, shake, kFocalPx, 1), none));
+
+  OisConfig hard;
+  hard.stroke_limit_deg = 0.3;
+  OisConfig soft = hard;
+  soft.soft_stroke = true;
+  const OisModel hard_model(hard, pan, kFocalPx, 3), soft_model(soft, pan, kFocalPx, 3);
+  const double limit_px = hard_model.strokeLimitPx();
+  const Eigen::Vector3d soft_largest = largestShift(soft_model, 6.0);
+  EXPECT_LE(soft_largest.x(), limit_px * (1.0 + 1e-9));
+  EXPECT_LE(soft_largest.y(), limit_px * (1.0 + 1e-9));
+  double difference = 0.0;
+  for (double t = 0.5; t < 6.0; t += 0.01) difference += (hard_model.lensShift(t) - soft_model.lensShift(t)).norm();
+  EXPECT_GT(difference / 550.0, 0.02 * limit_px);
+  std::printf("[ figures  ] pan excursion %.2f px, with excursion re-centring %.2f px; soft stroke "
+              "largest %.3f of the stroke\n", plain_px, pulled_px, soft_largest.head<2>().maxCoeff() / limit_px);
+}
+
+// A digital controller: its command is held between updates at its own rate and quantised to its
+// least significant bit; its delay shows as a lens that follows late.
+TEST(OisController, DigitalLoopHoldsQuantisesAndDelays) {
+  OisConfig config;
+  config.command_lsb_deg = 0.05;
+  StabiliserController controller(config, kFocalPx);
+  const double lsb_px = kFocalPx * std::tan(0.05 * kPi / 180.0);
+  for (int k = 0; k < 200; ++k) {
+    controller.advance(Eigen::Vector2d(0.2, -0.1), Eigen::Vector2d(0.2, -0.1), 0.001);
+    const Eigen::Vector2d c = controller.command();
+    EXPECT_NEAR(c.x() / lsb_px, std::round(c.x() / lsb_px), 1e-9);
+    EXPECT_NEAR(c.y() / lsb_px, std::round(c.y() / lsb_px), 1e-9);
+  }
+  const CameraMotion shake(shakeOnly(1.0, 12.0), 5, 0.0, 4.0);
+  OisConfig digital;
+  digital.digital_rate_hz = 500.0;
+  OisConfig late = digital;
+  late.digital_delay_s = 0.01;
+  const OisModel a(digital, shake, kFocalPx, 9), b(late, shake, kFocalPx, 9),
+      continuous(OisConfig(), shake, kFocalPx, 9);
+  double lagged = 0.0, unlagged = 0.0, to_continuous = 0.0;
+  for (double t = 0.5; t < 3.5; t += 0.001) {
+    lagged += (b.lensShift(t) - a.lensShift(t - 0.01)).squaredNorm();
+    unlagged += (b.lensShift(t) - a.lensShift(t)).squaredNorm();
+    to_continuous += (a.lensShift(t) - continuous.lensShift(t)).squaredNorm();
+  }
+  EXPECT_LT(lagged, 0.05 * unlagged);
+  EXPECT_GT(to_continuous, 0.0);  // a 500 Hz loop is not the continuous one
+  OisConfig off;
+  off.enabled = false;
+  EXPECT_LT(residualRatio(shake, a, OisModel(off, shake, kFocalPx, 9)), 0.35);
+}
+
+// A rotated gyro mount cancels the wrong direction partly; cross-coupling mixes the lens axes.
+TEST(OisController, RotatedAndCrossCoupledMount) {
+  const CameraMotion shake(shakeOnly(2.0, 8.0), 12, -0.25, 6.0);
+  OisConfig off;
+  off.enabled = false;
+  const OisModel none(off, shake, kFocalPx, 1);
+  OisConfig aligned;
+  aligned.stroke_limit_deg = 3.0;
+  OisConfig turned = aligned;
+  turned.mount_rotation_deg = 30.0;
+  OisConfig coupled = aligned;
+  coupled.actuator_cross_coupling = 0.3;
+  const double r_aligned = residualRatio(shake, OisModel(aligned, shake, kFocalPx, 1), none);
+  const double r_turned = residualRatio(shake, OisModel(turned, shake, kFocalPx, 1), none);
+  const double r_coupled = residualRatio(shake, OisModel(coupled, shake, kFocalPx, 1), none);
+  std::printf("[ figures  ] residual ratio aligned %.3f, gyro turned 30 deg %.3f, 30 %% cross-coupled %.3f\n",
+              r_aligned, r_turned, r_coupled);
+  // A 30 degree turn leaves |1 - exp(i 30 deg)| = 0.52 of the motion (at least).
+  EXPECT_GT(r_turned, 0.45);
+  EXPECT_GT(r_coupled, r_aligned + 0.1);
+}
+
+TEST(OisController, ValidateNamesTheNewFields) {
+  auto problem = [](auto edit) {
+    OisConfig c;
+    edit(c);
+    return c.validate();
+  };
+  EXPECT_NE(problem([](OisConfig& c) { c.controller = "pid"; }).find("controller"), std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.controller = "kalman"; c.kalman_bandwidth_hz = 0.0; })
+                .find("kalman_bandwidth_hz"), std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.kalman_manoeuvre_factor = 0.5; }).find("kalman_manoeuvre"),
+            std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.excursion_recentring_gain = -1.0; })
+                .find("excursion_recentring"), std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.digital_rate_hz = 1e5; }).find("digital_rate_hz"),
+            std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.digital_delay_s = 0.2; }).find("digital_delay_s"),
+            std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.command_lsb_deg = -0.1; }).find("command_lsb_deg"),
+            std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.mount_rotation_deg = 90.0; }).find("mount_rotation_deg"),
+            std::string::npos);
+  EXPECT_NE(problem([](OisConfig& c) { c.actuator_cross_coupling = 0.9; })
+                .find("actuator_cross_coupling"), std::string::npos);
+  EXPECT_EQ(problem([](OisConfig&) {}), "");
 }
 
 }  // namespace

@@ -217,6 +217,11 @@ struct CalibrationResult {
   double coarse_time_offset_s = 0.0;   // best cell of the coarse grid (with the initial readout)
   int coarse_permutation_index = -1;   // into signedAxisPermutations(); -1 when the rotation was held
   int iterations = 0;
+  bool converged = false;  // the refinement's steps became negligible before max_iterations
+  // The signed axis permutation nearest the estimated mount and how far the mount is from it
+  // (deg); index -1 when the rotation was held.
+  int nearest_permutation_index = -1;
+  double mount_from_permutation_deg = 0.0;
   double initial_median_residual_px = 0.0;  // after the coarse stage
   double median_residual_px = 0.0;          // after refinement (with the lens shift removed for OIS)
   double inlier_fraction = 0.0;             // tracks with a Cauchy weight above 0.5

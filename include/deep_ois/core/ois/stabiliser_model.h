@@ -47,10 +47,25 @@ struct StabiliserParameters {
   // of rate y). Empty = none.
   std::vector<double> residual_time_constants_s;
   Eigen::MatrixXd residual;  // 2 x (2 * K), unitless (radians of the leaky integral to focal units)
+  // Learned residual (empty name = none): shift += focal_px * nonlinear_residual * features, the
+  // features a fixed set of functions of the chain's own state (see nonlinearFeatureCount): the
+  // unclipped command, its excursion against the stroke and
+  // saturations of it, the clipped command, the actuator's output, and leaky integrals of the
+  // excursion-weighted command (what an excursion-dependent re-centring pulls back with). The
+  // features depend only on the chain, never on the residual's output, so a ridge regression
+  // fits them in one solve. Names the set so a file states which functions its numbers weigh.
+  std::string nonlinear_features;
+  Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
 };
+
+// The known feature sets of the learned residual (0 for an unknown name and for ""):
+// "excursion_v1" (20: nonlinear functions of the chain's state), "rate_bank_v1" (18: leaky rate
+// integrals from 2 ms to 2.5 s, a learned higher-order linear filter) and "excursion_rate_v1"
+// (both, 38).
+int nonlinearFeatureCount(const std::string& feature_set);
 
 // A camera-frame angular rate sample (IMU clock, seconds; rad/s in the camera optical frame).
 struct CameraRateSample {
@@ -68,8 +83,9 @@ class LensShiftPredictor {
                      double history_s = 0.5);
 
   // Appends a rate sample; samples must come in increasing time. A sample not after the last one
-  // is ignored (returns false). A gap longer than max_gap_s since the previous sample resets the
-  // state (the stabiliser's history is unknown across it): counted in resets().
+  // is ignored (returns false), unless it is more than max_gap_s before it (time jumped back: the
+  // state resets and starts from it). A gap longer than max_gap_s since the previous sample
+  // resets the state too (the stabiliser's history is unknown across it): counted in resets().
   bool addRate(const CameraRateSample& sample);
   // Starts over from a centred lens at rest (the state of a stabiliser switched on).
   void reset();
@@ -82,6 +98,10 @@ class LensShiftPredictor {
   double newestStamp() const { return last_stamp_s_; }
   bool started() const { return started_; }
   int resets() const { return resets_; }
+  // Keeps the nonlinear features of every retained step (for fitting nonlinear_residual; the
+  // model must name a feature set) and answers them like lensShiftAt (focal-length units).
+  void recordFeatures() { record_features_ = true; }
+  Eigen::VectorXd featuresAt(double t_s) const;
 
   double max_gap_s = 0.1;
 
@@ -114,6 +134,15 @@ class LensShiftPredictor {
   std::deque<Eigen::Vector2d> pending_commands_;
   LensActuator actuator_x_, actuator_y_;
   std::deque<Eigen::Vector2d> shifts_;  // lens shift at clock_s_ - (size - 1 - j) * step_s_
+  // Nonlinear residual: per time constant the leaky integral of the excursion-weighted command.
+  std::vector<double> nonlinear_decay_, nonlinear_weight_;
+  std::vector<Eigen::Vector2d> nonlinear_state_;
+  bool excursion_features_ = false;
+  std::vector<double> rate_bank_decay_, rate_bank_weight_;
+  std::vector<Eigen::Vector2d> rate_bank_state_;
+  Eigen::VectorXd features_;
+  bool record_features_ = false;
+  std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };
 

@@ -37,9 +37,12 @@ std::vector<ImuSample> loadGyroCsv(const std::string& path);
 // SENSOR_TIMESTAMP clock), the shift as logged (OisSample.getXshift(), getYshift(): pixels of the
 // active array) and optionally its covariance (logged units squared). A first line that starts
 // with a letter is a header; blank lines and lines starting with '#' are skipped. Stamps must be
-// finite and strictly increasing. Throws RecordingFormatError.
-std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::string& source_name);
-std::vector<LensShiftLogSample> loadLensShiftCsv(const std::string& path);
+// finite; the samples are returned in file order (a phone's log repeats samples out of order:
+// repairLensShiftLog in core/ois/lens_shift_log_repair.h sorts it), with their 1-based lines in
+// `lines` when given. Throws RecordingFormatError.
+std::vector<LensShiftLogSample> parseLensShiftCsv(std::istream& in, const std::string& source_name,
+                                                  std::vector<int>* lines = nullptr);
+std::vector<LensShiftLogSample> loadLensShiftCsv(const std::string& path, std::vector<int>* lines = nullptr);
 
 // Frame stamps, one start-of-frame time in seconds per line; line i (0-based) is frame i, so blank
 // lines are allowed only at the end. Stamps must be finite and strictly increasing. Throws

@@ -49,6 +49,32 @@ struct OisConfig {
   double pi_plant_damping = 0.7;
   double pi_kp = 4.0;
   double pi_ki = 300.0;
+  // The controller (core/sim/stabiliser_controller.h): "highpass" (integrate and re-centre, the
+  // keys above) or "kalman" (an intended-motion estimator: a constant-velocity Kalman filter on
+  // the integrated angle with this bandwidth; the lens cancels the angle minus the intended path).
+  std::string controller = "highpass";
+  double kalman_bandwidth_hz = 0.5;
+  // Manoeuvre gate (0 = off): while the innovation (integrated angle minus the predicted intended
+  // angle) exceeds this angle, the process noise is multiplied by kalman_manoeuvre_factor (a pan
+  // is followed quickly).
+  double kalman_manoeuvre_deg = 0.0;
+  double kalman_manoeuvre_factor = 100.0;
+  // Excursion-dependent re-centring (highpass; 0 = off): the corner is multiplied by
+  // 1 + gain * (|excursion| / stroke)^power per axis.
+  double excursion_recentring_gain = 0.0;
+  double excursion_recentring_power = 2.0;
+  // A soft stroke: the command is stroke * tanh(command / stroke) instead of clipped.
+  bool soft_stroke = false;
+  // A digital loop (0 = the controller runs every control step): the controller samples its gyro
+  // and updates its command at digital_rate_hz (held in between), the command reaches the lens
+  // digital_delay_s later and is quantised to command_lsb_deg (0 = not quantised).
+  double digital_rate_hz = 0.0;
+  double digital_delay_s = 0.0;
+  double command_lsb_deg = 0.0;
+  // The mount: the stabiliser's gyro turned by mount_rotation_deg about the optical axis against
+  // the image, and the lens axes cross-coupled (image shift = [[1 c] [c 1]] x actuator shift).
+  double mount_rotation_deg = 0.0;
+  double actuator_cross_coupling = 0.0;
   // When not empty: the lens follows this trajectory instead of the stabiliser (a CSV with a
   // header line and rows "t_s,x_px,y_px", t in seconds from the start of the motion, e.g. a real
   // phone's lens log re-timed), linear between rows and held outside them.

@@ -1,0 +1,65 @@
+// Choosing a camera's stabiliser model by measurement: the physical chain fitted by
+// core/ois/stabiliser_fit.h is the prior and the fallback; learned dynamics on top of it are
+// candidates, each scored on the held-out recordings, and the best is kept.
+//
+// Candidates (cheap enough for the live budget: microseconds per frame at the gyro rate):
+//  - "physical": the fitted chain alone;
+//  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
+//    returns);
+//  - then, each by ridge regression on what that leaves (StabiliserParameters::nonlinear_features):
+//    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
+//    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,
+//    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
+//    or estimator the chain does not name; and both (excursion_rate_v1).
+// Pure C++/Eigen: no ROS.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/stabiliser_fit.h"
+
+namespace deep_ois {
+
+// Lens-motion RMS error of a model over recordings (pixels), and of "no lens model" (motion 0).
+struct LensMotionScore {
+  double rms_px = 0.0;
+  double rms_without_model_px = 0.0;
+  std::size_t observations = 0;
+};
+LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
+                                const std::vector<StabiliserFitRecording>& recordings,
+                                const StabiliserFitOptions& options);
+
+// `base` plus a nonlinear residual (feature set `feature_set`) fitted by ridge regression (weight
+// `ridge` relative to each feature's energy, Huber weights as options.huber_px) on the lens
+// motion `base` leaves in `recordings`. Throws std::invalid_argument when no observation is usable.
+StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
+                                          const std::vector<StabiliserFitRecording>& recordings,
+                                          const StabiliserFitOptions& options,
+                                          const std::string& feature_set = "excursion_v1",
+                                          double ridge = 1e-4);
+
+struct StabiliserCandidate {
+  std::string name;
+  StabiliserParameters parameters;
+  LensMotionScore training;
+  LensMotionScore held_out;  // observations 0 without held-out recordings
+};
+
+struct StabiliserSelection {
+  std::vector<StabiliserCandidate> candidates;  // simplest first
+  std::size_t kept = 0;
+  std::string reason;  // one sentence: why candidates[kept]
+};
+
+// Builds and scores the candidates from the physical fit. Kept: the lowest held-out RMS (the
+// training RMS when there are no held-out recordings: then said in the reason), unless a simpler
+// candidate is within `simpler_within` (relative) of it, which is kept instead.
+StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
+                                     const std::vector<StabiliserFitRecording>& training,
+                                     const std::vector<StabiliserFitRecording>& held_out,
+                                     const StabiliserFitOptions& options,
+                                     double simpler_within = 0.01);
+
+}  // namespace deep_ois

@@ -1,0 +1,168 @@
+#include "deep_ois/core/ois/stabiliser_candidates.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+namespace deep_ois {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+}  // namespace
+
+LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
+                                const std::vector<StabiliserFitRecording>& recordings,
+                                const StabiliserFitOptions& options) {
+  double sum = 0.0, sum_without = 0.0, weights = 0.0;
+  LensMotionScore score;
+  for (const StabiliserFitRecording& recording : recordings) {
+    const auto predicted =
+        predictLensMotion(parameters, recording, options.step_s, options.warm_up_s);
+    for (std::size_t k = 0; k < predicted.size(); ++k) {
+      if (!predicted[k].allFinite()) continue;
+      const LensMotionObservation& o = recording.observations[k];
+      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
+      sum_without += o.weight * o.motion_px.squaredNorm();
+      weights += o.weight;
+      ++score.observations;
+    }
+  }
+  score.rms_px = weights > 0.0 ? std::sqrt(sum / weights) : kNaN;
+  score.rms_without_model_px = weights > 0.0 ? std::sqrt(sum_without / weights) : kNaN;
+  return score;
+}
+
+StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
+                                          const std::vector<StabiliserFitRecording>& recordings,
+                                          const StabiliserFitOptions& options,
+                                          const std::string& feature_set, double ridge) {
+  const long m = nonlinearFeatureCount(feature_set);
+  if (m == 0) throw std::invalid_argument("nonlinear residual: unknown feature set '" + feature_set + "'");
+  StabiliserParameters features_only = base;
+  features_only.nonlinear_features = feature_set;
+  features_only.nonlinear_residual.resize(0, 0);  // features computed, nothing added
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, 2);
+  std::size_t used = 0;
+  for (const StabiliserFitRecording& recording : recordings) {
+    if (recording.rates.empty() || recording.observations.empty()) continue;
+    double span = 0.0;
+    for (const LensMotionObservation& o : recording.observations)
+      span = std::max(span, o.t_b_s - o.t_a_s);
+    LensShiftPredictor predictor(features_only, recording.focal_px, options.step_s,
+                                 std::max(0.25, 2.0 * span));
+    predictor.max_gap_s = std::numeric_limits<double>::infinity();  // as the fit: gaps are fed
+    predictor.recordFeatures();
+    std::vector<std::size_t> order(recording.observations.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return recording.observations[a].t_b_s < recording.observations[b].t_b_s;
+    });
+    const double usable_from = recording.rates.front().stamp_s + options.warm_up_s;
+    std::size_t next_rate = 0;
+    for (std::size_t index : order) {
+      const LensMotionObservation& o = recording.observations[index];
+      while (next_rate < recording.rates.size() &&
+             (!predictor.started() || predictor.newestStamp() < o.t_b_s)) {
+        predictor.addRate(recording.rates[next_rate++]);
+      }
+      if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s))
+        continue;
+      const Eigen::VectorXd delta =
+          recording.focal_px * (predictor.featuresAt(o.t_b_s) - predictor.featuresAt(o.t_a_s));
+      const Eigen::Vector2d target =
+          o.motion_px - (predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s));
+      const double norm = target.norm();
+      const double w = std::max(0.0, o.weight) *
+                       (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
+      A.noalias() += w * delta * delta.transpose();
+      B.noalias() += w * delta * target.transpose();
+      ++used;
+    }
+  }
+  if (used == 0) throw std::invalid_argument("nonlinear residual: no usable lens motion");
+  // Ridge per feature, relative to its own energy (the features differ by orders of magnitude).
+  const double floor = 1e-12 * std::max(1e-300, A.diagonal().maxCoeff());
+  for (long k = 0; k < m; ++k) A(k, k) += ridge * A(k, k) + floor;
+  const Eigen::MatrixXd solution = A.ldlt().solve(B);  // m x 2
+  StabiliserParameters fitted = base;
+  if (!solution.allFinite()) return fitted;
+  fitted.nonlinear_features = feature_set;
+  // The predictor multiplies by focal_px itself; the deltas above already carry it.
+  fitted.nonlinear_residual = solution.transpose();
+  return fitted;
+}
+
+StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
+                                     const std::vector<StabiliserFitRecording>& training,
+                                     const std::vector<StabiliserFitRecording>& held_out,
+                                     const StabiliserFitOptions& options, double simpler_within) {
+  StabiliserSelection selection;
+  auto add = [&](const std::string& name, const StabiliserParameters& parameters) {
+    StabiliserCandidate candidate;
+    candidate.name = name;
+    candidate.parameters = parameters;
+    candidate.training = scoreLensMotion(parameters, training, options);
+    candidate.held_out = scoreLensMotion(parameters, held_out, options);
+    selection.candidates.push_back(candidate);
+  };
+  StabiliserParameters physical = fit.parameters;
+  physical.residual_time_constants_s.clear();
+  physical.residual.resize(0, 0);
+  physical.nonlinear_features.clear();
+  physical.nonlinear_residual.resize(0, 0);
+  add("physical", physical);
+  const bool has_linear = fit.parameters.residual.size() != 0;
+  if (has_linear) add("physical + linear residual", fit.parameters);
+  // Learned dynamics on top of the chain (with its linear bank when it has one), simplest first:
+  // a higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
+  const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
+  for (const auto& [set, what] : {std::pair<std::string, std::string>{"rate_bank_v1", "learned rate filter"},
+                                  {"excursion_v1", "nonlinear residual"},
+                                  {"excursion_rate_v1", "nonlinear residual + learned rate filter"}}) {
+    try {
+      add(prefix + what + " (" + set + ")", fitNonlinearResidual(fit.parameters, training, options, set));
+    } catch (const std::invalid_argument&) {
+      // No usable lens motion for the residual: the simpler candidates stand.
+    }
+  }
+  const bool by_held_out = !held_out.empty() && selection.candidates.front().held_out.observations > 0;
+  auto key = [&](const StabiliserCandidate& c) {
+    const double v = by_held_out ? c.held_out.rms_px : c.training.rms_px;
+    return std::isfinite(v) ? v : std::numeric_limits<double>::infinity();
+  };
+  std::size_t best = 0;
+  for (std::size_t k = 1; k < selection.candidates.size(); ++k)
+    if (key(selection.candidates[k]) < key(selection.candidates[best])) best = k;
+  // The simplest candidate within simpler_within of the best.
+  std::size_t kept = best;
+  for (std::size_t k = 0; k < best; ++k) {
+    if (key(selection.candidates[k]) <= (1.0 + simpler_within) * key(selection.candidates[best])) {
+      kept = k;
+      break;
+    }
+  }
+  selection.kept = kept;
+  std::ostringstream why;
+  why.precision(4);
+  why << "kept '" << selection.candidates[kept].name << "': "
+      << (by_held_out ? "held-out" : "training (no held-out recordings, so no test of "
+                                     "generalisation)")
+      << " lens-motion RMS " << key(selection.candidates[kept]) << " px";
+  if (kept != best) {
+    why << ", within " << 100.0 * simpler_within << " % of the best ('"
+        << selection.candidates[best].name << "', " << key(selection.candidates[best])
+        << " px) and simpler";
+  } else if (selection.candidates.size() > 1) {
+    why << ", the lowest of " << selection.candidates.size() << " candidates";
+  }
+  selection.reason = why.str();
+  return selection;
+}
+
+}  // namespace deep_ois

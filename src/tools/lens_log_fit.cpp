@@ -1,0 +1,242 @@
+// Learns a phone's stabiliser from its own gyro and OIS lens log (the layout of Google's
+// deep-stabilization data, e.g. ../shared/data/pixel4_dvs_ois; no frames needed) and scores it on
+// held-out time: trained on the first SPLIT seconds and scored on the rest, then the reverse.
+// Every candidate of core/ois/stabiliser_candidates.h is scored (R^2 of the lens motion over one
+// frame interval and of the lens position), the predicted and logged lens are written as CSV and
+// PNG per fold, and the model of the first fold is written when --out is given.
+//
+// The gyro is used over the whole log in both folds (the stabiliser's state needs its history and
+// the gyro is always there); only the lens labels are split.
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/stabiliser_candidates.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/recording/android_ois_log.h"
+#include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/line_plot.h"
+
+namespace {
+
+using deep_ois::LoggedLensSample;
+
+// Lens motions between each logged sample in [from, to) and the first one `interval_s` or more
+// later (also inside the window).
+std::vector<deep_ois::LensMotionObservation> motionsIn(const std::vector<LoggedLensSample>& lens,
+                                                       double from, double to, double interval_s) {
+  std::vector<deep_ois::LensMotionObservation> motions;
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < lens.size(); ++i) {
+    if (lens[i].stamp_s < from) continue;
+    j = std::max(j, i + 1);
+    while (j < lens.size() && lens[j].stamp_s - lens[i].stamp_s < interval_s) ++j;
+    if (j >= lens.size() || lens[j].stamp_s >= to) break;
+    deep_ois::LensMotionObservation o;
+    o.t_a_s = lens[i].stamp_s;
+    o.t_b_s = lens[j].stamp_s;
+    o.motion_px = lens[j].shift_px - lens[i].shift_px;
+    motions.push_back(o);
+  }
+  return motions;
+}
+
+// The model's lens position at each of `times` (increasing), fed the whole gyro stream.
+std::vector<Eigen::Vector2d> positionsAt(const deep_ois::StabiliserParameters& parameters,
+                                         const deep_ois::AndroidOisLog& log,
+                                         const std::vector<double>& times) {
+  deep_ois::LensShiftPredictor predictor(parameters, log.focal_px, 1e-3, 0.5);
+  predictor.max_gap_s = std::numeric_limits<double>::infinity();
+  std::vector<Eigen::Vector2d> out;
+  std::size_t next = 0;
+  for (double t : times) {
+    while (next < log.rates.size() && (!predictor.started() || predictor.newestStamp() < t))
+      predictor.addRate(log.rates[next++]);
+    out.push_back(predictor.covers(t) ? predictor.lensShiftAt(t)
+                                      : Eigen::Vector2d::Constant(std::nan("")));
+  }
+  return out;
+}
+
+struct RSquared {
+  double motion = std::nan(""), position = std::nan("");
+  std::size_t samples = 0;
+};
+
+// R^2 of the lens motion (observations) and of the position (a constant offset removed: the
+// model starts centred, the log's zero need not be the lens' rest).
+RSquared scoreFold(const deep_ois::StabiliserParameters& parameters,
+                   const deep_ois::StabiliserFitRecording& scored, const deep_ois::AndroidOisLog& log,
+                   double from, double to, double warm_up_s) {
+  RSquared r;
+  const auto predicted = deep_ois::predictLensMotion(parameters, scored, 1e-3, warm_up_s);
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < predicted.size(); ++k)
+    if (predicted[k].allFinite()) mean += scored.observations[k].motion_px, ++n;
+  if (n == 0) return r;
+  mean /= static_cast<double>(n);
+  double error = 0.0, spread = 0.0;
+  for (std::size_t k = 0; k < predicted.size(); ++k) {
+    if (!predicted[k].allFinite()) continue;
+    error += (predicted[k] - scored.observations[k].motion_px).squaredNorm();
+    spread += (scored.observations[k].motion_px - mean).squaredNorm();
+  }
+  r.motion = 1.0 - error / spread;
+  std::vector<double> times;
+  std::vector<Eigen::Vector2d> logged;
+  const double usable = log.rates.front().stamp_s + warm_up_s;
+  for (const LoggedLensSample& s : log.lens)
+    if (s.stamp_s >= std::max(from, usable) && s.stamp_s < to) times.push_back(s.stamp_s), logged.push_back(s.shift_px);
+  const auto positions = positionsAt(parameters, log, times);
+  Eigen::Vector2d offset = Eigen::Vector2d::Zero(), log_mean = Eigen::Vector2d::Zero();
+  n = 0;
+  for (std::size_t k = 0; k < times.size(); ++k)
+    if (positions[k].allFinite()) offset += logged[k] - positions[k], log_mean += logged[k], ++n;
+  if (n == 0) return r;
+  offset /= static_cast<double>(n);
+  log_mean /= static_cast<double>(n);
+  error = spread = 0.0;
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    if (!positions[k].allFinite()) continue;
+    error += (positions[k] + offset - logged[k]).squaredNorm();
+    spread += (logged[k] - log_mean).squaredNorm();
+  }
+  r.position = 1.0 - error / spread;
+  r.samples = n;
+  return r;
+}
+
+// Predicted (offset as scored) and logged lens on a 5 ms grid over [from, to): CSV and PNG.
+void writeTrajectory(const deep_ois::StabiliserParameters& parameters, const deep_ois::AndroidOisLog& log,
+                     double from, double to, const std::string& prefix, const std::string& title) {
+  std::vector<double> times;
+  for (double t = from; t < to; t += 0.005) times.push_back(t);
+  const auto predicted = positionsAt(parameters, log, times);
+  std::ofstream csv(prefix + ".csv");
+  csv << "t_s,predicted_x_px,predicted_y_px,logged_x_px,logged_y_px\n";
+  std::vector<double> px, py, lx, ly;
+  std::size_t j = 0;
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    while (j + 1 < log.lens.size() && log.lens[j + 1].stamp_s <= times[k]) ++j;
+    Eigen::Vector2d logged = log.lens[j].shift_px;
+    if (j + 1 < log.lens.size() && log.lens[j].stamp_s <= times[k]) {
+      const double a = (times[k] - log.lens[j].stamp_s) / (log.lens[j + 1].stamp_s - log.lens[j].stamp_s);
+      logged = (1.0 - a) * log.lens[j].shift_px + a * log.lens[j + 1].shift_px;
+    }
+    csv << times[k] - log.rates.front().stamp_s << "," << predicted[k].x() << "," << predicted[k].y()
+        << "," << logged.x() << "," << logged.y() << "\n";
+    px.push_back(predicted[k].x()), py.push_back(predicted[k].y());
+    lx.push_back(logged.x()), ly.push_back(logged.y());
+  }
+  const cv::Mat plot = deep_ois::drawLinePlot(
+      {{"logged x", lx, cv::Scalar(0, 0, 0)}, {"predicted x", px, cv::Scalar(0, 0, 220)},
+       {"logged y", ly, cv::Scalar(120, 120, 120)}, {"predicted y", py, cv::Scalar(220, 120, 0)}},
+      title, "5 ms step", "lens shift [px]", false, cv::Size(1200, 500));
+  cv::imwrite(prefix + ".png", plot);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  deep_ois::ToolCommandLine command_line(
+      "lens_log_fit",
+      "Learns a phone's stabiliser from its gyro and OIS lens log (deep-stabilization layout: "
+      "gyro_log_*.txt, ois_log_*.txt, calib.txt) and scores every stabiliser-model candidate on "
+      "held-out time in two folds (first SPLIT s / rest, and the reverse): R^2 of the lens motion "
+      "over one frame interval and of the lens position.",
+      "Exit status: 0 done, 1 failed, 2 usage.");
+  CLI::App& app = command_line.app();
+  std::string folder, out_path, plots;
+  deep_ois::AndroidOisLogOptions log_options;
+  double split_s = 6.0, interval_s = 1.0 / 30.0;
+  deep_ois::StabiliserFitOptions fit_options;
+  app.add_option("--log", folder, "the log folder")->required()->check(deep_ois::existingDirectory());
+  command_line.addNumber("--split", split_s, "seconds from the start of the gyro log")
+      ->check(deep_ois::greaterThan(0));
+  command_line.addNumber("--interval", interval_s, "lens-motion interval, s (one frame)")
+      ->check(deep_ois::greaterThan(0));
+  command_line.addNumber("--image-width", log_options.image_width_px,
+                         "image width the lens is scaled to (scale = width / active-array width)")
+      ->check(deep_ois::greaterThan(0));
+  command_line.addNumber("--active-array-width", log_options.active_array_width_px,
+                         "the sensor's active-array width, pixels")
+      ->check(deep_ois::greaterThan(0));
+  command_line.addNumber("--gyro-time-column", log_options.gyro_time_column,
+                         "gyro stamp column: 1 or 5");
+  command_line.addNumber("--warm-up", fit_options.warm_up_s, "seconds of gyro before a scored motion")
+      ->check(deep_ois::atLeast(0));
+  app.add_option("--out", out_path, "write the first fold's kept model here")->type_name("MODEL.yaml");
+  app.add_option("--plots", plots, "write PREFIX_fold<N>.csv/.png: predicted and logged lens")
+      ->type_name("PREFIX");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+
+  deep_ois::AndroidOisLog log;
+  try {
+    log = deep_ois::readAndroidOisLog(folder, log_options);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "lens_log_fit: %s\n", e.what());
+    return 1;
+  }
+  std::printf("%s: %zu gyro samples (%zu dropped, not after the previous), %zu lens rows: %zu "
+              "repeats dropped, %zu out of order (sorted); focal %.1f px\n\n",
+              folder.c_str(), log.rates.size(), log.gyro_rows_dropped, log.lens_rows,
+              log.lens_repeats_dropped, log.lens_out_of_order, log.focal_px);
+  const double t0 = log.rates.front().stamp_s, t_split = t0 + split_s, t_end = log.rates.back().stamp_s;
+  auto recording = [&](double from, double to, const char* name) {
+    deep_ois::StabiliserFitRecording r;
+    r.name = name;
+    r.focal_px = log.focal_px;
+    r.rates = log.rates;
+    r.observations = motionsIn(log.lens, from, to, interval_s);
+    return r;
+  };
+  std::printf("| fold | candidate | training lens-motion RMS px | held-out RMS px | R^2 motion | R^2 position |\n");
+  std::printf("|---|---|---:|---:|---:|---:|\n");
+  int status = 0;
+  for (int fold = 1; fold <= 2; ++fold) {
+    const double train_from = fold == 1 ? t0 : t_split, train_to = fold == 1 ? t_split : t_end + 1.0;
+    const double test_from = fold == 1 ? t_split : t0, test_to = fold == 1 ? t_end + 1.0 : t_split;
+    const auto train = recording(train_from, train_to, "train");
+    const auto test = recording(test_from, test_to, "held out");
+    try {
+      const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser({train}, fit_options);
+      const deep_ois::StabiliserSelection selection =
+          deep_ois::selectStabiliser(fit, {train}, {test}, fit_options);
+      for (const auto& c : selection.candidates) {
+        const RSquared r = scoreFold(c.parameters, test, log, test_from, test_to, fit_options.warm_up_s);
+        std::printf("| %s | %s | %.3f | %.3f | %.4f | %.4f |\n",
+                    fold == 1 ? "train first, score rest" : "train rest, score first",
+                    c.name.c_str(), c.training.rms_px, c.held_out.rms_px, r.motion, r.position);
+      }
+      std::printf("| | %s | | | | |\n", selection.reason.c_str());
+      const auto& kept = selection.candidates[selection.kept].parameters;
+      if (!plots.empty())
+        writeTrajectory(kept, log, test_from, std::min(test_to, t_end),
+                        plots + "_fold" + std::to_string(fold),
+                        "lens_log_fit fold " + std::to_string(fold) + ": held-out time");
+      if (fold == 1 && !out_path.empty()) {
+        deep_ois::StabiliserModelFile model;
+        model.parameters = kept;
+        model.name = "phone lens log " + folder;
+        model.training.target = "the camera's lens-shift log";
+        model.training.data_files = {folder};
+        model.training.recordings = 1;
+        model.training.observations = fit.observations_used;
+        model.training.rms_without_model_px = fit.rms_without_model_px;
+        model.training.rms_px = selection.candidates[selection.kept].training.rms_px;
+        model.save(out_path);
+      }
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "lens_log_fit: fold %d: %s\n", fold, e.what());
+      status = 1;
+    }
+  }
+  return status;
+}
