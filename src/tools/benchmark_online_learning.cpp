@@ -212,7 +212,7 @@ int main(int argc, char** argv) {
   OnlinePath* const clock_owner = path.get();  // outlives the learner (reset first below)
   learning.budget_clock = [clock_owner] { return clock_owner->replay_clock_s.load(); };
   path->learner = std::make_unique<deep_ois::OnlineStabiliserLearner>(
-      learning, std::vector<deep_ois::StabiliserCandidate>{{"starting model", start.parameters}}, 0);
+      learning, std::vector<deep_ois::ModelCandidate>{{"starting model", start.parameters}}, 0);
 
   const unsigned scope = no_ois ? deep_ois::kNonOisTwinPairs : deep_ois::kOisCameraPairs;
   deep_ois::EvaluationRunner runner(options);

@@ -137,9 +137,8 @@ struct HeldOutScore {
 HeldOutScore scoreHeldOut(const deep_ois::StabiliserParameters& parameters,
                           const std::vector<deep_ois::StabiliserFitRecording>& recordings,
                           const deep_ois::StabiliserFitOptions& options) {
-  const deep_ois::LensMotionScore score =
-      deep_ois::scoreLensMotion(parameters, recordings, options.step_s, options.warm_up_s);
-  return {score.rms_px, score.rms_without_px, score.observations};
+  const deep_ois::LensMotionScore score = deep_ois::scoreLensMotion(parameters, recordings, options);
+  return {score.rms_px, score.rms_without_model_px, score.observations};
 }
 
 }  // namespace

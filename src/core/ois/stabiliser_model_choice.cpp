@@ -25,29 +25,6 @@ bool isNoLensMotion(const StabiliserParameters& parameters) {
          (parameters.nonlinear_residual.size() == 0 || parameters.nonlinear_residual.isZero(0.0));
 }
 
-LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
-                                const std::vector<StabiliserFitRecording>& recordings, double step_s,
-                                double warm_up_s) {
-  double sum = 0.0, sum_without = 0.0, weights = 0.0;
-  LensMotionScore score;
-  for (const auto& recording : recordings) {
-    if (recording.observations.empty()) continue;
-    const auto predicted = predictLensMotion(parameters, recording, step_s, warm_up_s);
-    for (std::size_t k = 0; k < predicted.size(); ++k) {
-      if (!predicted[k].allFinite()) continue;
-      const auto& o = recording.observations[k];
-      sum += o.weight * (predicted[k] - o.motion_px).squaredNorm();
-      sum_without += o.weight * o.motion_px.squaredNorm();
-      weights += o.weight;
-      ++score.observations;
-    }
-  }
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  score.rms_px = weights > 0.0 ? std::sqrt(sum / weights) : nan;
-  score.rms_without_px = weights > 0.0 ? std::sqrt(sum_without / weights) : nan;
-  return score;
-}
-
 void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,
                            double held_out_fraction, std::vector<StabiliserFitRecording>* training,
                            std::vector<StabiliserFitRecording>* held_out) {
@@ -69,7 +46,7 @@ void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings
   }
 }
 
-StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& candidates,
+StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candidates,
                                        std::size_t incumbent,
                                        const std::vector<StabiliserFitRecording>& held_out,
                                        const StabiliserChoiceOptions& options) {
@@ -79,8 +56,11 @@ StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& c
                                 " of " + std::to_string(candidates.size()) + " candidates");
   StabiliserChoice choice;
   choice.chosen = incumbent;
+  StabiliserFitOptions scoring;
+  scoring.step_s = options.step_s;
+  scoring.warm_up_s = options.warm_up_s;
   for (const auto& candidate : candidates)
-    choice.scores.push_back(scoreLensMotion(candidate.parameters, held_out, options.step_s, options.warm_up_s));
+    choice.scores.push_back(scoreLensMotion(candidate.parameters, held_out, scoring));
   std::ostringstream why;
   why.precision(3);
   why << "held-out lens motion RMS:";

@@ -104,7 +104,7 @@ std::string OnlineLearningOptions::validate() const {
 }
 
 OnlineStabiliserLearner::OnlineStabiliserLearner(OnlineLearningOptions options,
-                                                 std::vector<StabiliserCandidate> priors, std::size_t initial)
+                                                 std::vector<ModelCandidate> priors, std::size_t initial)
     : options_(std::move(options)), priors_(std::move(priors)), fallback_(options_.fallback) {
   const std::string problem = options_.validate();
   if (!problem.empty()) throw std::invalid_argument("online stabiliser learning: " + problem);
@@ -487,7 +487,7 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     }
   }
   const std::shared_ptr<const LearnedStabiliser> current = model();
-  std::vector<StabiliserCandidate> candidates = {{current->name + " (in use)", current->parameters}};
+  std::vector<ModelCandidate> candidates = {{current->name + " (in use)", current->parameters}};
   try {
     StabiliserFitResult fit = fitStabiliser(training, options_.fit);
     candidates.push_back({"fit on " + std::to_string(fit.observations_used) + " lens motions", fit.parameters});
@@ -505,7 +505,7 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     replacement->name = candidates[choice.chosen].name;
     replacement->parameters = candidates[choice.chosen].parameters;
     replacement->held_out_rms_px = choice.scores[choice.chosen].rms_px;
-    replacement->held_out_rms_without_px = choice.scores[choice.chosen].rms_without_px;
+    replacement->held_out_rms_without_px = choice.scores[choice.chosen].rms_without_model_px;
     replacement->reason = choice.reason;
   }
   std::string save_problem;

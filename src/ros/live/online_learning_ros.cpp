@@ -65,7 +65,7 @@ OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParam
 void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   model_path_ = learnedModelPath(params_.learning_dir, params_.learning_key, gyro);
   frame_id_ = gyro.header.frame_id;
-  std::vector<StabiliserCandidate> priors;
+  std::vector<ModelCandidate> priors;
   std::string stored_problem;
   if (fs::exists(model_path_)) {
     try {

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 
 namespace deep_ois {
@@ -22,16 +23,8 @@ namespace deep_ois {
 StabiliserParameters noLensMotionParameters();
 bool isNoLensMotion(const StabiliserParameters& parameters);
 
-// RMS of |predicted - observed| lens motion (pixels, weighted) over the recordings' observations
-// the model can predict (after the warm-up), and of |observed| (no lens motion).
-struct LensMotionScore {
-  double rms_px = 0.0;
-  double rms_without_px = 0.0;
-  std::size_t observations = 0;  // 0: nothing scored (both RMS are NaN)
-};
-LensMotionScore scoreLensMotion(const StabiliserParameters& parameters,
-                                const std::vector<StabiliserFitRecording>& recordings,
-                                double step_s = 1e-3, double warm_up_s = 1.0);
+// Candidates are scored with scoreLensMotion (core/ois/stabiliser_candidates.h): the RMS of
+// |predicted - observed| lens motion over the observations the model can predict.
 
 // Splits each recording in time: its observations ending in the last `held_out_fraction` of its
 // observed span go to held_out (with the whole gyro stream, for the warm-up), the others to
@@ -40,7 +33,7 @@ void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings
                            double held_out_fraction, std::vector<StabiliserFitRecording>* training,
                            std::vector<StabiliserFitRecording>* held_out);
 
-struct StabiliserCandidate {
+struct ModelCandidate {
   std::string name;  // "fit", "no lens motion", "generic", ... (for messages)
   StabiliserParameters parameters;
 };
@@ -65,7 +58,7 @@ struct StabiliserChoice {
 // Scores every candidate on `held_out` and keeps `incumbent` unless the best other candidate is
 // better by the options' margins. With nothing to score (no held-out observation) the incumbent
 // stays. Throws std::invalid_argument for an empty candidate list or an incumbent out of range.
-StabiliserChoice chooseStabiliserModel(const std::vector<StabiliserCandidate>& candidates,
+StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candidates,
                                        std::size_t incumbent,
                                        const std::vector<StabiliserFitRecording>& held_out,
                                        const StabiliserChoiceOptions& options = {});

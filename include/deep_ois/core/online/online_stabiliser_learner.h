@@ -138,7 +138,7 @@ class OnlineStabiliserLearner {
   // `priors`: the candidates besides a fresh fit (the model found before for this camera, the
   // shipped one); "no lens motion" is added when missing. `initial` is the one in use at the
   // start. Throws std::invalid_argument for bad options, no prior or `initial` out of range.
-  OnlineStabiliserLearner(OnlineLearningOptions options, std::vector<StabiliserCandidate> priors,
+  OnlineStabiliserLearner(OnlineLearningOptions options, std::vector<ModelCandidate> priors,
                           std::size_t initial);
   ~OnlineStabiliserLearner();
   OnlineStabiliserLearner(const OnlineStabiliserLearner&) = delete;
@@ -177,7 +177,7 @@ class OnlineStabiliserLearner {
   void charge(double cpu_s);
 
   OnlineLearningOptions options_;
-  std::vector<StabiliserCandidate> priors_;
+  std::vector<ModelCandidate> priors_;
   FeatureTracker tracker_;
   CompensationFallback fallback_;  // tracking thread only
   std::atomic<bool> falling_back_{false};
