@@ -24,6 +24,7 @@
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/ros/bag/stabiliser_training_data.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
@@ -240,6 +241,19 @@ int main(int argc, char** argv) {
   }
   fit.parameters = selection.candidates[kept].parameters;
   fit.rms_px = selection.candidates[kept].training.rms_px;
+  // The model kept must beat "no lens motion" on data it was not fitted to: an OIS-off camera
+  // trains to it (without --held-out, the check refits the physical chain on 3/4 of each recording).
+  const deep_ois::NoLensMotionCheck lens_check =
+      deep_ois::checkFitAgainstNoLensMotion(fit.parameters, training, held_out, fit_options);
+  std::fprintf(stderr, "train_stabiliser: check against no lens motion %s\n", lens_check.reason.c_str());
+  if (lens_check.refused) {
+    std::fprintf(stderr,
+                 "train_stabiliser: the fit is REFUSED (it does not predict the lens motion better than "
+                 "no lens motion): writing 'no lens motion' (the compensation is then the plain gyro: a "
+                 "camera without OIS or with OIS off)\n");
+    fit.parameters = deep_ois::noLensMotion();
+    fit.rms_px = fit.rms_physical_px = fit.rms_without_model_px;
+  }
 
   // ---- 3. Held-out scores and the model file. ----
   deep_ois::StabiliserModelFile model;
@@ -267,25 +281,10 @@ int main(int argc, char** argv) {
   physical.nonlinear_residual.resize(0, 0);
   const deep_ois::StabiliserScore physical_score =
       deep_ois::scoreStabiliser(physical, held_out, fit_options);
-  // "No lens motion" is always a candidate: a fit that does not beat it on recordings it was not
-  // trained on is refused (a camera with OIS off trains to it).
-  const std::string refusal = deep_ois::refusalAgainstNoLensMotion(score);
   // The refused fit's implausible values do not describe the model written (no lens motion).
-  if (!refusal.empty()) implausible = false;
-  if (!refusal.empty()) {
-    model.parameters = deep_ois::noLensMotion();
-    model.training.rms_px = fit.rms_without_model_px;
-    std::fprintf(stderr,
-                 "train_stabiliser: the fitted stabiliser is refused: %s; the model "
-                 "written is no lens motion\n",
-                 refusal.c_str());
-  } else if (held_out.empty()) {
-    std::fprintf(stderr,
-                 "train_stabiliser: note: without --held-out recordings the fit is not "
-                 "checked against no lens motion (a camera with OIS off fits a lens too)\n");
-  }
+  if (lens_check.refused) implausible = false;
   model.training.held_out_rms_without_model_px = score.rms_without_model_px;
-  model.training.held_out_rms_px = refusal.empty() ? score.rms_px : score.rms_without_model_px;
+  model.training.held_out_rms_px = score.rms_px;
   try {
     model.training.data_sha256 = deep_ois::sha256OfFiles(bags);
   } catch (const std::exception& e) {
@@ -336,11 +335,11 @@ int main(int argc, char** argv) {
                     physical_score.rms_px, score.rms_px});
   }
   std::printf("%s", deep_ois::lensMotionTable(rows).c_str());
-  if (!refusal.empty()) {
+  if (lens_check.refused) {
     std::printf(
-        "\nREFUSED: the fit above is not the model written: %s. The model written is no "
+        "\nREFUSED: the fitted stabiliser is not the model written: %s. The model written is no "
         "lens motion (gain 0): the plain gyro.\n",
-        refusal.c_str());
+        lens_check.reason.c_str());
   }
   std::printf("\ntrained in %.1f s (ground truth included; cached recordings are not recomputed)\n",
               model.training.training_time_s);

@@ -500,22 +500,8 @@ StabiliserParameters noLensMotion() {
   p.residual.resize(0, 0);
   p.nonlinear_features.clear();
   p.nonlinear_residual.resize(0, 0);
+  p.pan_detection_rate_rad_s = 0.0;
   return p;
-}
-
-std::string refusalAgainstNoLensMotion(const StabiliserScore& held_out) {
-  if (!(held_out.observations > 0)) return "";
-  if (held_out.rms_px < (1.0 - kLeastHeldOutImprovement) * held_out.rms_without_model_px) return "";
-  std::ostringstream why;
-  why.setf(std::ios::fixed);
-  why.precision(3);
-  why << "on the held-out recordings the fitted stabiliser leaves " << held_out.rms_px
-      << " px RMS lens-motion residual and no lens motion " << held_out.rms_without_model_px
-      << " px: it does not beat no lens motion by " << std::setprecision(0)
-      << 100.0 * kLeastHeldOutImprovement
-      << " % (the lens does not move: a camera without OIS or with OIS off, or the fit learned "
-         "noise or a timing error)";
-  return why.str();
 }
 
 StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& recordings,

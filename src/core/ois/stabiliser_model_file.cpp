@@ -1,5 +1,9 @@
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 
+#include <unistd.h>
+
+#include <cstdio>
+
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -191,11 +195,24 @@ StabiliserModelFile StabiliserModelFile::load(const std::string& path) {
 }
 
 void StabiliserModelFile::save(const std::string& path) const {
-  std::ofstream out(path);
-  if (!out) throw StabiliserModelFileError(path + ": cannot write the stabiliser model");
-  out << "# deep_ois learned stabiliser model (core/ois/stabiliser_model.h): " << name << "\n"
-      << toYaml();
-  if (!out) throw StabiliserModelFileError(path + ": write failed");
+  // Written beside the target, then renamed over it: a reader (or a process killed mid-write)
+  // sees the old complete file or the new complete file, never a partial one.
+  const std::string partial = path + ".partial." + std::to_string(::getpid());
+  {
+    std::ofstream out(partial);
+    if (!out) throw StabiliserModelFileError(path + ": cannot write the stabiliser model (" + partial + ")");
+    out << "# deep_ois learned stabiliser model (core/ois/stabiliser_model.h): " << name << "\n"
+        << toYaml();
+    out.flush();
+    if (!out) {
+      std::remove(partial.c_str());
+      throw StabiliserModelFileError(path + ": write failed");
+    }
+  }
+  if (std::rename(partial.c_str(), path.c_str()) != 0) {
+    std::remove(partial.c_str());
+    throw StabiliserModelFileError(path + ": cannot replace it with the new model (rename failed)");
+  }
 }
 
 }  // namespace deep_ois

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
+#include "deep_ois/core/ground_truth/lens_motion_observations.h"
 #include "deep_ois/core/ground_truth/recording_lens_shift.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
@@ -13,13 +14,6 @@
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
-namespace {
-
-// Fewer inlier tracks than this in a pair: its lens motion is left out (the prior filled it).
-constexpr int kMinimumInlierTracks = 8;
-
-}  // namespace
-
 StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
                                                 const GyroFlowParameters& gyro,
                                                 LensMotionTarget target,
@@ -118,21 +112,12 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
       estimateRecordingLensShift(camera, gray, stamps_s, imu, gyro.integration, rs, lens_options, tracker);
   data.frame_pairs += frames.size() > 1 ? frames.size() - 1 : 0;
   data.pairs_without_gyro = estimate.pairs_without_gyro;
-  const std::vector<LensShiftPairObservation>& pairs = estimate.pairs;
-  const LensShiftTrajectory& trajectory = estimate.trajectory;
-  if (pairs.empty()) fail("no frame pair covered by the gyro");
-  std::vector<double> residuals;
-  for (std::size_t p = 0; p < pairs.size(); ++p) {
-    if (trajectory.pair_inliers[p] < kMinimumInlierTracks) {
-      ++data.pairs_without_tracks;
-      continue;
-    }
-    residuals.push_back(trajectory.pair_median_residual_px[p]);
-    const int a = pairs[p].frame_a, b = pairs[p].frame_b;
-    addPair(stamps_s[static_cast<std::size_t>(a)], stamps_s[static_cast<std::size_t>(b)],
-            trajectory.shift_px[static_cast<std::size_t>(a)],
-            trajectory.shift_px[static_cast<std::size_t>(b)]);
-  }
+  if (estimate.pairs.empty()) fail("no frame pair covered by the gyro");
+  TrajectoryLensMotions motions =
+      lensMotionsOfTrajectory(estimate.pairs, estimate.trajectory, stamps_s, rs);
+  data.pairs_without_tracks = motions.pairs_without_tracks;
+  recording.observations = std::move(motions.observations);
+  const std::vector<double>& residuals = motions.median_track_residual_px;
   if (!residuals.empty()) data.median_track_residual_px = median(residuals);
   return data;
 }

@@ -52,6 +52,22 @@ CompensationParameters loadCompensationParameters(const ParameterSource& nh) {
   if (!std::isfinite(p.color_max_flow_px) || p.color_max_flow_px < 0.0) {
     reject(nh, "color_max_flow", "must be >= 0 pixels (0 = scale each frame by its largest flow)");
   }
+  p.learning = nh.param("learning", p.learning);
+  p.learning_key = nh.param("learning_key", p.learning_key);
+  p.learning_dir = nh.param("learning_dir", p.learning_dir);
+  p.learning_cpu_share = nh.param("learning_cpu_share", p.learning_cpu_share);
+  if (!(p.learning_cpu_share > 0.0 && p.learning_cpu_share <= 1.0))
+    reject(nh, "learning_cpu_share", "must be in (0, 1] (a share of one core)");
+  p.learning_tracking_width_px = nh.param("learning_tracking_width", p.learning_tracking_width_px);
+  if (p.learning_tracking_width_px < 64) reject(nh, "learning_tracking_width", "must be at least 64 pixels");
+  p.learning_buffer_s = nh.param("learning_buffer", p.learning_buffer_s);
+  p.learning_held_out_s = nh.param("learning_held_out", p.learning_held_out_s);
+  p.learning_refit_every_s = nh.param("learning_refit_every", p.learning_refit_every_s);
+  if (!(p.learning_held_out_s >= 2.0)) reject(nh, "learning_held_out", "must be at least 2 seconds (one window)");
+  if (!(p.learning_buffer_s >= 2.0 * p.learning_held_out_s))
+    reject(nh, "learning_buffer", "must be at least twice ~learning_held_out (seconds held out and trained on)");
+  if (!(p.learning_refit_every_s > 0.0)) reject(nh, "learning_refit_every", "must be > 0 seconds");
+  p.fallback_to_gyro = nh.param("fallback_to_gyro", p.fallback_to_gyro);
   return p;
 }
 

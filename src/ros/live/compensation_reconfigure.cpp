@@ -13,6 +13,8 @@ CompensationConfig toConfig(const CompensationLiveParameters& params) {
   config.warp_iterations = params.warp_iterations;
   config.warp_threads = params.warp_threads;
   config.max_wait = params.max_wait_s;
+  config.learning = params.learning;
+  config.learning_cpu_share = params.learning_cpu_share;
   return config;
 }
 }  // namespace
@@ -29,6 +31,11 @@ std::string applyCompensationConfig(const CompensationConfig& config, Compensati
   if (!std::isfinite(config.max_wait) || config.max_wait < 0.0) {
     return "max_wait must be >= 0 seconds, got " + std::to_string(config.max_wait);
   }
+  if (!(config.learning_cpu_share > 0.0 && config.learning_cpu_share <= 1.0)) {
+    return "learning_cpu_share must be in (0, 1], got " + std::to_string(config.learning_cpu_share);
+  }
+  params.learning = config.learning;
+  params.learning_cpu_share = config.learning_cpu_share;
   params.color_max_flow_px = config.color_max_flow;
   params.warp_iterations = config.warp_iterations;
   params.warp_threads = config.warp_threads;
@@ -56,13 +63,15 @@ void CompensationReconfigure::callback(CompensationConfig& config, uint32_t) {
   const bool changed = updated.color_max_flow_px != current_.color_max_flow_px ||
                        updated.warp_iterations != current_.warp_iterations ||
                        updated.warp_threads != current_.warp_threads ||
-                       updated.max_wait_s != current_.max_wait_s;
+                       updated.max_wait_s != current_.max_wait_s || updated.learning != current_.learning ||
+                       updated.learning_cpu_share != current_.learning_cpu_share;
   current_ = updated;
   if (changed) {
     ROS_INFO_NAMED(log_name_,
-                   "%s: reconfigured: color max flow %.2f px, %d warp iterations, %d warp thread(s), max wait %.3f s",
+                   "%s: reconfigured: color max flow %.2f px, %d warp iterations, %d warp thread(s), max wait %.3f s, "
+                   "learning %s (%.0f %% of a core)",
                    log_name_.c_str(), config.color_max_flow, config.warp_iterations, config.warp_threads,
-                   config.max_wait);
+                   config.max_wait, config.learning ? "on" : "off", 100.0 * config.learning_cpu_share);
   }
   apply_(current_);
 }

@@ -58,11 +58,14 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   // checked against the stream; say so rather than "matches".
   diagnostics_->setValue("model camera", modelCamera().known() ? modelCamera().summary()
                                                                : "none recorded (a generic model)");
+  if (stabiliser_) {
+    learning_ = std::make_unique<OnlineLearningRos>(nh_, params_, stabiliser_->model(), *diagnostics_, log_name_);
+  }
   // Live-tunable parameters; built before the lock below (it applies the values once here).
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
       CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.warp_threads,
-                                 params_.max_wait_s},
+                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share},
       [this](const CompensationLiveParameters& live) {
         std::lock_guard<std::mutex> lock(mutex_);
         params_.color_max_flow_px = live.color_max_flow_px;
@@ -74,6 +77,9 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         diagnostics_->setValue("color_max_flow [px]", std::to_string(live.color_max_flow_px));
         diagnostics_->setValue("warp_iterations", std::to_string(live.warp_iterations));
         diagnostics_->setValue("warp_threads", std::to_string(live.warp_threads));
+        params_.learning = live.learning;
+        params_.learning_cpu_share = live.learning_cpu_share;
+        if (learning_) learning_->setLearning(live.learning, live.learning_cpu_share);
       });
   std::lock_guard<std::mutex> lock(mutex_);
   auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
@@ -102,6 +108,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
 CompensationRos::~CompensationRos() {
   expire_timer_.stop();
   reconfigure_.reset();  // no more reconfigure callbacks into this
+  learning_.reset();     // its threads end (a fit in progress first) before the diagnostics go
   diagnostics_.reset();
   std::lock_guard<std::mutex> lock(mutex_);
   gyro_flow_sub_.shutdown();
@@ -264,6 +271,7 @@ bool CompensationRos::checkModelCamera(const GyroFlow& gyro) {
 
 void CompensationRos::sayTimeJump(const GyroFlow& gyro, double back_s) {
   if (!(back_s > 0.0)) return;
+  if (learning_) learning_->timeWentBack();
   diagnostics_->setValue("stabiliser restarts after time went back", std::to_string(stabiliser_->timeJumps()));
   // Once per jump (only the first pair of the new timeline reports one): not throttled.
   ROS_WARN_NAMED("compensation",
@@ -342,6 +350,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     countDrop("model trained for another camera (~require_matching_camera)");
     return;
   } else if (stabiliser_) {
+    if (learning_) learning_->beforePair(gyro, *stabiliser_);  // the model in use (a swap is said once)
     StabiliserFlowResult result = stabiliser_->compensate(gyro);
     sayTimeJump(gyro, result.time_jump_back_s);
     if (!result.ok) {
@@ -350,9 +359,16 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
       countDrop("stabiliser model: " + result.reason);
       return;
     }
-    compensated = result.flow;
-    compensated_homographies = std::move(result.homographies);
     compensated_camera = result.camera;
+    if (learning_) learning_->afterPair(gyro, image_a, image_b, result, homographies);
+    if (learning_ && learning_->fallingBack()) {
+      // The checks found the model worse than the plain gyro: the gyro's motion is published.
+      compensated = gyro_flow.clone();
+      compensated_homographies = homographies;
+    } else {
+      compensated = result.flow;
+      compensated_homographies = std::move(result.homographies);
+    }
   } else {
     compensated = stream_->compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
                                       static_cast<std::int64_t>(gyro.header.stamp.toNSec()));

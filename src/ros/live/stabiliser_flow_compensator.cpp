@@ -106,6 +106,8 @@ StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) 
   result.camera = camera;
   result.shift_a_px = compensation.shift_a_px;
   result.shift_b_px = compensation.shift_b_px;
+  result.rotations = std::move(rotations);
+  result.timing = rs;
   result.ok = true;
   return result;
 }

@@ -124,16 +124,11 @@ StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
                                 const std::vector<StabiliserFitRecording>& recordings,
                                 const StabiliserFitOptions& options);
 
-// The model of a camera whose lens does not move (no OIS, or OIS off): gain 0, no residual bank.
-// Always a candidate: a fit must beat it on recordings it was not trained on.
+// The model of a camera whose lens does not move (no OIS, or OIS off): gain 0, no residual, no
+// pan detection: the compensation is the plain gyro. Always a candidate: a fit must beat it on
+// recordings it was not trained on (checkFitAgainstNoLensMotion, stabiliser_model_choice.h).
 StabiliserParameters noLensMotion();
 
-// A fit must lower the held-out residual of no lens motion by this share to be kept (a lens fitted
-// to noise or to timing errors does not; issue 25: an OIS-off recording fitted 97 % gains).
-constexpr double kLeastHeldOutImprovement = 0.05;
-// Empty when the fit's held-out score beats no lens motion by kLeastHeldOutImprovement; otherwise
-// why it is refused, with both residuals.
-std::string refusalAgainstNoLensMotion(const StabiliserScore& held_out);
 
 // The model's predicted lens motion for each observation of `recording` (in input order; NaN for
 // those it cannot predict: before the gyro stream's warm-up or outside it).

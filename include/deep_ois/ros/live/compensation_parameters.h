@@ -38,6 +38,23 @@ struct CompensationParameters {
   int warp_iterations = 3;       // ~warp_iterations: fixed-point steps inverting the flow
   int warp_threads = 1;          // ~warp_threads: OpenCV threads for the warp (process-wide)
   double color_max_flow_px = 0.0;  // ~color_max_flow: as the gyro flow nodelet's
+
+  // Online self-calibration of a stabiliser model (core/online/online_stabiliser_learner.h); the
+  // per-pair check (compensation_check) and the fallback to the plain gyro run whenever a
+  // stabiliser model is in use.
+  bool learning = true;             // ~learning: learn the camera's stabiliser while running
+  // ~learning_key: names this camera's learned model file; empty = from the stream (frame id,
+  // size and focal length), so a swapped camera gets its own.
+  std::string learning_key;
+  // ~learning_dir: where learned models are kept; empty = $ROS_HOME/deep_ois/stabilisers
+  // (~/.ros/deep_ois/stabilisers).
+  std::string learning_dir;
+  double learning_cpu_share = 0.3;  // ~learning_cpu_share: of one core, tracking and fits together
+  int learning_tracking_width_px = 480;  // ~learning_tracking_width: frames tracked at most this wide
+  double learning_buffer_s = 40.0;       // ~learning_buffer: seconds of motion-rich windows kept
+  double learning_held_out_s = 6.0;      // ~learning_held_out: newest seconds the swap is decided on
+  double learning_refit_every_s = 4.0;   // ~learning_refit_every: new seconds between fits
+  bool fallback_to_gyro = true;          // ~fallback_to_gyro: publish the plain gyro while the model does worse
 };
 
 // Reads every parameter with its default and checks it; throws std::invalid_argument naming the

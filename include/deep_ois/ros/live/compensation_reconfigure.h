@@ -1,5 +1,6 @@
 // dynamic_reconfigure server of the compensation nodelet's live-tunable parameters
-// (cfg/Compensation.cfg): color_max_flow, warp_iterations, warp_threads, max_wait.
+// (cfg/Compensation.cfg): color_max_flow, warp_iterations, warp_threads, max_wait, learning,
+// learning_cpu_share.
 #pragma once
 
 #include <deep_ois/CompensationConfig.h>
@@ -18,6 +19,8 @@ struct CompensationLiveParameters {
   int warp_iterations = 3;         // fixed-point steps inverting the flow, 0-20
   int warp_threads = 1;            // OpenCV threads of the warp (cv::setNumThreads, process-wide), >= 1
   double max_wait_s = 1.0;         // wall time a gyro flow waits for its frames
+  bool learning = true;            // online learning of the stabiliser model on or off
+  double learning_cpu_share = 0.3; // its average CPU, share of one core, (0, 1]
 };
 
 // Empty when `config` is valid (and copied into `params`); otherwise a sentence naming the bad

@@ -25,6 +25,7 @@
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
+#include "deep_ois/ros/live/online_learning_ros.h"
 
 namespace deep_ois {
 
@@ -41,8 +42,13 @@ namespace deep_ois {
 // of the earlier ones (CompensationStream); a gap (a pair never received, a bag that loops)
 // restarts the history, as at start-up.
 //
+// With a stabiliser model, each pair is also checked against the images and learned from
+// (OnlineLearningRos: `compensation_check`, the fallback to the plain gyro, the model swapped when
+// a better one is learned; docs/online_learning.md).
+//
 // Threading: callbacks run on the node handle's queue; one mutex guards the state. The network
-// runs inside the callback (a few ms with the fast preset).
+// runs inside the callback (a few ms with the fast preset); the online learning's tracking and
+// fits run in its own threads and never block a callback.
 class CompensationRos {
  public:
   // Loads the model; throws ModelFileError naming the file and the problem, or
@@ -101,6 +107,8 @@ class CompensationRos {
   std::unique_ptr<CompensationModel> model_;
   std::unique_ptr<CompensationStream> stream_;
   std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
+  // With a stabiliser model: the per-pair checks, the fallback and the online learning.
+  std::unique_ptr<OnlineLearningRos> learning_;
   // The model's camera against the stream's, checked on the first flow (and when the camera
   // changes): empty when they match, else the difference.
   std::string camera_check_;

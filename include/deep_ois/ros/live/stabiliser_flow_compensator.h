@@ -13,6 +13,7 @@
 #include <opencv2/core.hpp>
 
 #include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include <deep_ois/GyroFlow.h>
@@ -24,6 +25,8 @@ struct StabiliserFlowResult {
   std::string reason;  // why not, when !ok (a sentence for the drop tally)
   std::vector<Eigen::Matrix3d> homographies;  // K(s_b) R K(s_a)^-1 per patch, undistorted px
   std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;
+  std::vector<Eigen::Matrix3d> rotations;  // the gyro's R_b_a per patch
+  RollingShutterConfig timing;             // the message's patch count, readout and time offset
   cv::Mat flow;  // CV_32FC2 on the gyro flow's grid (same convention)
   CameraModel camera;  // the message's camera (K, distortion, size) the homographies refer to
   // Seconds time went back before this message (a bag that loops): the stabiliser's state was
@@ -43,6 +46,12 @@ class StabiliserFlowCompensator {
   double observe(const GyroFlow& msg);
 
   const StabiliserModelFile& model() const { return model_; }
+  // Another model (the online learner's swap): the stabiliser restarts from a centred lens at the
+  // next message, warmed up on the gyro history it carries.
+  void setModel(StabiliserModelFile model) {
+    model_ = std::move(model);
+    compensator_.reset();
+  }
   int stateResets() const { return compensator_ ? compensator_->stateResets() : 0; }
   int timeJumps() const { return compensator_ ? compensator_->timeJumps() : 0; }
 

@@ -1,0 +1,212 @@
+// Online self-calibration of the stabiliser model while the live pipeline runs: the compensated
+// frame pairs come in, point tracks between their frames check the compensation in use (a
+// residual, a confidence and a fallback to the plain gyro: compensation_check.h) and are turned
+// into gyro-anchored lens motions (the same code path as train_stabiliser's images target:
+// estimateLensShiftTrajectory + lensMotionsOfTrajectory, over windows of a few seconds), kept in a
+// rolling, motion-rich buffer; a background fit on it makes a candidate, and the candidates (the
+// fit, the priors given at the start, and always "no lens motion") are scored on the newest
+// held-out window (chooseStabiliserModel). The model in use is replaced only by a clearly better
+// one; the swap is atomic (a shared_ptr swapped under a mutex, versioned) and the file written
+// atomically.
+//
+// Threads: submit() only moves a pair into a bounded queue (it never waits for tracking or a fit;
+// a full queue drops the pair, counted). A tracking thread tracks, checks and builds the windows;
+// a fit thread fits. Both share one CPU budget (a share of one core, measured on their own thread
+// CPU time): over it, the fit waits, and the tracking skips pairs (counted) until the budget is
+// back, but only between windows (a window of consecutive pairs is tracked whole: a pair skipped
+// inside one would cut it). The destructor stops both (it waits for a fit in progress to end).
+//
+// A still camera learns nothing and loses nothing: a window whose gyro barely moves is not kept
+// (its lens motion says nothing about the stabiliser), and without new data no fit runs. Pure
+// C++/Eigen/OpenCV: no ROS.
+#pragma once
+
+#include <Eigen/Core>
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "deep_ois/core/camera/camera_description.h"
+#include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/ground_truth/lens_shift_ground_truth.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_fit.h"
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
+#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+
+namespace deep_ois {
+
+struct OnlineLearningOptions {
+  bool learning = true;        // false: pairs are still checked (residual, fallback), nothing is fitted
+  double window_s = 2.0;       // seconds of consecutive pairs per lens-trajectory estimate
+  double buffer_s = 40.0;      // seconds of windows kept; beyond, the least moving one is dropped
+  double held_out_s = 6.0;     // the newest windows held out of the fit: the swap is decided there
+  double min_training_s = 6.0; // no fit before this many seconds of windows besides the held-out
+  double refit_every_s = 4.0;  // seconds of new windows between fits
+  // A window whose RMS pan/tilt rate is below this (rad/s) is still: nothing to learn.
+  double still_rate_rad_s = 0.03;
+  double cpu_share = 0.3;            // of one core, tracking and fitting together, on average
+  // The clock the budget accrues on, seconds (empty: wall time). A replay gives its replay time.
+  std::function<double()> budget_clock;
+  // Pairs waiting for the tracking thread (each holds its two frames until tracked).
+  std::size_t max_queued_pairs = 10;
+  int tracking_width_px = 480;       // frames wider than this are tracked on a reduced copy
+  // The tracker: fewer corners and a smaller KLT than the offline ground truth's (the learning
+  // runs within a CPU budget; ~190 tracks a pair still give ~30 per row patch).
+  CornerDetectorOptions corners = learningCorners();
+  KltOptions klt = learningKlt();
+  StabiliserFitOptions fit = onlineFitOptions();
+  LensShiftOptions lens;             // patch count and readout come from each pair's timing
+  StabiliserChoiceOptions choice;
+  CompensationCheckOptions check;
+  CompensationFallbackOptions fallback;
+  // Where a model that replaced the one in use is kept (written atomically: a kill during a fit
+  // or a write leaves the previous file); empty = not kept.
+  std::string model_path;
+  std::string model_file_name = "learned online";  // the file's name field
+  CameraDescription camera;                         // recorded in the file
+
+  // The fit's defaults, cheaper than train_stabiliser's (fewer pan-detection thresholds, no
+  // elliptic stroke variant, fewer iterations): it runs every few seconds in the background.
+  static StabiliserFitOptions onlineFitOptions();
+  static CornerDetectorOptions learningCorners();
+  static KltOptions learningKlt();
+  std::string validate() const;
+};
+
+// One compensated frame pair (camera clock stamps) and what the learner needs of it.
+struct OnlineFramePair {
+  double stamp_a_s = 0.0, stamp_b_s = 0.0;
+  RollingShutterConfig timing;  // patch count, readout, time offset (camera -> IMU clock)
+  CameraModel camera;
+  std::vector<Eigen::Matrix3d> rotations;          // gyro R_b_a per row patch
+  std::vector<Eigen::Matrix3d> gyro_homographies;  // K R K^-1 per patch (the plain gyro)
+  std::vector<Eigen::Matrix3d> model_homographies; // the compensation published (empty: none)
+  std::vector<CameraRateSample> rates;  // camera-frame gyro up to the pair (overlaps are fine)
+  // The frames (8-bit 1/3/4 channels or 16-bit 1 channel), shared, not copied: keep_alive owns
+  // their pixels (e.g. the ROS messages) until the tracking thread is done with them.
+  cv::Mat image_a, image_b;
+  std::shared_ptr<const void> keep_alive;
+  // Tracks already made (raw pixels of the camera): used instead of the images when `tracked`.
+  std::vector<FeatureMatch> matches;
+  bool tracked = false;
+};
+
+// The stabiliser model in use.
+struct LearnedStabiliser {
+  std::uint64_t version = 0;  // 0: the one given at the start; +1 per swap
+  std::string name;
+  StabiliserParameters parameters;
+  double held_out_rms_px = 0.0;          // on the held-out window that chose it (NaN: not scored)
+  double held_out_rms_without_px = 0.0;  // no lens motion on that window
+  std::string reason;                    // the choice's sentence
+};
+
+// The check of one pair, made on the tracking thread.
+struct PairVerdict {
+  double stamp_a_s = 0.0, stamp_b_s = 0.0;
+  CompensationCheck check;
+  bool falling_back = false;  // the fallback state after this pair
+};
+
+struct OnlineLearningStatus {
+  std::string state;  // "off", "collecting", "fitting", "waiting for motion", "over budget"
+  std::size_t pairs_submitted = 0, pairs_dropped_busy = 0, pairs_checked = 0, pairs_unusable = 0;
+  std::size_t pairs_over_budget = 0;  // skipped by the tracking while over the CPU budget
+  std::size_t pairs_falling_back = 0;  // checked pairs after which the plain gyro was in use
+  std::size_t windows_kept = 0, windows_still = 0, windows_failed = 0, windows_dropped = 0;
+  std::size_t pairs_without_tracks = 0;  // left out of the lens motions (too few inlier tracks)
+  std::size_t fits = 0, fits_failed = 0, swaps = 0, saves_failed = 0;
+  double buffered_s = 0.0;
+  double cpu_s = 0.0;       // thread CPU time spent, seconds
+  double wall_s = 0.0;      // since the start
+  std::string last_choice;  // the last fit's choice sentence
+  std::string last_problem; // the last failure (a window, a fit, a save), empty when none
+};
+
+class OnlineStabiliserLearner {
+ public:
+  // `priors`: the candidates besides a fresh fit (the model found before for this camera, the
+  // shipped one); "no lens motion" is added when missing. `initial` is the one in use at the
+  // start. Throws std::invalid_argument for bad options, no prior or `initial` out of range.
+  OnlineStabiliserLearner(OnlineLearningOptions options, std::vector<ModelCandidate> priors,
+                          std::size_t initial);
+  ~OnlineStabiliserLearner();
+  OnlineStabiliserLearner(const OnlineStabiliserLearner&) = delete;
+  OnlineStabiliserLearner& operator=(const OnlineStabiliserLearner&) = delete;
+
+  // Queues the pair; false (counted) when the queue is full. Never waits for tracking or a fit.
+  bool submit(OnlineFramePair pair);
+  // The model in use (a snapshot; a swap replaces it for later calls).
+  std::shared_ptr<const LearnedStabiliser> model() const;
+  // Whether the plain gyro should be published instead of the model (the checks' hysteresis).
+  bool fallingBack() const { return falling_back_.load(); }
+  // The checks made since the last call, in pair order.
+  std::vector<PairVerdict> takeVerdicts();
+  OnlineLearningStatus status() const;
+  std::size_t queued() const;  // pairs waiting for the tracking thread
+  // Learning on or off (the checks go on); a fit in progress ends first.
+  void setLearning(bool on);
+  void setCpuShare(double share);
+  // Time went back (a bag that loops): the window being built and the queued pairs belong to the
+  // other timeline and are dropped; the kept windows stay (the camera is the same).
+  void restartTimeline();
+  // For tests and benchmarks: waits until the queue is empty and no fit runs (or the timeout).
+  bool waitIdle(double timeout_s);
+
+ private:
+  struct Window;  // lens motions of a few seconds, with their gyro stream
+  void trackingLoop();
+  void fitLoop();
+  void process(OnlineFramePair& pair);
+  void closeWindow();
+  void fitOnce(std::vector<std::shared_ptr<const Window>> windows);
+  // Blocks while the CPU budget is spent (or until stopping); returns false when stopping.
+  bool waitForBudget();
+  bool withinBudget();  // under mutex_: updates the credit, true when not over the budget
+  double clockNow() const;
+  void charge(double cpu_s);
+
+  OnlineLearningOptions options_;
+  std::vector<ModelCandidate> priors_;
+  FeatureTracker tracker_;
+  CompensationFallback fallback_;  // tracking thread only
+  std::atomic<bool> falling_back_{false};
+
+  mutable std::mutex mutex_;  // everything below unless said
+  std::condition_variable wake_tracking_, wake_fit_, idle_;
+  bool stopping_ = false;
+  std::deque<OnlineFramePair> queue_;
+  bool tracking_busy_ = false;
+  bool fit_requested_ = false, fitting_ = false;
+  std::shared_ptr<const LearnedStabiliser> model_;
+  std::vector<PairVerdict> verdicts_;
+  std::vector<std::shared_ptr<const Window>> windows_;  // oldest first
+  double new_seconds_ = 0.0;  // of windows since the last fit
+  OnlineLearningStatus status_;
+  double credit_s_ = 0.0;  // CPU seconds the budget allows now (negative: over it)
+  double credit_stamp_s_ = 0.0;
+  double started_s_ = 0.0;
+
+  // Tracking thread only: the window being built.
+  std::vector<double> window_stamps_s_;
+  std::vector<LensShiftPairObservation> window_pairs_;
+  CameraModel window_camera_;
+  RollingShutterConfig window_timing_;
+  std::deque<CameraRateSample> rates_;  // recent camera-frame gyro, increasing stamps
+  std::uint64_t timeline_ = 0;          // bumped by restartTimeline (under mutex_)
+  std::uint64_t window_timeline_ = 0;
+
+  std::thread tracking_thread_, fit_thread_;
+};
+
+}  // namespace deep_ois

@@ -1,0 +1,71 @@
+// The compensation nodelet's online self-calibration (core/online/online_stabiliser_learner.h) in
+// ROS terms: the learner made at the first pair (when the camera is known, so its stored model can
+// be found), the model in use handed to the StabiliserFlowCompensator when the learner swaps it
+// (said once), the pairs handed over with their frames (shared, not copied: the callbacks never
+// track or fit), the per-pair checks published on `compensation_check`, and /diagnostics.
+//
+// Each camera's learned model is kept in a file under ~learning_dir ($ROS_HOME/deep_ois/stabilisers)
+// named by ~learning_key or the stream (frame id, size, focal length), written atomically by the
+// learner, and loaded at the next start as the model in use (the ~model file stays a candidate).
+#pragma once
+
+#include <deep_ois/GyroFlow.h>
+#include <ros/ros.h>
+#include <sensor_msgs/Image.h>
+
+#include <memory>
+#include <string>
+
+#include "deep_ois/core/online/online_stabiliser_learner.h"
+#include "deep_ois/ros/live/compensation_parameters.h"
+#include "deep_ois/ros/live/live_diagnostics.h"
+#include "deep_ois/ros/live/stabiliser_flow_compensator.h"
+
+namespace deep_ois {
+
+// The learned model's file for a camera: `key` when not empty, else made from the frame id, size
+// and focal length; characters other than [A-Za-z0-9_.-] become '_'. `dir` empty: ROS_HOME's.
+std::string learnedModelPath(const std::string& dir, const std::string& key, const GyroFlow& gyro);
+
+class OnlineLearningRos {
+ public:
+  // `shipped`: the ~model file (a candidate, and the model in use when this camera has none stored).
+  OnlineLearningRos(ros::NodeHandle nh, const CompensationParameters& params, StabiliserModelFile shipped,
+                    LiveDiagnostics& diagnostics, const std::string& log_name);
+
+  // Before a pair is compensated: the learner exists for the stream's camera and the compensator
+  // uses the model in use (a swap is said once). Never blocks on a fit.
+  void beforePair(const GyroFlow& gyro, StabiliserFlowCompensator& compensator);
+  // After: hands the pair to the learner (dropped and counted when it is busy), publishes the
+  // checks made since, updates /diagnostics. `gyro_homographies`: the plain gyro's per patch.
+  void afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
+                 const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
+                 const std::vector<Eigen::Matrix3d>& gyro_homographies);
+  // Whether the plain gyro should be published instead of the model (~fallback_to_gyro and the
+  // checks' hysteresis).
+  bool fallingBack() const;
+  void timeWentBack();
+  void setLearning(bool on, double cpu_share);
+  // For the benchmark: waits until the learner has nothing queued and no fit running.
+  bool waitIdle(double timeout_s);
+  const OnlineStabiliserLearner* learner() const { return learner_.get(); }
+
+ private:
+  void startFor(const GyroFlow& gyro);
+  void updateDiagnostics();
+
+  ros::NodeHandle nh_;
+  CompensationParameters params_;
+  StabiliserModelFile shipped_;
+  LiveDiagnostics& diagnostics_;
+  std::string log_name_;
+  ros::Publisher check_pub_;
+  std::unique_ptr<OnlineStabiliserLearner> learner_;
+  std::string model_path_;
+  std::string frame_id_;
+  std::uint64_t version_in_use_ = 0;
+  std::size_t pairs_ = 0;
+  std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
+};
+
+}  // namespace deep_ois

@@ -1,0 +1,132 @@
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace deep_ois {
+
+bool isNoLensMotion(const StabiliserParameters& parameters) {
+  return parameters.gain.isZero(0.0) &&
+         (parameters.residual.size() == 0 || parameters.residual.isZero(0.0)) &&
+         (parameters.nonlinear_residual.size() == 0 || parameters.nonlinear_residual.isZero(0.0));
+}
+
+void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,
+                           double held_out_fraction, std::vector<StabiliserFitRecording>* training,
+                           std::vector<StabiliserFitRecording>* held_out) {
+  for (const auto& recording : recordings) {
+    if (recording.observations.empty()) continue;
+    double first = recording.observations.front().t_b_s, last = first;
+    for (const auto& o : recording.observations) {
+      first = std::min(first, o.t_b_s);
+      last = std::max(last, o.t_b_s);
+    }
+    const double split = last - held_out_fraction * (last - first);
+    StabiliserFitRecording early = recording, late = recording;
+    early.observations.clear();
+    late.observations.clear();
+    late.name += " (held-out end)";
+    for (const auto& o : recording.observations) (o.t_b_s > split ? late : early).observations.push_back(o);
+    if (!early.observations.empty()) training->push_back(std::move(early));
+    if (!late.observations.empty()) held_out->push_back(std::move(late));
+  }
+}
+
+StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candidates,
+                                       std::size_t incumbent,
+                                       const std::vector<StabiliserFitRecording>& held_out,
+                                       const StabiliserChoiceOptions& options) {
+  if (candidates.empty()) throw std::invalid_argument("chooseStabiliserModel: no candidate");
+  if (incumbent >= candidates.size())
+    throw std::invalid_argument("chooseStabiliserModel: incumbent " + std::to_string(incumbent) +
+                                " of " + std::to_string(candidates.size()) + " candidates");
+  StabiliserChoice choice;
+  choice.chosen = incumbent;
+  StabiliserFitOptions scoring;
+  scoring.step_s = options.step_s;
+  scoring.warm_up_s = options.warm_up_s;
+  for (const auto& candidate : candidates)
+    choice.scores.push_back(scoreLensMotion(candidate.parameters, held_out, scoring));
+  std::ostringstream why;
+  why.precision(3);
+  why << "held-out lens motion RMS:";
+  for (std::size_t c = 0; c < candidates.size(); ++c)
+    why << (c ? "," : "") << " " << candidates[c].name << " " << std::fixed << choice.scores[c].rms_px << " px";
+  const double kept = choice.scores[incumbent].rms_px;
+  if (choice.scores[incumbent].observations == 0 || !std::isfinite(kept)) {
+    why << "; nothing held out to score: " << candidates[incumbent].name << " kept";
+    choice.reason = why.str();
+    return choice;
+  }
+  std::size_t best = incumbent;
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    if (std::isfinite(choice.scores[c].rms_px) && choice.scores[c].rms_px < choice.scores[best].rms_px) best = c;
+  }
+  auto clearlyBelow = [&options](double score, double reference) {
+    return score < std::min(reference * (1.0 - options.min_relative_improvement),
+                            reference - options.min_improvement_px);
+  };
+  // The simplest explanation when the data cannot tell: "no lens motion" is preferred to a
+  // candidate that is not clearly better than it (a fit on an OIS-off camera's noise).
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    if (c != best && isNoLensMotion(candidates[c].parameters) && std::isfinite(choice.scores[c].rms_px) &&
+        !clearlyBelow(choice.scores[best].rms_px, choice.scores[c].rms_px)) {
+      best = c;
+      break;
+    }
+  }
+  const double needed = std::min(kept * (1.0 - options.min_relative_improvement), kept - options.min_improvement_px);
+  if (best != incumbent && choice.scores[best].rms_px < needed) {
+    choice.chosen = best;
+    choice.replaced_incumbent = true;
+    why << "; " << candidates[best].name << " replaces " << candidates[incumbent].name;
+  } else if (best != incumbent) {
+    why << "; " << candidates[incumbent].name << " kept: " << candidates[best].name << " is not better by "
+        << 100.0 * options.min_relative_improvement << " % and " << options.min_improvement_px << " px";
+  } else {
+    why << "; " << candidates[incumbent].name << " kept (the best)";
+  }
+  choice.reason = why.str();
+  return choice;
+}
+
+}  // namespace deep_ois
+
+namespace deep_ois {
+
+NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted,
+                                              const std::vector<StabiliserFitRecording>& training,
+                                              const std::vector<StabiliserFitRecording>& held_out,
+                                              const StabiliserFitOptions& fit_options,
+                                              const StabiliserChoiceOptions& choice_options) {
+  StabiliserChoiceOptions options = choice_options;
+  options.step_s = fit_options.step_s;
+  options.warm_up_s = fit_options.warm_up_s;
+  NoLensMotionCheck check;
+  StabiliserParameters candidate = fitted;
+  std::vector<StabiliserFitRecording> scored = held_out;
+  std::string where = "the held-out recordings";
+  if (held_out.empty()) {
+    std::vector<StabiliserFitRecording> early;
+    splitRecordingsInTime(training, 0.25, &early, &scored);
+    where = "the last quarter of each training recording (fitted again on the first three quarters)";
+    try {
+      candidate = fitStabiliser(early, fit_options).parameters;
+    } catch (const std::exception& e) {
+      check.refused = true;
+      check.reason = std::string("the fit on the first three quarters failed (") + e.what() +
+                     "): nothing shows that the lens moves";
+      return check;
+    }
+  }
+  const StabiliserChoice choice =
+      chooseStabiliserModel({{"fit", candidate}, {"no lens motion", noLensMotion()}}, 1, scored, options);
+  check.refused = !choice.replaced_incumbent;
+  check.reason = "on " + where + ": " + choice.reason;
+  return check;
+}
+
+}  // namespace deep_ois

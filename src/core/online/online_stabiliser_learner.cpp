@@ -1,0 +1,545 @@
+#include "deep_ois/core/online/online_stabiliser_learner.h"
+
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "deep_ois/core/ground_truth/lens_motion_observations.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+
+namespace deep_ois {
+
+struct OnlineStabiliserLearner::Window {
+  StabiliserFitRecording recording;  // its own gyro stream (warm-up included) and lens motions
+  double start_s = 0.0, end_s = 0.0; // IMU clock span of its pairs
+  double motion_rad_s = 0.0;         // RMS pan/tilt rate: how much it tells about the stabiliser
+  double seconds() const { return end_s - start_s; }
+};
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// A window shorter than this (pairs stopped chaining early) is too short for its trajectory's
+// smoothness prior to hold: dropped.
+constexpr double kMinimumWindowFraction = 0.5;
+// Credit the budget may save up while idle, in seconds of the share (a burst after a quiet time).
+constexpr double kBudgetBurstS = 20.0;
+
+double wallNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double threadCpuNow() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// An 8-bit single-channel view or copy of any frame the pipeline passes.
+cv::Mat toGray8(const cv::Mat& image) {
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);  // RGB or BGR: the weights differ slightly
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    gray = image;
+  }
+  if (gray.depth() == CV_16U) {
+    cv::Mat scaled;
+    gray.convertTo(scaled, CV_8U, 1.0 / 256.0);
+    return scaled;
+  }
+  if (gray.depth() != CV_8U) throw std::invalid_argument("online learner: frames must be 8 or 16 bit");
+  return gray;
+}
+
+}  // namespace
+
+StabiliserFitOptions OnlineLearningOptions::onlineFitOptions() {
+  StabiliserFitOptions fit;
+  fit.iterations = 15;
+  fit.pan_thresholds_rad_s = {0.0, 0.6};
+  fit.try_circular_stroke = false;
+  return fit;
+}
+
+CornerDetectorOptions OnlineLearningOptions::learningCorners() {
+  CornerDetectorOptions corners;
+  corners.min_corners_per_cell = 4;
+  corners.max_corners_per_cell = 4;
+  return corners;
+}
+
+KltOptions OnlineLearningOptions::learningKlt() {
+  KltOptions klt;
+  klt.window_size_px = 15;
+  klt.pyramid_levels = 2;
+  klt.max_iterations = 20;
+  return klt;
+}
+
+std::string OnlineLearningOptions::validate() const {
+  std::ostringstream why;
+  if (!(window_s > 0.1)) why << "window_s must be above 0.1 s (got " << window_s << ")";
+  else if (!(held_out_s >= window_s)) why << "held_out_s (" << held_out_s << ") must be at least window_s (" << window_s << ")";
+  else if (!(min_training_s >= window_s)) why << "min_training_s (" << min_training_s << ") must be at least window_s";
+  else if (!(buffer_s >= held_out_s + min_training_s))
+    why << "buffer_s (" << buffer_s << ") must hold held_out_s + min_training_s (" << held_out_s + min_training_s << ")";
+  else if (!(refit_every_s > 0.0)) why << "refit_every_s must be positive (got " << refit_every_s << ")";
+  else if (!(still_rate_rad_s >= 0.0)) why << "still_rate_rad_s must not be negative";
+  else if (!(cpu_share > 0.0 && cpu_share <= 1.0)) why << "cpu_share must be in (0, 1] (got " << cpu_share << ")";
+  else if (max_queued_pairs < 1) why << "max_queued_pairs must be at least 1";
+  else if (tracking_width_px < 64) why << "tracking_width_px must be at least 64 (got " << tracking_width_px << ")";
+  if (!why.str().empty()) return why.str();
+  for (const std::string& problem : {fit.validate(), lens.validate(), check.validate()})
+    if (!problem.empty()) return problem;
+  return {};
+}
+
+OnlineStabiliserLearner::OnlineStabiliserLearner(OnlineLearningOptions options,
+                                                 std::vector<ModelCandidate> priors, std::size_t initial)
+    : options_(std::move(options)), priors_(std::move(priors)), fallback_(options_.fallback) {
+  const std::string problem = options_.validate();
+  if (!problem.empty()) throw std::invalid_argument("online stabiliser learning: " + problem);
+  tracker_ = FeatureTracker(options_.corners, options_.klt);
+  if (priors_.empty() || initial >= priors_.size())
+    throw std::invalid_argument("online stabiliser learning: the model in use (" + std::to_string(initial) +
+                                ") must be one of the " + std::to_string(priors_.size()) + " priors");
+  for (const auto& prior : priors_) {
+    const std::string bad = prior.parameters.validate();
+    if (!bad.empty()) throw std::invalid_argument("online stabiliser learning: prior " + prior.name + ": " + bad);
+  }
+  auto model = std::make_shared<LearnedStabiliser>();
+  model->name = priors_[initial].name;
+  model->parameters = priors_[initial].parameters;
+  model->held_out_rms_px = model->held_out_rms_without_px = kNaN;
+  model->reason = "in use at the start";
+  model_ = model;
+  bool has_still = false;
+  for (const auto& prior : priors_) has_still = has_still || isNoLensMotion(prior.parameters);
+  if (!has_still) priors_.push_back({"no lens motion", noLensMotion()});
+  status_.state = options_.learning ? "collecting" : "off";
+  started_s_ = wallNow();
+  credit_stamp_s_ = clockNow();
+  tracking_thread_ = std::thread([this] { trackingLoop(); });
+  fit_thread_ = std::thread([this] { fitLoop(); });
+}
+
+OnlineStabiliserLearner::~OnlineStabiliserLearner() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_tracking_.notify_all();
+  wake_fit_.notify_all();
+  idle_.notify_all();
+  tracking_thread_.join();
+  fit_thread_.join();
+}
+
+bool OnlineStabiliserLearner::submit(OnlineFramePair pair) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.pairs_submitted;
+    if (queue_.size() >= options_.max_queued_pairs) {
+      ++status_.pairs_dropped_busy;
+      return false;
+    }
+    queue_.push_back(std::move(pair));
+  }
+  wake_tracking_.notify_one();
+  return true;
+}
+
+std::shared_ptr<const LearnedStabiliser> OnlineStabiliserLearner::model() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return model_;
+}
+
+std::vector<PairVerdict> OnlineStabiliserLearner::takeVerdicts() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<PairVerdict> out;
+  out.swap(verdicts_);
+  return out;
+}
+
+std::size_t OnlineStabiliserLearner::queued() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return queue_.size();
+}
+
+OnlineLearningStatus OnlineStabiliserLearner::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  OnlineLearningStatus status = status_;
+  status.wall_s = wallNow() - started_s_;
+  double buffered = 0.0;
+  for (const auto& w : windows_) buffered += w->seconds();
+  status.buffered_s = buffered;
+  return status;
+}
+
+void OnlineStabiliserLearner::setLearning(bool on) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  options_.learning = on;
+  if (!on) fit_requested_ = false;
+  status_.state = on ? "collecting" : "off";
+}
+
+void OnlineStabiliserLearner::setCpuShare(double share) {
+  if (!(share > 0.0 && share <= 1.0))
+    throw std::invalid_argument("online stabiliser learning: cpu_share must be in (0, 1] (got " +
+                                std::to_string(share) + ")");
+  std::lock_guard<std::mutex> lock(mutex_);
+  options_.cpu_share = share;
+}
+
+void OnlineStabiliserLearner::restartTimeline() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++timeline_;
+  queue_.clear();
+}
+
+bool OnlineStabiliserLearner::waitIdle(double timeout_s) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  return idle_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] {
+    return stopping_ || (queue_.empty() && !tracking_busy_ && !fit_requested_ && !fitting_);
+  });
+}
+
+void OnlineStabiliserLearner::charge(double cpu_s) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  credit_s_ -= cpu_s;
+  status_.cpu_s += cpu_s;
+}
+
+double OnlineStabiliserLearner::clockNow() const {
+  return options_.budget_clock ? options_.budget_clock() : wallNow();
+}
+
+bool OnlineStabiliserLearner::withinBudget() {
+  const double now = clockNow();
+  credit_s_ = std::min(credit_s_ + options_.cpu_share * std::max(0.0, now - credit_stamp_s_),
+                       options_.cpu_share * kBudgetBurstS);
+  credit_stamp_s_ = now;
+  return credit_s_ >= 0.0;
+}
+
+bool OnlineStabiliserLearner::waitForBudget() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  for (;;) {
+    if (stopping_) return false;
+    if (withinBudget()) return true;
+    // Sleeps until the share has paid the debt back (woken early only to stop).
+    const double wait_s = std::min(-credit_s_ / options_.cpu_share, 1.0);
+    wake_fit_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; });
+  }
+}
+
+void OnlineStabiliserLearner::trackingLoop() {
+  for (;;) {
+    OnlineFramePair pair;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      tracking_busy_ = false;
+      idle_.notify_all();
+      wake_tracking_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+      if (stopping_) return;
+      tracking_busy_ = true;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (queue_.empty()) continue;  // dropped by restartTimeline
+      pair = std::move(queue_.front());
+      queue_.pop_front();
+      // Over the budget, pairs are skipped until it is back, but a window being built is finished.
+      if (window_stamps_s_.empty() && !withinBudget()) {
+        ++status_.pairs_over_budget;
+        continue;
+      }
+    }
+    const double cpu_start = threadCpuNow();
+    try {
+      process(pair);
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      status_.last_problem = std::string("pair ") + std::to_string(pair.stamp_b_s) + ": " + e.what();
+    }
+    pair = OnlineFramePair();  // the frames go back to their owner now
+    charge(threadCpuNow() - cpu_start);
+  }
+}
+
+void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
+  // ---- Tracks on a reduced copy, scaled back to the camera's pixels. ----
+  if (!pair.tracked) {
+    cv::Mat a = toGray8(pair.image_a), b = toGray8(pair.image_b);
+    double scale = 1.0;
+    if (a.cols > options_.tracking_width_px) {
+      scale = static_cast<double>(a.cols) / options_.tracking_width_px;
+      const cv::Size reduced(options_.tracking_width_px, static_cast<int>(std::lround(a.rows / scale)));
+      cv::Mat ra, rb;
+      cv::resize(a, ra, reduced, 0, 0, cv::INTER_AREA);
+      cv::resize(b, rb, reduced, 0, 0, cv::INTER_AREA);
+      a = ra;
+      b = rb;
+    }
+    pair.matches = tracker_.match(a, b);
+    if (scale != 1.0) {
+      // Pixel centres: reduced (u + 0.5) * scale - 0.5.
+      const auto up = [scale](cv::Point2f p) {
+        return cv::Point2f(static_cast<float>((p.x + 0.5) * scale - 0.5), static_cast<float>((p.y + 0.5) * scale - 0.5));
+      };
+      for (FeatureMatch& m : pair.matches) {
+        m.point_a_px = up(m.point_a_px);
+        m.point_b_px = up(m.point_b_px);
+      }
+    }
+    pair.tracked = true;
+  }
+
+  // ---- The check of the compensation published for this pair. ----
+  if (!pair.model_homographies.empty()) {
+    const CompensationCheck check =
+        checkCompensation(pair.camera, pair.matches, pair.model_homographies, pair.gyro_homographies, options_.check);
+    const bool back = fallback_.update(check);
+    falling_back_.store(back);
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.pairs_checked;
+    if (!check.usable) ++status_.pairs_unusable;
+    if (back) ++status_.pairs_falling_back;
+    verdicts_.push_back({pair.stamp_a_s, pair.stamp_b_s, check, back});
+    if (verdicts_.size() > 1000) verdicts_.erase(verdicts_.begin(), verdicts_.begin() + 500);  // nobody reads them
+  }
+
+  // ---- The gyro stream, kept for the windows' warm-up. ----
+  for (const CameraRateSample& r : pair.rates)
+    if (rates_.empty() || r.stamp_s > rates_.back().stamp_s) rates_.push_back(r);
+  const double keep_s = options_.window_s + options_.fit.warm_up_s + 1.0;
+  while (!rates_.empty() && rates_.back().stamp_s - rates_.front().stamp_s > keep_s) rates_.pop_front();
+
+  bool learning = false;
+  std::uint64_t timeline = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    learning = options_.learning;
+    timeline = timeline_;
+  }
+  // ---- The window: consecutive pairs of one camera and one timeline. ----
+  const bool chains = !window_stamps_s_.empty() && window_timeline_ == timeline &&
+                      pair.stamp_a_s == window_stamps_s_.back() && window_camera_.K().isApprox(pair.camera.K()) &&
+                      window_camera_.width() == pair.camera.width() &&
+                      window_timing_.patch_count == pair.timing.patch_count &&
+                      window_timing_.readout_time_s == pair.timing.readout_time_s &&
+                      window_timing_.time_offset_s == pair.timing.time_offset_s;
+  if (!chains) {
+    if (window_timeline_ == timeline) closeWindow();
+    window_stamps_s_.clear();
+    window_pairs_.clear();
+    if (window_timeline_ != timeline) {
+      rates_.clear();  // the other timeline's gyro must not warm this one's windows up
+      for (const CameraRateSample& r : pair.rates)
+        if (rates_.empty() || r.stamp_s > rates_.back().stamp_s) rates_.push_back(r);
+    }
+    window_timeline_ = timeline;
+    if (!learning) return;
+    window_stamps_s_.push_back(pair.stamp_a_s);
+    window_camera_ = pair.camera;
+    window_timing_ = pair.timing;
+  }
+  if (!learning) {
+    window_stamps_s_.clear();
+    window_pairs_.clear();
+    return;
+  }
+  LensShiftPairObservation observation;
+  observation.frame_a = static_cast<int>(window_stamps_s_.size()) - 1;
+  observation.frame_b = observation.frame_a + 1;
+  observation.rotations = pair.rotations;
+  observation.matches = std::move(pair.matches);
+  window_stamps_s_.push_back(pair.stamp_b_s);
+  window_pairs_.push_back(std::move(observation));
+  if (window_stamps_s_.back() - window_stamps_s_.front() >= options_.window_s) closeWindow();
+}
+
+void OnlineStabiliserLearner::closeWindow() {
+  const std::vector<double> stamps = std::move(window_stamps_s_);
+  const std::vector<LensShiftPairObservation> pairs = std::move(window_pairs_);
+  window_stamps_s_.clear();
+  window_pairs_.clear();
+  if (pairs.empty() || stamps.back() - stamps.front() < kMinimumWindowFraction * options_.window_s) return;
+  const RollingShutterConfig& timing = window_timing_;
+  auto window = std::make_shared<Window>();
+  window->start_s = patchImuTime(timing, stamps.front(), 0);
+  window->end_s = patchImuTime(timing, stamps.back(), timing.patch_count - 1);
+  // How much the camera turned: the pan/tilt rate (the stabiliser's input) over the window.
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (const CameraRateSample& r : rates_) {
+    if (r.stamp_s < window->start_s || r.stamp_s > window->end_s) continue;
+    sum += r.rate_rad_s.head<2>().squaredNorm();
+    ++count;
+  }
+  window->motion_rad_s = count ? std::sqrt(sum / count) : 0.0;
+  if (count == 0 || window->motion_rad_s < options_.still_rate_rad_s) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.windows_still;
+    if (options_.learning && !fitting_) status_.state = "waiting for motion";
+    return;
+  }
+  try {
+    LensShiftOptions lens = options_.lens;
+    lens.patch_count = timing.patch_count;
+    lens.readout_time_s = timing.readout_time_s;
+    const LensShiftTrajectory trajectory = estimateLensShiftTrajectory(window_camera_, stamps, pairs, lens);
+    TrajectoryLensMotions motions = lensMotionsOfTrajectory(pairs, trajectory, stamps, timing);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      status_.pairs_without_tracks += motions.pairs_without_tracks;
+    }
+    if (motions.observations.empty()) throw std::runtime_error("no pair with enough inlier tracks");
+    window->recording.name = "online window at " + std::to_string(window->start_s) + " s";
+    window->recording.focal_px = window_camera_.K()(0, 0);
+    window->recording.observations = std::move(motions.observations);
+    // The gyro from warm_up_s before the first lens motion: the fit starts the model there.
+    const double from = window->start_s - options_.fit.warm_up_s - 0.01;
+    for (const CameraRateSample& r : rates_)
+      if (r.stamp_s >= from) window->recording.rates.push_back(r);
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.windows_failed;
+    status_.last_problem = std::string("window: ") + e.what();
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    windows_.push_back(window);
+    ++status_.windows_kept;
+    new_seconds_ += window->seconds();
+    if (!fitting_) status_.state = "collecting";
+    // Bounded: beyond buffer_s, the least moving window outside the held-out end goes.
+    double total = 0.0;
+    for (const auto& w : windows_) total += w->seconds();
+    while (total > options_.buffer_s && windows_.size() > 1) {
+      double held = 0.0;
+      std::size_t first_held = windows_.size();
+      while (first_held > 0 && held < options_.held_out_s) held += windows_[--first_held]->seconds();
+      std::size_t weakest = 0;
+      for (std::size_t k = 1; k < first_held; ++k)
+        if (windows_[k]->motion_rad_s < windows_[weakest]->motion_rad_s) weakest = k;
+      if (first_held == 0) weakest = 0;
+      total -= windows_[weakest]->seconds();
+      windows_.erase(windows_.begin() + static_cast<long>(weakest));
+      ++status_.windows_dropped;
+    }
+    if (new_seconds_ >= options_.refit_every_s && total >= options_.held_out_s + options_.min_training_s &&
+        options_.learning) {
+      fit_requested_ = true;
+      wake_fit_.notify_all();
+    }
+  }
+}
+
+void OnlineStabiliserLearner::fitLoop() {
+  for (;;) {
+    std::vector<std::shared_ptr<const Window>> windows;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      idle_.notify_all();
+      wake_fit_.wait(lock, [this] { return stopping_ || fit_requested_; });
+      if (stopping_) return;
+    }
+    if (!waitForBudget()) return;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!fit_requested_) continue;  // learning switched off meanwhile
+      fit_requested_ = false;
+      fitting_ = true;
+      new_seconds_ = 0.0;
+      status_.state = "fitting";
+      windows = windows_;
+    }
+    const double cpu_start = threadCpuNow();
+    fitOnce(std::move(windows));
+    charge(threadCpuNow() - cpu_start);
+    std::lock_guard<std::mutex> lock(mutex_);
+    fitting_ = false;
+    if (status_.state == "fitting") status_.state = options_.learning ? "collecting" : "off";
+  }
+}
+
+void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>> windows) {
+  // The newest windows are held out: the swap is decided on data no candidate was fitted to.
+  std::vector<StabiliserFitRecording> training, held_out;
+  double held = 0.0;
+  for (std::size_t k = windows.size(); k-- > 0;) {
+    if (held < options_.held_out_s) {
+      held += windows[k]->seconds();
+      held_out.push_back(windows[k]->recording);
+    } else {
+      training.push_back(windows[k]->recording);
+    }
+  }
+  const std::shared_ptr<const LearnedStabiliser> current = model();
+  std::vector<ModelCandidate> candidates = {{current->name + " (in use)", current->parameters}};
+  try {
+    StabiliserFitResult fit = fitStabiliser(training, options_.fit);
+    candidates.push_back({"fit on " + std::to_string(fit.observations_used) + " lens motions", fit.parameters});
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.fits_failed;
+    status_.last_problem = std::string("fit: ") + e.what();
+  }
+  for (const auto& prior : priors_) candidates.push_back(prior);
+  const StabiliserChoice choice = chooseStabiliserModel(candidates, 0, held_out, options_.choice);
+  std::shared_ptr<LearnedStabiliser> replacement;
+  if (choice.replaced_incumbent) {
+    replacement = std::make_shared<LearnedStabiliser>();
+    replacement->version = current->version + 1;
+    replacement->name = candidates[choice.chosen].name;
+    replacement->parameters = candidates[choice.chosen].parameters;
+    replacement->held_out_rms_px = choice.scores[choice.chosen].rms_px;
+    replacement->held_out_rms_without_px = choice.scores[choice.chosen].rms_without_model_px;
+    replacement->reason = choice.reason;
+  }
+  std::string save_problem;
+  if (replacement && !options_.model_path.empty()) {
+    try {
+      StabiliserModelFile file;
+      file.name = options_.model_file_name + ": " + replacement->name;
+      file.parameters = replacement->parameters;
+      file.camera = options_.camera;
+      file.training.target = "gyro-anchored lens shift (images), learned online";
+      file.training.recordings = training.size();
+      for (const auto& r : training) file.training.observations += r.observations.size();
+      file.training.rms_px = kNaN;
+      file.training.rms_without_model_px = kNaN;
+      file.training.held_out_rms_px = replacement->held_out_rms_px;
+      file.training.held_out_rms_without_model_px = replacement->held_out_rms_without_px;
+      file.save(options_.model_path);  // atomic: written beside it, then renamed
+    } catch (const std::exception& e) {
+      save_problem = e.what();
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++status_.fits;
+  status_.last_choice = choice.reason;
+  if (!save_problem.empty()) {
+    ++status_.saves_failed;
+    status_.last_problem = "saving the model: " + save_problem;
+  }
+  if (replacement) {
+    // A model swapped in is still the incumbent's equal if the camera changes back: the current
+    // one stays among the later candidates through model_.
+    model_ = replacement;
+    ++status_.swaps;
+  }
+}
+
+}  // namespace deep_ois

@@ -1,0 +1,227 @@
+#include "deep_ois/ros/live/online_learning_ros.h"
+
+#include <cv_bridge/cv_bridge.h>
+#include <ros/package.h>
+#include <sensor_msgs/image_encodings.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+
+#include <deep_ois/CompensationPairCheck.h>
+
+#include "deep_ois/ros/messages/conversions.h"
+
+namespace deep_ois {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kWarnPeriodS = 2.0;
+
+std::string rosHome() {
+  if (const char* home = std::getenv("ROS_HOME")) return home;
+  if (const char* home = std::getenv("HOME")) return std::string(home) + "/.ros";
+  return "/tmp/.ros";
+}
+
+bool trackableEncoding(const std::string& encoding) {
+  namespace enc = sensor_msgs::image_encodings;
+  return encoding == enc::MONO8 || encoding == enc::MONO16 || encoding == enc::RGB8 || encoding == enc::BGR8 ||
+         encoding == enc::RGBA8 || encoding == enc::BGRA8;
+}
+
+// Holds the frames' messages (their pixels) until the learner's tracking thread is done.
+struct FramesAlive {
+  cv_bridge::CvImageConstPtr a, b;
+};
+
+}  // namespace
+
+std::string learnedModelPath(const std::string& dir, const std::string& key, const GyroFlow& gyro) {
+  std::string name = key;
+  if (name.empty()) {
+    std::ostringstream made;
+    made.precision(1);
+    made << (gyro.header.frame_id.empty() ? "camera" : gyro.header.frame_id) << "_" << gyro.image_width << "x"
+         << gyro.image_height << "_f" << std::fixed << gyro.K[0];
+    name = made.str();
+  }
+  for (char& c : name)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-')) c = '_';
+  const std::string base = dir.empty() ? rosHome() + "/deep_ois/stabilisers" : dir;
+  return base + "/" + name + ".yaml";
+}
+
+OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParameters& params,
+                                     StabiliserModelFile shipped, LiveDiagnostics& diagnostics,
+                                     const std::string& log_name)
+    : nh_(nh), params_(params), shipped_(std::move(shipped)), diagnostics_(diagnostics), log_name_(log_name) {
+  check_pub_ = nh_.advertise<CompensationPairCheck>("compensation_check", 30);
+  diagnostics_.setValue("learning", params_.learning ? "on (waiting for the first pair)" : "off");
+}
+
+void OnlineLearningRos::startFor(const GyroFlow& gyro) {
+  model_path_ = learnedModelPath(params_.learning_dir, params_.learning_key, gyro);
+  frame_id_ = gyro.header.frame_id;
+  std::vector<ModelCandidate> priors;
+  std::string stored_problem;
+  if (fs::exists(model_path_)) {
+    try {
+      const StabiliserModelFile stored = StabiliserModelFile::load(model_path_);
+      priors.push_back({"learned before for this camera", stored.parameters});
+    } catch (const std::exception& e) {
+      stored_problem = e.what();
+    }
+  }
+  priors.push_back({"the ~model file", shipped_.parameters});
+  OnlineLearningOptions options;
+  options.learning = params_.learning;
+  options.cpu_share = params_.learning_cpu_share;
+  options.tracking_width_px = params_.learning_tracking_width_px;
+  options.buffer_s = params_.learning_buffer_s;
+  options.held_out_s = params_.learning_held_out_s;
+  options.min_training_s = params_.learning_held_out_s;
+  options.refit_every_s = params_.learning_refit_every_s;
+  options.model_path = model_path_;
+  options.model_file_name = "learned online for " + model_path_;
+  options.camera.width = static_cast<int>(gyro.image_width);
+  options.camera.height = static_cast<int>(gyro.image_height);
+  options.camera.fx = gyro.K[0];
+  options.camera.fy = gyro.K[4];
+  options.camera.cx = gyro.K[2];
+  options.camera.cy = gyro.K[5];
+  options.camera.readout_time_s = gyro.readout_time;
+  std::error_code ignored;
+  fs::create_directories(fs::path(model_path_).parent_path(), ignored);
+  ROS_DEBUG_NAMED("compensation", "%s: learning held out %.1f s, buffer %.1f s", log_name_.c_str(),
+                  options.held_out_s, options.buffer_s);
+  learner_ = std::make_unique<OnlineStabiliserLearner>(options, priors, 0);
+  version_in_use_ = 0;
+  if (!stored_problem.empty()) {
+    ROS_WARN_NAMED("compensation", "%s: the learned model %s cannot be read (%s): starting from %s; it will be "
+                   "replaced when a better model is learned", log_name_.c_str(), model_path_.c_str(),
+                   stored_problem.c_str(), params_.model_path.c_str());
+  }
+  ROS_INFO_NAMED("compensation", "%s: online learning %s for this camera (%.0f %% of a core, %.0f s kept, %.0f s "
+                 "held out, a fit every %.0f s of new data); model in use: %s (%s)", log_name_.c_str(),
+                 params_.learning ? "on" : "off", 100.0 * options.cpu_share, options.buffer_s, options.held_out_s,
+                 options.refit_every_s, priors.front().name.c_str(),
+                 priors.size() > 1 ? model_path_.c_str() : params_.model_path.c_str());
+  diagnostics_.setValue("learned model file", model_path_);
+}
+
+void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensator& compensator) {
+  const bool new_camera = !learner_ || gyro.header.frame_id != frame_id_ ||
+                          learnedModelPath(params_.learning_dir, params_.learning_key, gyro) != model_path_;
+  if (new_camera) {
+    startFor(gyro);
+    version_in_use_ = ~std::uint64_t{0};  // the model in use is handed over below
+  }
+  const std::shared_ptr<const LearnedStabiliser> model = learner_->model();
+  if (model->version == version_in_use_) return;
+  StabiliserModelFile file = compensator.model();
+  file.name = model->name;
+  file.parameters = model->parameters;
+  compensator.setModel(std::move(file));
+  if (version_in_use_ != ~std::uint64_t{0}) {
+    // Once per swap (a swap happens at most once per fit).
+    ROS_INFO_NAMED("compensation", "%s: stabiliser model swapped (version %llu): %s; %s; kept in %s",
+                   log_name_.c_str(), static_cast<unsigned long long>(model->version), model->name.c_str(),
+                   model->reason.c_str(), model_path_.c_str());
+  }
+  version_in_use_ = model->version;
+  updateDiagnostics();
+}
+
+void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
+                                  const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
+                                  const std::vector<Eigen::Matrix3d>& gyro_homographies) {
+  if (!learner_) return;
+  ++pairs_;
+  if (!trackableEncoding(image_a->encoding) || !trackableEncoding(image_b->encoding)) {
+    ++untrackable_;
+    diagnostics_.setValue("learning: frames of an encoding it cannot track", std::to_string(untrackable_));
+  } else {
+    OnlineFramePair pair;
+    pair.stamp_a_s = gyro.previous_stamp.toSec();
+    pair.stamp_b_s = gyro.header.stamp.toSec();
+    pair.timing = result.timing;
+    pair.camera = result.camera;
+    pair.rotations = result.rotations;
+    pair.gyro_homographies = gyro_homographies;
+    pair.model_homographies = result.homographies;
+    std::string problem;
+    pair.rates = readGyroFlowRates(gyro, &problem);
+    auto alive = std::make_shared<FramesAlive>();
+    alive->a = cv_bridge::toCvShare(image_a);
+    alive->b = cv_bridge::toCvShare(image_b);
+    pair.image_a = alive->a->image;
+    pair.image_b = alive->b->image;
+    pair.keep_alive = alive;
+    learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
+  }
+  for (const PairVerdict& verdict : learner_->takeVerdicts()) {
+    if (check_pub_.getNumSubscribers() == 0) continue;
+    auto msg = boost::make_shared<CompensationPairCheck>();
+    msg->header.stamp.fromSec(verdict.stamp_b_s);
+    msg->header.frame_id = frame_id_;
+    msg->previous_stamp.fromSec(verdict.stamp_a_s);
+    msg->usable = verdict.check.usable;
+    msg->tracks = static_cast<std::uint32_t>(verdict.check.tracks);
+    msg->inliers = static_cast<std::uint32_t>(verdict.check.inliers);
+    msg->model_residual = static_cast<float>(verdict.check.model_residual_px);
+    msg->gyro_residual = static_cast<float>(verdict.check.gyro_residual_px);
+    msg->confidence = static_cast<float>(verdict.check.confidence);
+    msg->falling_back = verdict.falling_back && params_.fallback_to_gyro;
+    msg->model_version = static_cast<std::uint32_t>(version_in_use_);
+    check_pub_.publish(msg);
+  }
+  if (pairs_ % 15 == 0) updateDiagnostics();
+}
+
+bool OnlineLearningRos::fallingBack() const {
+  return params_.fallback_to_gyro && learner_ && learner_->fallingBack();
+}
+
+void OnlineLearningRos::timeWentBack() {
+  if (learner_) learner_->restartTimeline();
+}
+
+void OnlineLearningRos::setLearning(bool on, double cpu_share) {
+  params_.learning = on;
+  params_.learning_cpu_share = cpu_share;
+  if (!learner_) return;
+  learner_->setLearning(on);
+  learner_->setCpuShare(cpu_share);
+}
+
+bool OnlineLearningRos::waitIdle(double timeout_s) { return !learner_ || learner_->waitIdle(timeout_s); }
+
+void OnlineLearningRos::updateDiagnostics() {
+  if (!learner_) return;
+  const std::shared_ptr<const LearnedStabiliser> model = learner_->model();
+  const OnlineLearningStatus s = learner_->status();
+  char text[160];
+  diagnostics_.setValue("model in use", model->name + " (version " + std::to_string(model->version) + ")");
+  std::snprintf(text, sizeof text, "%.3f px (no lens motion %.3f px)", model->held_out_rms_px,
+                model->held_out_rms_without_px);
+  diagnostics_.setValue("model in use: held-out lens-motion RMS", std::isfinite(model->held_out_rms_px) ? text : "not scored yet");
+  diagnostics_.setValue("learning", s.state);
+  std::snprintf(text, sizeof text, "%.1f s kept, %zu windows (%zu still), %zu fits, %zu swaps", s.buffered_s,
+                s.windows_kept, s.windows_still, s.fits, s.swaps);
+  diagnostics_.setValue("learning data", text);
+  std::snprintf(text, sizeof text, "%.1f %% of the pairs checked (%zu checked, %zu without enough tracks)",
+                s.pairs_checked ? 100.0 * s.pairs_falling_back / s.pairs_checked : 0.0, s.pairs_checked,
+                s.pairs_unusable);
+  diagnostics_.setValue("fallback to the plain gyro", params_.fallback_to_gyro ? text : "off (~fallback_to_gyro)");
+  std::snprintf(text, sizeof text, "%.1f %% of a core (budget %.0f %%); %zu pairs skipped over budget",
+                s.wall_s > 0.0 ? 100.0 * s.cpu_s / s.wall_s : 0.0, 100.0 * params_.learning_cpu_share,
+                s.pairs_dropped_busy);
+  diagnostics_.setValue("learning CPU", text);
+  if (!s.last_choice.empty()) diagnostics_.setValue("learning: last choice", s.last_choice);
+  if (!s.last_problem.empty()) diagnostics_.setValue("learning: last problem", s.last_problem);
+}
+
+}  // namespace deep_ois

@@ -1,0 +1,311 @@
+// The cold-start learning curve of the live pipeline's online self-calibration: long recordings of
+// one camera replayed pair by pair through the compensation's stabiliser path with its online
+// learner (core/online/online_stabiliser_learner.h, the class the compensation nodelet runs;
+// its ROS wrapper only converts messages), starting from a given model (default: the shipped
+// generic one) with nothing learned, and scored in the paper's metric per window of replay time
+// against the uncompensated OIS gyro and the non-OIS twin (the gap closed) and the fixed model.
+//
+//   benchmark_online_learning --bags long_ois.bag --twins long_nonois.bag [--model MODEL.yaml]
+//       [--window 10] [--cpu-share 0.3] [--plot curve.png]
+//   benchmark_online_learning --bags ois_off.bag --no-ois      (a camera without OIS: vs the gyro)
+//
+// Budget: the learner gets --cpu-share of one core in REPLAY time (the replay waits while the
+// learner is over it), so the curve is the one a live camera at that budget would see, whatever
+// the replay's own speed.
+#include <ros/package.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "deep_ois/core/evaluation/stabiliser_table_row.h"
+#include "deep_ois/core/evaluation/standard_table_rows.h"
+#include "deep_ois/core/ois/stabiliser_compensator.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/online/online_stabiliser_learner.h"
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/ros/live/parameter_source.h"
+#include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/evaluation_runner.h"
+#include "deep_ois/tools/support/line_plot.h"
+
+namespace {
+
+constexpr const char* kOnlineMethod = "stabiliser, learning online";
+constexpr const char* kFixedMethod = "stabiliser, the starting model (fixed)";
+
+// The live path over the evaluator's pairs: the model in use (swapped when the learner swaps it),
+// the fallback to the plain gyro, every pair handed to the learner with its frames.
+struct OnlinePath {
+  std::unique_ptr<deep_ois::OnlineStabiliserLearner> learner;
+  std::unique_ptr<deep_ois::StabiliserCompensator> compensator;
+  std::uint64_t recording = ~std::uint64_t{0};
+  std::uint64_t version = ~std::uint64_t{0};
+  double cpu_share = 0.3;
+  double replay_s = 0.0;        // replay time of the recordings before this one
+  double recording_start_s = 0.0, last_stamp_s = 0.0;
+  std::vector<std::pair<double, std::string>> swaps;  // replay time, model
+  std::size_t fallback_pairs = 0, pairs = 0;
+  std::atomic<double> replay_clock_s{0.0};  // the learner's budget clock
+};
+
+deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigned scope) {
+  return {kOnlineMethod, scope, [path](const deep_ois::FramePairContext& pair) {
+            using deep_ois::AlignmentEstimate;
+            if (!pair.imu || !pair.rolling_shutter || !pair.camera || pair.gyro_rotations.empty())
+              return AlignmentEstimate::failed("no gyro stream for the stabiliser model");
+            const deep_ois::RollingShutterConfig& rs = *pair.rolling_shutter;
+            OnlinePath& p = *path;
+            if (pair.recording_id != p.recording) {
+              if (p.recording != ~std::uint64_t{0}) p.replay_s += p.last_stamp_s - p.recording_start_s;
+              p.recording = pair.recording_id;
+              p.recording_start_s = pair.stamp_a_s;
+              p.learner->restartTimeline();
+              p.compensator.reset();
+            }
+            p.last_stamp_s = pair.stamp_b_s;
+            const std::shared_ptr<const deep_ois::LearnedStabiliser> model = p.learner->model();
+            if (!p.compensator || model->version != p.version) {
+              if (p.version != ~std::uint64_t{0} && model->version != p.version)
+                p.swaps.push_back({p.replay_s + pair.stamp_b_s - p.recording_start_s, model->name});
+              p.compensator = std::make_unique<deep_ois::StabiliserCompensator>(model->parameters, pair.camera->K());
+              p.version = model->version;
+            }
+            std::vector<double> times_a, times_b;
+            for (int i = 0; i < rs.patch_count; ++i) {
+              times_a.push_back(deep_ois::patchImuTime(rs, pair.stamp_a_s, i));
+              times_b.push_back(deep_ois::patchImuTime(rs, pair.stamp_b_s, i));
+            }
+            p.compensator->followTimeline(times_a.front(), times_b.front());
+            p.compensator->addRates(deep_ois::cameraRates(*pair.imu, rs.imu_to_camera_rotation,
+                                                          p.compensator->feedFrom(times_a.front()), times_b.back()));
+            const deep_ois::StabiliserCompensation result =
+                p.compensator->compensate(pair.gyro_rotations, times_a, times_b);
+            if (!result.ok) return AlignmentEstimate::failed(result.reason);
+
+            deep_ois::OnlineFramePair online;
+            online.stamp_a_s = pair.stamp_a_s;
+            online.stamp_b_s = pair.stamp_b_s;
+            online.timing = rs;
+            online.camera = *pair.camera;
+            online.rotations = pair.gyro_rotations;
+            online.gyro_homographies = pair.gyro_homographies;
+            online.model_homographies = result.homographies;
+            online.rates = deep_ois::cameraRates(*pair.imu, rs.imu_to_camera_rotation, pair.stamp_b_s - 1.1,
+                                                 times_b.back());
+            online.image_a = pair.gray_a.clone();  // the evaluator's frames live only during the call
+            online.image_b = pair.gray_b.clone();
+            // The learner's budget runs on replay time (its clock); the replay waits for its queue
+            // (the replay's own speed is not the camera's), and the learner skips pairs over its
+            // budget as it does live.
+            p.replay_clock_s.store(p.replay_s + pair.stamp_b_s - p.recording_start_s);
+            while (p.learner->queued() >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+            p.learner->submit(std::move(online));
+            ++p.pairs;
+            if (p.learner->fallingBack()) {
+              ++p.fallback_pairs;
+              return AlignmentEstimate::patchHomographies(pair.gyro_homographies);
+            }
+            return AlignmentEstimate::patchHomographies(result.homographies);
+          }};
+}
+
+struct WindowMeans {
+  double capped = 0.0, uncapped = 0.0;
+  std::size_t pairs = 0;
+};
+
+// Per method, per window of `window_s` of each recording's own time, the capped and uncapped means.
+std::map<std::string, std::vector<WindowMeans>> windowMeans(const deep_ois::EvaluationReport& report,
+                                                            double window_s) {
+  std::map<std::size_t, std::int64_t> first_stamp;  // per recording
+  for (const auto& s : report.pairs) {
+    auto it = first_stamp.find(s.recording);
+    if (it == first_stamp.end() || s.stamp_a_ns < it->second) first_stamp[s.recording] = s.stamp_a_ns;
+  }
+  std::map<std::string, std::vector<WindowMeans>> out;
+  for (const auto& s : report.pairs) {
+    const double t = 1e-9 * static_cast<double>(s.stamp_b_ns - first_stamp[s.recording]);
+    const auto w = static_cast<std::size_t>(t / window_s);
+    auto& windows = out[s.method];
+    if (windows.size() <= w) windows.resize(w + 1);
+    windows[w].capped += s.scored_px;
+    windows[w].uncapped += std::isfinite(s.distance_px) ? s.distance_px : s.identity_px;
+    ++windows[w].pairs;
+  }
+  for (auto& [method, windows] : out)
+    for (auto& w : windows)
+      if (w.pairs) {
+        w.capped /= static_cast<double>(w.pairs);
+        w.uncapped /= static_cast<double>(w.pairs);
+      }
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  deep_ois::ToolCommandLine command_line(
+      "benchmark_online_learning",
+      "Replays long recordings of one camera through the compensation's stabiliser path with its "
+      "online learner, starting from a model with nothing learned, and prints the learning curve: "
+      "per window of replay time, the paper's metric (capped and uncapped) of the learning "
+      "compensation, the fixed starting model, the uncompensated OIS gyro and the non-OIS twin, and "
+      "the share of the gap closed; with --no-ois, the compensation against the plain gyro.",
+      "Exit status: 0 done, 1 nothing scored, 2 usage.");
+  CLI::App& app = command_line.app();
+  std::vector<std::string> bags, twins;
+  const std::string package = ros::package::getPath("deep_ois");
+  std::string model_path = package.empty() ? "" : package + "/models/stabiliser_generic.yaml";
+  std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
+  std::string plot_path;
+  double window_s = 10.0, cpu_share = 0.3;
+  bool no_ois = false;
+  app.add_option("--bags", bags, "the camera's recordings, replayed in this order (one long one is best)")
+      ->required()
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.bag ...");
+  app.add_option("--twins", twins, "their non-OIS twins (simulator), for the gap closed")
+      ->check(deep_ois::existingFile())
+      ->type_name("FILE.bag ...");
+  app.add_option("--model", model_path, "the starting stabiliser model")->capture_default_str()->check(deep_ois::existingFile());
+  app.add_option("--gyro-config", gyro_config, "gyro flow parameters of the camera (YAML)")
+      ->capture_default_str()
+      ->check(deep_ois::existingFile());
+  app.add_option("--plot", plot_path, "the learning curve as a PNG")->type_name("FILE.png");
+  command_line.addNumber("--window", window_s, "seconds of replay per row of the curve")->check(deep_ois::atLeast(1.0));
+  command_line.addNumber("--cpu-share", cpu_share, "the learner's CPU budget, share of one core in replay time");
+  app.add_flag("--no-ois", no_ois,
+               "the recordings are of a camera without OIS (simulator bags made with --ois off, the "
+               "non-OIS twin's pairs): scored against the plain gyro");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (!(cpu_share > 0.0 && cpu_share <= 1.0)) return command_line.usageError("--cpu-share must be in (0, 1]");
+  if (no_ois && !twins.empty()) return command_line.usageError("--no-ois takes no --twins (the bags are the twins)");
+
+  deep_ois::StabiliserModelFile start;
+  deep_ois::EvaluationOptions options;
+  try {
+    start = deep_ois::StabiliserModelFile::load(model_path);
+    options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "benchmark_online_learning: %s\n", e.what());
+    return 2;
+  }
+  options.bags = bags;
+  options.bags.insert(options.bags.end(), twins.begin(), twins.end());
+  options.ghost_pairs_per_category = 0;
+  options.show_progress = false;
+
+  deep_ois::OnlineLearningOptions learning;
+  learning.cpu_share = cpu_share;
+  learning.max_queued_pairs = 100000;  // the replay keeps the queue at 10, as live
+  auto path = std::make_shared<OnlinePath>();
+  path->cpu_share = cpu_share;
+  OnlinePath* const clock_owner = path.get();  // outlives the learner (reset first below)
+  learning.budget_clock = [clock_owner] { return clock_owner->replay_clock_s.load(); };
+  path->learner = std::make_unique<deep_ois::OnlineStabiliserLearner>(
+      learning, std::vector<deep_ois::ModelCandidate>{{"starting model", start.parameters}}, 0);
+
+  const unsigned scope = no_ois ? deep_ois::kNonOisTwinPairs : deep_ois::kOisCameraPairs;
+  deep_ois::EvaluationRunner runner(options);
+  for (auto& method : deep_ois::gyroMethods()) runner.addMethod(method);
+  runner.addMethod(deep_ois::stabiliserAlignmentMethod(kFixedMethod, start.parameters, scope));
+  runner.addMethod(onlineMethod(path, scope));
+  const auto started = std::chrono::steady_clock::now();
+  const deep_ois::EvaluationReport report = runner.run();
+  path->learner->waitIdle(120.0);
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  if (report.pairs.empty()) {
+    std::fprintf(stderr, "benchmark_online_learning: nothing scored\n%s", report.markdown().c_str());
+    return 1;
+  }
+
+  const auto means = windowMeans(report, window_s);
+  const std::string ois_gyro = deep_ois::kGyroOisMethod, twin_gyro = deep_ois::kGyroNonOisMethod;
+  const std::string plain = no_ois ? twin_gyro : ois_gyro;
+  auto at = [&](const std::string& method, std::size_t w) {
+    auto it = means.find(method);
+    return it != means.end() && w < it->second.size() && it->second[w].pairs ? it->second[w] : WindowMeans{};
+  };
+  std::size_t windows = 0;
+  for (const auto& [method, rows] : means) windows = std::max(windows, rows.size());
+  std::printf("Online learning from %s ('%s'), %.0f %% of a core, windows of %.0f s of replay\n\n",
+              model_path.c_str(), start.name.c_str(), 100.0 * cpu_share, window_s);
+  std::vector<double> gap_online, gap_fixed, ratio_online, ratio_fixed;
+  if (!no_ois) {
+    std::printf("| window [s] | pairs | OIS gyro | twin | fixed model | learning | gap closed: fixed | learning |\n");
+    std::printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+  } else {
+    std::printf("| window [s] | pairs | plain gyro | fixed model | learning | learning vs gyro |\n");
+    std::printf("|---|---:|---:|---:|---:|---:|\n");
+  }
+  for (std::size_t w = 0; w < windows; ++w) {
+    const WindowMeans g = at(plain, w), f = at(kFixedMethod, w), o = at(kOnlineMethod, w);
+    // A last window of a few pairs (the recording's end) says nothing.
+    if (o.pairs < static_cast<std::size_t>(5.0 * window_s)) continue;
+    const std::string span = std::to_string(static_cast<int>(w * window_s)) + "-" +
+                             std::to_string(static_cast<int>((w + 1) * window_s));
+    if (!no_ois) {
+      const WindowMeans t = at(twin_gyro, w);
+      auto gap = [&](double g_px, double t_px, double m_px) {
+        return t.pairs ? 100.0 * (g_px - m_px) / (g_px - t_px) : std::nan("");
+      };
+      gap_online.push_back(gap(g.capped, t.capped, o.capped));
+      gap_fixed.push_back(gap(g.capped, t.capped, f.capped));
+      std::printf("| %s | %zu | %.3f / %.3f | %.3f / %.3f | %.3f / %.3f | %.3f / %.3f | %.1f / %.1f %% | %.1f / %.1f %% |\n",
+                  span.c_str(), o.pairs, g.capped, g.uncapped, t.capped, t.uncapped, f.capped, f.uncapped, o.capped,
+                  o.uncapped, gap_fixed.back(), gap(g.uncapped, t.uncapped, f.uncapped), gap_online.back(),
+                  gap(g.uncapped, t.uncapped, o.uncapped));
+    } else {
+      ratio_online.push_back(100.0 * (o.capped / g.capped - 1.0));
+      ratio_fixed.push_back(100.0 * (f.capped / g.capped - 1.0));
+      std::printf("| %s | %zu | %.3f / %.3f | %.3f / %.3f | %.3f / %.3f | %+.1f / %+.1f %% |\n", span.c_str(),
+                  o.pairs, g.capped, g.uncapped, f.capped, f.uncapped, o.capped, o.uncapped, ratio_online.back(),
+                  100.0 * (o.uncapped / g.uncapped - 1.0));
+    }
+  }
+  const deep_ois::OnlineLearningStatus s = path->learner->status();
+  std::printf("\n(cells: capped / uncapped Avg geometry distance, px)\n");
+  for (const auto& [t, name] : path->swaps) std::printf("model swapped at %.1f s of replay: %s\n", t, name.c_str());
+  const auto final_model = path->learner->model();
+  std::printf("model at the end: %s (version %llu)%s\n", final_model->name.c_str(),
+              static_cast<unsigned long long>(final_model->version),
+              deep_ois::isNoLensMotion(final_model->parameters) ? " = no lens motion" : "");
+  std::printf("last choice: %s\n", s.last_choice.c_str());
+  std::printf("learner: %zu pairs, %zu windows kept, %zu still, %zu failed, %zu fits (%zu failed), %zu swaps; "
+              "%zu pairs not learned from (over the budget); fell back to the plain gyro on %zu of %zu pairs; CPU %.1f s over %.1f s of replay "
+              "(%.0f %% of a core); wall %.1f s%s%s\n",
+              s.pairs_submitted, s.windows_kept, s.windows_still, s.windows_failed, s.fits, s.fits_failed, s.swaps,
+              s.pairs_over_budget, path->fallback_pairs, path->pairs, s.cpu_s, path->replay_s + path->last_stamp_s - path->recording_start_s,
+              100.0 * s.cpu_s / std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s), wall_s,
+              s.last_problem.empty() ? "" : "; last problem: ", s.last_problem.c_str());
+  if (!plot_path.empty()) {
+    const std::string x_label = "window of " + std::to_string(static_cast<int>(window_s)) + " s";
+    std::vector<deep_ois::PlotSeries> series;
+    std::string title, y_label;
+    if (no_ois) {
+      series.push_back({"learning online", ratio_online, cv::Scalar(200, 80, 0)});
+      series.push_back({"fixed starting model", ratio_fixed, cv::Scalar(0, 0, 200)});
+      title = "benchmark_online_learning (camera without OIS)";
+      y_label = "worse than the plain gyro [%], capped";
+    } else {
+      series.push_back({"learning online", gap_online, cv::Scalar(200, 80, 0)});
+      series.push_back({"fixed starting model", gap_fixed, cv::Scalar(0, 0, 200)});
+      title = "benchmark_online_learning: gap closed";
+      y_label = "gap closed to the non-OIS twin [%], capped";
+    }
+    const cv::Mat plot = deep_ois::drawLinePlot(series, title, x_label, y_label);
+    if (!cv::imwrite(plot_path, plot)) std::fprintf(stderr, "benchmark_online_learning: cannot write %s\n", plot_path.c_str());
+    else std::printf("learning curve: %s\n", plot_path.c_str());
+  }
+  path->learner.reset();  // its threads end before the clock they read
+  return 0;
+}

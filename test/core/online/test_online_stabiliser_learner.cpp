@@ -1,0 +1,336 @@
+// The online learner (core/online/online_stabiliser_learner.h) on synthetic pairs whose tracks obey
+// K(s_b) R K(s_a)^-1 for a known stabiliser: it swaps to a fit only when the fit is better on the
+// held-out window, ends at "no lens motion" on a camera whose lens never moves, learns nothing from
+// a still camera; the per-pair check and its fallback; the model file survives a kill mid-write.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "deep_ois/core/common/so3_and_statistics.h"
+#include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/online/online_stabiliser_learner.h"
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+
+namespace deep_ois {
+namespace {
+
+constexpr int kPatches = 6;
+constexpr double kFramePeriod = 1.0 / 30.0, kReadout = 0.022, kImuPeriod = 1.0 / 200.0;
+
+CameraModel testCamera() {
+  Eigen::Matrix3d K;
+  K << 300.0, 0.0, 179.5, 0.0, 300.0, 134.5, 0.0, 0.0, 1.0;
+  return CameraModel(360, 270, K);
+}
+
+RollingShutterConfig timing() {
+  RollingShutterConfig rs;
+  rs.patch_count = kPatches;
+  rs.readout_time_s = kReadout;
+  return rs;
+}
+
+// Hand shake: a few sines per axis (rad/s), `amplitude` scaling them (0: a still camera).
+Eigen::Vector3d shakeRate(double t, double amplitude) {
+  return amplitude * Eigen::Vector3d(0.5 * std::sin(2 * M_PI * 1.1 * t) + 0.25 * std::sin(2 * M_PI * 4.3 * t + 1.0),
+                                     0.45 * std::sin(2 * M_PI * 0.7 * t + 2.0) + 0.2 * std::sin(2 * M_PI * 6.1 * t),
+                                     0.1 * std::sin(2 * M_PI * 0.5 * t));
+}
+
+// R_b_a for a patch captured at t_a and t_b: the camera's turn between them, integrated at 1 ms.
+Eigen::Matrix3d turnBetween(double t_a, double t_b, double amplitude) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  const int steps = static_cast<int>(std::ceil((t_b - t_a) / 1e-3));
+  const double dt = (t_b - t_a) / steps;
+  for (int k = 0; k < steps; ++k) R = expSO3(shakeRate(t_a + (k + 0.5) * dt, amplitude) * dt) * R;
+  return R.transpose();  // points of frame a's camera frame in frame b's
+}
+
+// `seconds` of pairs from a camera whose stabiliser is `truth` (lens never moves when gain is 0).
+std::vector<OnlineFramePair> makePairs(const StabiliserParameters& truth, double seconds, double amplitude,
+                                       unsigned seed, double start_s = 0.0) {
+  const CameraModel camera = testCamera();
+  const RollingShutterConfig rs = timing();
+  LensShiftPredictor lens(truth, camera.K()(0, 0), 1e-3, seconds + 3.0);
+  std::vector<CameraRateSample> rates;
+  for (double t = start_s; t < start_s + seconds + 1.2; t += kImuPeriod) {
+    rates.push_back({t, shakeRate(t, amplitude)});
+    lens.addRate(rates.back());
+  }
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> ux(15.0, 345.0), uy(15.0, 255.0);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  std::vector<OnlineFramePair> pairs;
+  for (double stamp_a = start_s + 1.0; stamp_a + kFramePeriod < start_s + seconds + 1.0; stamp_a += kFramePeriod) {
+    OnlineFramePair pair;
+    pair.stamp_a_s = stamp_a;
+    pair.stamp_b_s = stamp_a + kFramePeriod;
+    pair.timing = rs;
+    pair.camera = camera;
+    std::vector<Eigen::Vector2d> s_a, s_b;
+    for (int i = 0; i < kPatches; ++i) {
+      const double t_a = patchImuTime(rs, pair.stamp_a_s, i), t_b = patchImuTime(rs, pair.stamp_b_s, i);
+      const Eigen::Matrix3d R = turnBetween(t_a, t_b, amplitude);
+      pair.rotations.push_back(R);
+      pair.gyro_homographies.push_back(rotationHomography(camera.K(), R));
+      s_a.push_back(lens.lensShiftAt(t_a));
+      s_b.push_back(lens.lensShiftAt(t_b));
+    }
+    pair.model_homographies = pair.gyro_homographies;
+    for (const CameraRateSample& r : rates)
+      if (r.stamp_s > pair.stamp_b_s - 1.0 && r.stamp_s <= pair.stamp_b_s + kReadout + 0.01) pair.rates.push_back(r);
+    for (int k = 0; k < 80; ++k) {
+      const Eigen::Vector2d a(ux(rng), uy(rng));
+      const auto i = static_cast<std::size_t>(patchIndexOfRow(a.y(), camera.height(), kPatches));
+      const Eigen::Vector2d b =
+          (pair.gyro_homographies[i] * (a - s_a[i]).homogeneous()).hnormalized() + s_b[i] +
+          Eigen::Vector2d(noise(rng), noise(rng));
+      FeatureMatch m;
+      m.point_a_px = cv::Point2f(static_cast<float>(a.x()), static_cast<float>(a.y()));
+      m.point_b_px = cv::Point2f(static_cast<float>(b.x()), static_cast<float>(b.y()));
+      pair.matches.push_back(m);
+    }
+    pair.tracked = true;
+    pairs.push_back(std::move(pair));
+  }
+  return pairs;
+}
+
+StabiliserParameters ideal() {
+  StabiliserParameters p;
+  p.residual_time_constants_s.clear();
+  return p;
+}
+
+// A generic-like prior that is wrong for the test camera: half the gain, a fast centring.
+StabiliserParameters wrongPrior() {
+  StabiliserParameters p = ideal();
+  p.gain *= 0.5;
+  p.highpass_corner_hz = 3.0;
+  return p;
+}
+
+OnlineLearningOptions testOptions() {
+  OnlineLearningOptions o;
+  o.window_s = 2.0;
+  o.held_out_s = 4.0;
+  o.min_training_s = 6.0;
+  o.buffer_s = 20.0;
+  o.refit_every_s = 100.0;  // one fit, requested by feedAndFit
+  o.cpu_share = 1.0;
+  o.max_queued_pairs = 100000;
+  o.fit.iterations = 10;
+  o.fit.pan_thresholds_rad_s = {0.0};
+  o.fit.residual_time_constants_s.clear();
+  return o;
+}
+
+// Feeds the pairs and waits for the learner to settle (its one fit included).
+void feed(OnlineStabiliserLearner& learner, std::vector<OnlineFramePair> pairs) {
+  for (auto& pair : pairs) ASSERT_TRUE(learner.submit(std::move(pair)));
+  ASSERT_TRUE(learner.waitIdle(60.0));
+}
+
+TEST(OnlineStabiliserLearner, SwapsToAFitThatIsBetterOnTheHeldOutWindow) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 11.0;  // one fit, when 12 s of windows are in
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  feed(learner, makePairs(ideal(), 13.0, 1.0, 1));
+  const OnlineLearningStatus status = learner.status();
+  const auto model = learner.model();
+  EXPECT_EQ(status.fits, 1u) << status.last_problem;
+  EXPECT_EQ(status.swaps, 1u) << status.last_choice;
+  EXPECT_EQ(model->version, 1u);
+  EXPECT_EQ(model->name.rfind("fit on", 0), 0u) << model->name << ": " << model->reason;
+  EXPECT_NEAR(model->parameters.gain(0, 1), 1.0, 0.1);
+  EXPECT_NEAR(model->parameters.gain(1, 0), -1.0, 0.1);
+  EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
+  EXPECT_EQ(status.windows_still, 0u);
+}
+
+TEST(OnlineStabiliserLearner, KeepsAModelThatIsAlreadyRight) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 11.0;
+  OnlineStabiliserLearner learner(options, {{"this camera's", ideal()}}, 0);
+  feed(learner, makePairs(ideal(), 13.0, 1.0, 2));
+  const OnlineLearningStatus status = learner.status();
+  EXPECT_EQ(status.fits, 1u) << status.last_problem;
+  EXPECT_EQ(status.swaps, 0u) << status.last_choice;
+  EXPECT_EQ(learner.model()->version, 0u);
+  EXPECT_NE(status.last_choice.find("kept"), std::string::npos) << status.last_choice;
+}
+
+TEST(OnlineStabiliserLearner, OisOffCameraEndsAtNoLensMotion) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 11.0;
+  StabiliserParameters off = ideal();
+  off.gain.setZero();
+  OnlineStabiliserLearner learner(options, {{"generic", ideal()}}, 0);
+  feed(learner, makePairs(off, 13.0, 1.0, 3));
+  const auto model = learner.model();
+  EXPECT_EQ(learner.status().swaps, 1u) << learner.status().last_choice;
+  EXPECT_TRUE(isNoLensMotion(model->parameters)) << model->name << ": " << model->reason;
+  // The checks saw the generic model worse than the plain gyro: the pipeline fell back.
+  // (model_homographies are the gyro's in these pairs, so here they agree: no fallback.)
+  EXPECT_FALSE(learner.fallingBack());
+}
+
+TEST(OnlineStabiliserLearner, StillCameraLearnsNothing) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 2.0;
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  feed(learner, makePairs(ideal(), 13.0, 0.0, 4));
+  const OnlineLearningStatus status = learner.status();
+  EXPECT_GE(status.windows_still, 5u);
+  EXPECT_EQ(status.windows_kept, 0u);
+  EXPECT_EQ(status.fits, 0u);
+  EXPECT_EQ(learner.model()->version, 0u);
+  EXPECT_EQ(status.state, "waiting for motion");
+}
+
+TEST(OnlineStabiliserLearner, LearningOffChecksButNeverFits) {
+  OnlineLearningOptions options = testOptions();
+  options.learning = false;
+  options.refit_every_s = 2.0;
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  feed(learner, makePairs(ideal(), 9.0, 1.0, 5));
+  const OnlineLearningStatus status = learner.status();
+  EXPECT_EQ(status.fits, 0u);
+  EXPECT_EQ(status.windows_kept, 0u);
+  EXPECT_GT(status.pairs_checked, 200u);
+  EXPECT_EQ(learner.takeVerdicts().size(), status.pairs_checked);
+}
+
+TEST(OnlineStabiliserLearner, RefusesBadOptions) {
+  OnlineLearningOptions options = testOptions();
+  options.held_out_s = 1.0;
+  EXPECT_THROW(OnlineStabiliserLearner(options, {{"generic", ideal()}}, 0), std::invalid_argument);
+  EXPECT_THROW(OnlineStabiliserLearner(testOptions(), {}, 0), std::invalid_argument);
+}
+
+// ---- The per-pair check and its fallback. ----
+
+TEST(CompensationCheck, ModelThatExplainsTheLensBeatsThePlainGyroAndOutliersAreRejected) {
+  const CameraModel camera = testCamera();
+  StabiliserParameters off = ideal();
+  off.gain.setZero();
+  std::vector<OnlineFramePair> pairs = makePairs(off, 1.5, 1.0, 6);
+  OnlineFramePair& pair = pairs.back();
+  // A lens that does not move: the plain gyro is the true motion; a model off by a constant 3 px
+  // must lose to it.
+  std::vector<Eigen::Matrix3d> shifted;
+  for (const auto& H : pair.gyro_homographies) {
+    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
+    T(0, 2) = 3.0;
+    shifted.push_back(T * H);
+  }
+  // A moving object: 20 tracks 15 px off under both motions.
+  std::vector<FeatureMatch> matches = pair.matches;
+  for (int k = 0; k < 20; ++k) {
+    FeatureMatch m = matches[static_cast<std::size_t>(k)];
+    m.point_b_px.x += 15.0f;
+    matches.push_back(m);
+  }
+  const CompensationCheck check = checkCompensation(camera, matches, shifted, pair.gyro_homographies);
+  ASSERT_TRUE(check.usable);
+  EXPECT_EQ(check.tracks, 100);
+  EXPECT_LE(check.inliers, 80);
+  EXPECT_GT(check.model_residual_px, check.gyro_residual_px + 1.0);
+  EXPECT_GT(check.confidence, 0.5);
+  EXPECT_LT(check.confidence, 0.85);
+  // Too few tracks (darkness, no texture): no verdict.
+  matches.resize(5);
+  EXPECT_FALSE(checkCompensation(camera, matches, shifted, pair.gyro_homographies).usable);
+}
+
+TEST(CompensationFallback, FallsBackAfterWorsePairsAndReturnsWithHysteresis) {
+  CompensationFallbackOptions options;
+  options.enter_after_pairs = 3;
+  options.leave_after_pairs = 5;
+  CompensationFallback fallback(options);
+  CompensationCheck worse, better, unusable;
+  worse.usable = better.usable = true;
+  worse.model_residual_px = 0.5;
+  worse.gyro_residual_px = 0.2;
+  better.model_residual_px = 0.2;
+  better.gyro_residual_px = 0.5;
+  EXPECT_FALSE(fallback.update(worse));
+  EXPECT_FALSE(fallback.update(worse));
+  EXPECT_FALSE(fallback.update(unusable));  // says nothing, breaks nothing
+  EXPECT_TRUE(fallback.update(worse));
+  for (int k = 0; k < 4; ++k) EXPECT_TRUE(fallback.update(better));
+  EXPECT_TRUE(fallback.update(worse));  // the streak restarts
+  for (int k = 0; k < 4; ++k) EXPECT_TRUE(fallback.update(better));
+  EXPECT_FALSE(fallback.update(better));
+}
+
+// ---- The choice and the file. ----
+
+TEST(StabiliserModelChoice, NoLensMotionWinsWhenTheFitIsNotClearlyBetter) {
+  StabiliserFitRecording recording;
+  recording.focal_px = 300.0;
+  for (double t = 0.0; t < 4.0; t += kImuPeriod) recording.rates.push_back({t, shakeRate(t, 1.0)});
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  for (double t = 1.5; t < 3.5; t += kFramePeriod)
+    recording.observations.push_back({t, t + kFramePeriod, Eigen::Vector2d(noise(rng), noise(rng)), 1.0});
+  StabiliserParameters tiny = noLensMotion();
+  tiny.gain(0, 1) = 0.002;
+  const StabiliserChoice choice = chooseStabiliserModel(
+      {{"generic", ideal()}, {"fit", tiny}, {"no lens motion", noLensMotion()}}, 0, {recording});
+  EXPECT_EQ(choice.chosen, 2u) << choice.reason;
+  EXPECT_TRUE(choice.replaced_incumbent);
+  // Nothing held out: the incumbent stays.
+  EXPECT_EQ(chooseStabiliserModel({{"generic", ideal()}, {"no lens motion", noLensMotion()}}, 0, {}).chosen,
+            0u);
+}
+
+TEST(StabiliserModelFile, AKillDuringTheWriteLeavesTheOldFile) {
+  const std::string path = ::testing::TempDir() + "deep_ois_online_kill_" + std::to_string(::getpid()) + ".yaml";
+  StabiliserModelFile old_model;
+  old_model.name = "old";
+  old_model.parameters = ideal();
+  old_model.save(path);
+  StabiliserModelFile new_model = old_model;
+  new_model.name = "new";
+  new_model.parameters.highpass_corner_hz = 1.5;
+  // A large file takes long enough to write that the kills land mid-write.
+  new_model.parameters.residual_time_constants_s.assign(2000, 0.1);
+  new_model.parameters.residual = Eigen::MatrixXd::Constant(2, 4000, 0.001);
+  std::mt19937 rng(8);
+  std::uniform_int_distribution<int> delay_us(0, 20000);
+  int old_seen = 0, new_seen = 0;
+  for (int round = 0; round < 20; ++round) {
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      for (;;) new_model.save(path);  // until killed
+    }
+    ::usleep(static_cast<useconds_t>(delay_us(rng)));
+    ::kill(child, SIGKILL);
+    ::waitpid(child, nullptr, 0);
+    const StabiliserModelFile read = StabiliserModelFile::load(path);  // throws on a partial file
+    (read.name == "old" ? old_seen : new_seen)++;
+    ASSERT_TRUE(read.name == "old" || read.name == "new") << read.name;
+    old_model.save(path);
+  }
+  EXPECT_GT(old_seen + new_seen, 0);
+  std::remove(path.c_str());
+  for (const auto& entry : std::filesystem::directory_iterator(::testing::TempDir()))
+    if (entry.path().string().rfind(path + ".partial.", 0) == 0) std::filesystem::remove(entry.path());
+  // The partial files of the killed writers are left behind under their own names, never the model's.
+}
+
+}  // namespace
+}  // namespace deep_ois
