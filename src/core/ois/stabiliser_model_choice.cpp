@@ -49,7 +49,7 @@ StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candid
   scoring.step_s = options.step_s;
   scoring.warm_up_s = options.warm_up_s;
   for (const auto& candidate : candidates)
-    choice.scores.push_back(scoreLensMotion(candidate.parameters, held_out, scoring));
+    choice.scores.push_back(scoreStabiliser(candidate.parameters, held_out, scoring));
   std::ostringstream why;
   why.precision(3);
   why << "held-out lens motion RMS:";

@@ -21,7 +21,7 @@ namespace deep_ois {
 
 bool isNoLensMotion(const StabiliserParameters& parameters);
 
-// Candidates are scored with scoreLensMotion (core/ois/stabiliser_candidates.h): the RMS of
+// Candidates are scored with scoreStabiliser (core/ois/stabiliser_fit.h): the RMS of
 // |predicted - observed| lens motion over the observations the model can predict.
 
 // Splits each recording in time: its observations ending in the last `held_out_fraction` of its
@@ -49,7 +49,7 @@ struct StabiliserChoiceOptions {
 struct StabiliserChoice {
   std::size_t chosen = 0;            // index into the candidates
   bool replaced_incumbent = false;   // chosen != incumbent
-  std::vector<LensMotionScore> scores;  // per candidate
+  std::vector<StabiliserScore> scores;  // per candidate
   std::string reason;                // one sentence: the scores and why this one
 };
 
