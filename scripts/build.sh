@@ -17,6 +17,13 @@ for arg in "$@"; do
   esac
 done
 
+# A compiler cache when the machine has one (not a dependency: `apt-get install ccache` to use it).
+# Paths relative to the checkout's parent folder, so that two clones share cached objects.
+if command -v ccache >/dev/null && [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ]; then
+  cmake_options+=("-DCMAKE_CXX_COMPILER_LAUNCHER=ccache")
+  export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(dirname "$repo")}"
+fi
+
 # A pyenv or venv python first on PATH lacks catkin_pkg: catkin must use Debian's.
 mkdir -p "$build_dir"
 cmake -S "$repo" -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON \
