@@ -430,15 +430,17 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     try {
       cv::Mat ghost;
       sensor_msgs::ImagePtr msg = makeImageMsg(header, sensor_msgs::image_encodings::RGB8, camera_size, ghost);
-      const cv_bridge::CvImageConstPtr b = toRgb8ForDisplay(image_b);
+      // Both frames with frame b's display range (depth or thermal frames).
+      DisplayRange range;
+      const cv_bridge::CvImageConstPtr b = toRgb8ForDisplay(image_b, range);
       if (want_aligned && image_a->encoding == sensor_msgs::image_encodings::RGB8) {
         ghostOverlay(aligned, b->image, ghost);  // frame a is already warped in RGB
       } else {
-        warpWithFixedPointMap(toRgb8ForDisplay(image_a)->image, warp_map_, ghost);
+        warpWithFixedPointMap(toRgb8ForDisplay(image_a, range)->image, warp_map_, ghost);
         ghostOverlay(ghost, b->image, ghost);
       }
       ghost_pub_.publish(msg);
-    } catch (const cv_bridge::Exception& e) {
+    } catch (const cv::Exception& e) {  // cv_bridge::Exception is one
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no ghost overlay for the %s frames on %s: %s",
                               log_name_.c_str(), image_b->encoding.c_str(), image_sub_.getTopic().c_str(), e.what());
       diagnostics_->setValue("ghost overlays not drawn", std::to_string(++ghosts_not_drawn_));

@@ -5,6 +5,8 @@
 #include <sensor_msgs/image_encodings.h>
 
 #include <boost/make_shared.hpp>
+#include <opencv2/imgproc.hpp>
+#include <limits>
 #include <cmath>
 #include <sstream>
 
@@ -220,12 +222,29 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
   return {};
 }
 
-cv_bridge::CvImageConstPtr toRgb8ForDisplay(const sensor_msgs::ImageConstPtr& image) {
+cv_bridge::CvImageConstPtr toRgb8ForDisplay(const sensor_msgs::ImageConstPtr& image, DisplayRange& range) {
   namespace enc = sensor_msgs::image_encodings;
   if (enc::isColor(image->encoding) || enc::isMono(image->encoding)) return cv_bridge::toCvShare(image, enc::RGB8);
-  // Not dynamic scaling: each frame scaled by its own range would make equal pixels of two frames
-  // differ in the overlay.
-  return cv_bridge::cvtColorForDisplay(cv_bridge::toCvShare(image), enc::RGB8);
+  const cv_bridge::CvImageConstPtr source = cv_bridge::toCvShare(image);
+  if (source->image.channels() != 1) {
+    throw cv_bridge::Exception("a " + image->encoding + " frame has no colour meaning to draw (" +
+                               std::to_string(source->image.channels()) + " channels)");
+  }
+  cv::Mat values;
+  source->image.convertTo(values, CV_64F);
+  if (!range.set) {
+    // NaN (no depth) and inf are left out of the range; NaN is drawn black.
+    const cv::Mat finite = (values == values) & (cv::abs(values) < std::numeric_limits<double>::max());
+    double black = 0.0, white = 0.0;
+    if (cv::countNonZero(finite) > 0) cv::minMaxLoc(values, &black, &white, nullptr, nullptr, finite);
+    range = {true, black, white};
+  }
+  const double span = range.white > range.black ? range.white - range.black : 1.0;
+  cv::Mat grey;
+  values.convertTo(grey, CV_8U, 255.0 / span, -255.0 * range.black / span);
+  auto out = boost::make_shared<cv_bridge::CvImage>(image->header, enc::RGB8);
+  cv::cvtColor(grey, out->image, cv::COLOR_GRAY2RGB);
+  return out;
 }
 
 sensor_msgs::ImagePtr makeImageMsg(const std_msgs::Header& header, const std::string& encoding, cv::Size size,

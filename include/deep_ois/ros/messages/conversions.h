@@ -74,13 +74,20 @@ std::string readGyroFlowMsg(const GyroFlow& msg, std::vector<Eigen::Matrix3d>& h
 sensor_msgs::ImagePtr makeImageMsg(const std_msgs::Header& header, const std::string& encoding, cv::Size size,
                                    cv::Mat& view);
 
-// The image as rgb8 for a picture (the ghost overlay): colour and mono encodings converted as
-// cv_bridge does; any other one-channel encoding (16UC1 and 32FC1 depth or thermal, 8UC1, ...)
-// scaled to 8 bits with cv_bridge's fixed display range for that encoding, the same for every
-// frame, so two frames stay comparable. Shares the message's data where it can. Throws
-// cv_bridge::Exception for an encoding that cannot be shown (several channels of no known
+// The display range of a frame whose encoding has no colour meaning (16UC1 and 32FC1 depth or
+// thermal, 8UC1, ...): the values drawn black and white. Empty until toRgb8ForDisplay sets it.
+struct DisplayRange {
+  bool set = false;
+  double black = 0.0, white = 0.0;
+};
+
+// The image as rgb8 for a picture (the ghost overlay). Colour and mono encodings are converted as
+// cv_bridge does. Any other one-channel encoding is scaled linearly from `range` to 0-255; an
+// empty `range` is set from this image's finite values first, so the two frames of a pair drawn
+// with one range stay comparable. Shares the message's data where it can. Throws
+// cv_bridge::Exception naming the encoding when it cannot be shown (several channels of no known
 // meaning).
-cv_bridge::CvImageConstPtr toRgb8ForDisplay(const sensor_msgs::ImageConstPtr& image);
+cv_bridge::CvImageConstPtr toRgb8ForDisplay(const sensor_msgs::ImageConstPtr& image, DisplayRange& range);
 
 // Messages carry matrices and points as flat float64[] arrays: consecutive row-major 3x3 blocks,
 // and (x, y) pairs. The unflatten functions ignore a trailing incomplete block.
