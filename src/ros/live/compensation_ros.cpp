@@ -440,7 +440,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
         ghostOverlay(ghost, b->image, ghost);
       }
       ghost_pub_.publish(msg);
-    } catch (const cv::Exception& e) {  // cv_bridge::Exception is one
+    } catch (const std::exception& e) {  // cv_bridge::Exception, or cv::Exception from OpenCV
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no ghost overlay for the %s frames on %s: %s",
                               log_name_.c_str(), image_b->encoding.c_str(), image_sub_.getTopic().c_str(), e.what());
       diagnostics_->setValue("ghost overlays not drawn", std::to_string(++ghosts_not_drawn_));
