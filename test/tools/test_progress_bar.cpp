@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -24,19 +25,29 @@ TEST(ProgressBar, NoRateOverTheFirstInstants) {
             "[#                             ] 1/16 fit steps, ? fit steps/s, ETA ?");
 }
 
-// A redirected stderr (a file) gets no carriage-return redraws.
-TEST(ProgressBar, DrawsNothingIntoAFile) {
+// A redirected stderr (a file) gets no carriage-return redraws: whole lines, the first update and
+// the last (and one every 10 s between).
+TEST(ProgressBar, WritesWholeLinesIntoAFile) {
   std::FILE* file = std::tmpfile();
   ASSERT_NE(file, nullptr);
   {
     ProgressBar bar(3, "pairs", file);
     EXPECT_FALSE(bar.drawing());
     bar.update(1);
+    bar.update(2);  // within 10 s of the first: not written
     bar.update(3);
+    bar.update(3);  // the last line once
   }
   std::fflush(file);
-  EXPECT_EQ(std::ftell(file), 0L);
+  std::rewind(file);
+  std::string text;
+  for (int c = std::fgetc(file); c != EOF; c = std::fgetc(file)) text += static_cast<char>(c);
   std::fclose(file);
+  EXPECT_EQ(text.find('\r'), std::string::npos) << text;
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 2) << text;
+  EXPECT_NE(text.find("1/3 pairs"), std::string::npos) << text;
+  EXPECT_NE(text.find("3/3 pairs"), std::string::npos) << text;
+  EXPECT_EQ(text.find("2/3 pairs"), std::string::npos) << text;
 }
 
 // setTotal keeps the bar's clock: the rate counts from the construction.

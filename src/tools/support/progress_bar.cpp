@@ -11,6 +11,8 @@ namespace deep_ois {
 namespace {
 constexpr int kBarWidth = 30;
 constexpr double kRedrawPeriodS = 0.2;
+// Into a file: a line this often (seconds), besides the first and the last.
+constexpr double kFileLinePeriodS = 10.0;
 // A rate measured over less time than this is not shown (seconds).
 constexpr double kMinimumRateSpanS = 0.5;
 }  // namespace
@@ -52,13 +54,19 @@ std::string ProgressBar::line(std::size_t done, double elapsed_s) const {
 }
 
 void ProgressBar::update(std::size_t done, const std::string& note) {
-  if (!drawing_) return;
+  if (stream_ == nullptr || (finished_ && done >= total_)) return;
   const double elapsed = elapsedSeconds();
   const bool finished = done >= total_;
-  if (!finished && last_draw_s_ >= 0.0 && elapsed - last_draw_s_ < kRedrawPeriodS) return;
+  const double period = drawing_ ? kRedrawPeriodS : kFileLinePeriodS;
+  if (!finished && last_draw_s_ >= 0.0 && elapsed - last_draw_s_ < period) return;
   last_draw_s_ = elapsed;
+  finished_ = finished;
   const std::string text = note.empty() ? line(done, elapsed) : line(done, elapsed) + ", " + note;
-  std::fprintf(stream_, "\r%s   %s", text.c_str(), finished ? "\n" : "");
+  if (drawing_) {
+    std::fprintf(stream_, "\r%s   %s", text.c_str(), finished ? "\n" : "");
+  } else {
+    std::fprintf(stream_, "%s\n", text.c_str());
+  }
   std::fflush(stream_);
 }
 
