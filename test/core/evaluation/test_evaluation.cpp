@@ -217,8 +217,8 @@ TEST(EvaluationReport, NotesFailuresCappingAndErrorsUnderTheTable) {
   report.table.addFailure("ORB + RANSAC", "RE", 2.0);
   ++report.failure_reasons["ORB + RANSAC"]["too few matches (< 8)"];
   report.table.addCapped("gyro", "RE", 3.0, 2.0);
-  report.recordings.push_back({"good.bag", 1, 0, {}, ""});
-  report.recordings.push_back({"bad.bag", 0, 0, {}, "bad.bag: cannot open the bag"});
+  report.recordings.push_back({"good.bag", 1, 0, {}, "", {}});
+  report.recordings.push_back({"bad.bag", 0, 0, {}, "bad.bag: cannot open the bag", {}});
   report.errors.push_back(
       "pairs.csv:7: pair 1.000000000 -> 2.000000000 matches no frame of the bags given");
   const std::string markdown = report.markdown();
