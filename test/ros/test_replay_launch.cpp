@@ -104,8 +104,7 @@ TEST(ReplayLaunch, EveryLoopOfALoopedBagIsCompensated) {
   int loops_wanted = 0;
   ASSERT_TRUE(private_nh.getParam("loops_wanted", loops_wanted));
   // The gyro flows' pair stamps per loop (a loop starts where the stamps go back), and the
-  // compensated ones per loop of the gyro flow they came from: every loop has the same stamps, so
-  // a compensated flow belongs to the newest loop whose gyro flows hold its stamp.
+  // compensated ones per loop of the gyro flow they came from: every loop has the same stamps.
   std::mutex mutex;
   std::vector<std::set<ros::Time>> gyro_loops, compensated_loops;
   ros::Time last_gyro;
@@ -121,8 +120,10 @@ TEST(ReplayLaunch, EveryLoopOfALoopedBagIsCompensated) {
   ros::Subscriber compensated_sub =
       nh.subscribe<GyroFlow>("/deep_ois/compensated_flow", 200, [&](const GyroFlowConstPtr& m) {
         std::lock_guard<std::mutex> lock(mutex);
-        for (std::size_t k = gyro_loops.size(); k-- > 0;) {
-          if (gyro_loops[k].count(m->header.stamp)) {
+        // Outputs come in input order: the first loop that has the stamp and no output for it yet
+        // (the compensation may run behind the player by more than a loop on a busy machine).
+        for (std::size_t k = 0; k < gyro_loops.size(); ++k) {
+          if (gyro_loops[k].count(m->header.stamp) && !compensated_loops[k].count(m->header.stamp)) {
             compensated_loops[k].insert(m->header.stamp);
             break;
           }

@@ -21,6 +21,9 @@ namespace deep_ois {
 
 namespace {
 constexpr double kWarnPeriodS = 2.0;
+// A handling delay this much below the smallest seen means ROS time went back (seconds; the gyro
+// flow nodelet's ~time_jump_reset default).
+constexpr double kTimelineJumpS = 1.0;
 }  // namespace
 
 CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -286,6 +289,10 @@ double CompensationRos::lagS(const ros::Time& stamp_b) {
   const ros::Time now = ros::Time::now();
   if (now.isZero()) return 0.0;  // simulated time before the first /clock message
   const double delay_s = (now - stamp_b).toSec();
+  // A delay far below the smallest seen is not a faster pipeline but a pair of the timeline before
+  // ROS time went back (a bag loop: a pair still pending when the clock restarted). It is not late,
+  // and it must not become the reference, or every pair of the new timeline would look late.
+  if (min_delay_s_ && delay_s < *min_delay_s_ - kTimelineJumpS) return 0.0;
   if (!min_delay_s_ || delay_s < *min_delay_s_) min_delay_s_ = delay_s;
   return delay_s - *min_delay_s_;
 }
