@@ -91,6 +91,22 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
   add("physical", physical);
   const bool has_linear = fit.parameters.residual.size() != 0;
   if (has_linear) add("physical + linear residual", fit.parameters);
+  // The chain with a better structure (one mechanism or one parameter more each): an integrator
+  // held at the end stop (anti-windup), a re-centring that grows with the excursion, both. Each
+  // refitted from the chain's parameters.
+  for (const auto& [structure, what] :
+       {std::pair<StabiliserStructure, std::string>{{true, false}, "anti-windup integrator"},
+        {{false, true}, "excursion-dependent re-centring"},
+        {{true, true}, "anti-windup integrator + excursion-dependent re-centring"}}) {
+    try {
+      const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, options);
+      add(std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") +
+              ", " + what,
+          refit.parameters);
+    } catch (const std::invalid_argument&) {
+      // No usable lens motion: the simpler candidates stand.
+    }
+  }
   // Learned dynamics on top of the chain (with its linear bank when it has one), simplest first:
   // a higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
   const std::string prefix = has_linear ? "physical + linear + " : "physical + ";

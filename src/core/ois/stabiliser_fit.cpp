@@ -59,10 +59,12 @@ constexpr Bounds kDamping{0.05, 5.0};
 constexpr Bounds kLagMs{0.0, 50.0};
 constexpr Bounds kStrokeDeg{0.02, 20.0};
 constexpr Bounds kReleaseHz{0.05, 100.0};
+constexpr Bounds kExcursionCentring{1e-3, 100.0};
 
 // The physical parameters the Levenberg-Marquardt step moves, as an unconstrained vector.
 struct ParameterPacking {
   bool pan = false;  // pan_release_corner_hz is free
+  bool excursion = false;  // excursion_centring is free (slot 10)
   int size() const { return 11 + (pan ? 1 : 0); }
 
   Eigen::VectorXd pack(const StabiliserParameters& p) const {
@@ -70,7 +72,10 @@ struct ParameterPacking {
     x << p.gain(0, 0), p.gain(0, 1), p.gain(1, 0), p.gain(1, 1), std::log(p.highpass_corner_hz),
         std::log(p.actuator_natural_hz), std::log(p.actuator_damping), 1000.0 * p.sensor_lag_s,
         std::log(p.stroke_x_deg), std::log(p.stroke_y_deg), 0.0;
-    x(10) = 0.0;  // spare slot kept for a stable layout (unused)
+    // Slot 10: the excursion-dependent re-centring when it is free (else unused, its column zero).
+    x(10) = excursion ? std::log(std::clamp(p.excursion_centring, kExcursionCentring.lower,
+                                            kExcursionCentring.upper))
+                      : 0.0;
     if (pan) x(11) = std::log(p.pan_release_corner_hz);
     return x;
   }
@@ -84,6 +89,9 @@ struct ParameterPacking {
     p.stroke_y_deg = std::clamp(std::exp(x(9)), kStrokeDeg.lower, kStrokeDeg.upper);
     if (pan)
       p.pan_release_corner_hz = std::clamp(std::exp(x(11)), kReleaseHz.lower, kReleaseHz.upper);
+    if (excursion)
+      p.excursion_centring =
+          std::clamp(std::exp(x(10)), kExcursionCentring.lower, kExcursionCentring.upper);
     return p;
   }
 };
@@ -162,7 +170,7 @@ StabiliserParameters levenbergMarquardt(StabiliserParameters start, const Parame
     const long n = current.values.size();
     Eigen::MatrixXd J(n, packing.size());
     for (int j = 0; j < packing.size(); ++j) {
-      if (j == 10) {
+      if (j == 10 && !packing.excursion) {
         J.col(j).setZero();
         continue;
       }
@@ -273,6 +281,44 @@ class ResidualBank {
   double step_s_;
   std::vector<double> decay_, weight_;
 };
+
+// `physical` with the linear residual bank of options.residual_time_constants_s fitted (ridge
+// least squares, Huber weights) on what it leaves in `recordings`; without a bank when the options
+// name none or the solve fails.
+StabiliserParameters withLinearResidual(const StabiliserParameters& physical,
+                                        const std::vector<StabiliserFitRecording>& recordings,
+                                        const StabiliserFitOptions& options) {
+  StabiliserParameters final_parameters = physical;
+  final_parameters.residual_time_constants_s.clear();
+  final_parameters.residual.resize(0, 0);
+  if (!options.residual_time_constants_s.empty()) {
+    const ResidualBank bank(options.residual_time_constants_s, options.step_s);
+    std::vector<Eigen::VectorXd> deltas;
+    std::vector<Eigen::Vector2d> targets;
+    std::vector<double> weights;
+    for (const StabiliserFitRecording& recording : recordings)
+      bank.observe(recording, options.warm_up_s, physical, &deltas, &targets, &weights);
+    const long m = 2 * static_cast<long>(options.residual_time_constants_s.size());
+    // Huber weights from the physical residuals, then ridge per output axis.
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, 2);
+    for (std::size_t k = 0; k < deltas.size(); ++k) {
+      const double norm = targets[k].norm();
+      const double w = weights[k] * (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
+      A += w * deltas[k] * deltas[k].transpose();
+      B += w * deltas[k] * targets[k].transpose();
+    }
+    const double energy = A.trace() / std::max<long>(1, m);
+    A += options.residual_ridge * std::max(energy, 1e-12) * Eigen::MatrixXd::Identity(m, m);
+    const Eigen::MatrixXd solution = A.ldlt().solve(B);  // m x 2
+    if (solution.allFinite()) {
+      final_parameters.residual_time_constants_s = options.residual_time_constants_s;
+      // The predictor multiplies by focal_px itself: the bank here already carries it.
+      final_parameters.residual = solution.transpose();
+    }
+  }
+  return final_parameters;
+}
 
 // A stabiliser cancels (about) the rotation: the gain's largest singular value is near 1 (0.8-1.1
 // on the simulator's modules, 0.97 for the generic model), whatever the axes' mapping and sign.
@@ -674,35 +720,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   }
 
   // The linear residual on what the physical model leaves (ridge least squares).
-  StabiliserParameters final_parameters = refined;
-  final_parameters.residual_time_constants_s.clear();
-  final_parameters.residual.resize(0, 0);
-  if (!options.residual_time_constants_s.empty()) {
-    const ResidualBank bank(options.residual_time_constants_s, options.step_s);
-    std::vector<Eigen::VectorXd> deltas;
-    std::vector<Eigen::Vector2d> targets;
-    std::vector<double> weights;
-    for (const StabiliserFitRecording& recording : recordings)
-      bank.observe(recording, options.warm_up_s, refined, &deltas, &targets, &weights);
-    const long m = 2 * static_cast<long>(options.residual_time_constants_s.size());
-    // Huber weights from the physical residuals, then ridge per output axis.
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
-    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, 2);
-    for (std::size_t k = 0; k < deltas.size(); ++k) {
-      const double norm = targets[k].norm();
-      const double w = weights[k] * (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
-      A += w * deltas[k] * deltas[k].transpose();
-      B += w * deltas[k] * targets[k].transpose();
-    }
-    const double energy = A.trace() / std::max<long>(1, m);
-    A += options.residual_ridge * std::max(energy, 1e-12) * Eigen::MatrixXd::Identity(m, m);
-    const Eigen::MatrixXd solution = A.ldlt().solve(B);  // m x 2
-    if (solution.allFinite()) {
-      final_parameters.residual_time_constants_s = options.residual_time_constants_s;
-      // The predictor multiplies by focal_px itself: the bank here already carries it.
-      final_parameters.residual = solution.transpose();
-    }
-  }
+  StabiliserParameters final_parameters = withLinearResidual(refined, recordings, options);
   tick();
 
   const Residuals none_residuals = [&] {
@@ -750,6 +768,72 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
          << result.review.best_readout_change_ms << " ms";
     log(line.str());
   }
+  return result;
+}
+
+StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
+                                             const StabiliserStructure& structure,
+                                             const std::vector<StabiliserFitRecording>& recordings,
+                                             const StabiliserFitOptions& options) {
+  const std::string problem = options.validate();
+  if (!problem.empty()) throw std::invalid_argument("refitStabiliserStructure: " + problem);
+  StabiliserParameters start = fitted;
+  start.residual_time_constants_s.clear();
+  start.residual.resize(0, 0);
+  start.nonlinear_features.clear();
+  start.nonlinear_residual.resize(0, 0);
+  start.anti_windup = structure.anti_windup;
+  start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;
+  ParameterPacking packing;
+  packing.pan = start.pan_detection_rate_rad_s > 0.0;
+  packing.excursion = structure.excursion_centring;
+  StabiliserFitResult result;
+  const Residuals initial = residualsOf(start, recordings, options);
+  if (initial.used == 0)
+    throw std::invalid_argument("refitStabiliserStructure: no usable observation");
+  // The variant moves the stroke's meaning (where the integrator stops), so the stroke is scanned
+  // again around the fitted one before every parameter is refined.
+  double cost = huberCost(initial.values, options.huber_px);
+  for (int axis = 0; axis < 2; ++axis) {
+    StabiliserParameters scanned = start;
+    for (double factor : {0.7, 0.85, 1.0, 1.15, 1.3}) {
+      StabiliserParameters candidate = start;
+      double& stroke = axis == 0 ? candidate.stroke_x_deg : candidate.stroke_y_deg;
+      stroke = std::clamp(stroke * factor, kStrokeDeg.lower, kStrokeDeg.upper);
+      const double c = huberCost(residualsOf(candidate, recordings, options).values, options.huber_px);
+      if (c < cost) cost = c, scanned = candidate;
+    }
+    start = scanned;
+  }
+  double refined_cost = 0.0;
+  const StabiliserParameters refined = levenbergMarquardt(
+      start, packing, recordings, options, options.iterations, &refined_cost, &result.rms_history);
+  std::ostringstream line;
+  line << "structure: " << (refined.anti_windup ? "anti-windup" : "winding-up")
+       << " integrator, excursion re-centring " << refined.excursion_centring << ", corner "
+       << refined.highpass_corner_hz << " Hz, actuator " << refined.actuator_natural_hz << " Hz / "
+       << refined.actuator_damping << ", stroke " << refined.stroke_x_deg << " x "
+       << refined.stroke_y_deg << " deg, cost " << refined_cost;
+  result.log.push_back(line.str());
+  StabiliserParameters final_parameters = withLinearResidual(refined, recordings, options);
+  const Residuals physical = residualsOf(refined, recordings, options);
+  const Residuals full = residualsOf(final_parameters, recordings, options);
+  auto rms = [&](const Residuals& r) {
+    return weightedRms(r.values, Eigen::VectorXd::Ones(r.values.size()));
+  };
+  result.parameters = final_parameters;
+  result.observations_used = full.used;
+  result.observations_skipped = full.skipped;
+  result.rms_physical_px = rms(physical);
+  result.rms_px = rms(full);
+  if (result.rms_px > result.rms_physical_px) {
+    result.parameters = refined;
+    result.parameters.residual_time_constants_s.clear();
+    result.parameters.residual.resize(0, 0);
+    result.rms_px = result.rms_physical_px;
+    result.log.push_back("residual bank dropped: it did not lower the residual");
+  }
+  result.review = reviewStabiliserFit(result.parameters);
   return result;
 }
 

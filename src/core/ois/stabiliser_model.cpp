@@ -1,5 +1,7 @@
 #include "deep_ois/core/ois/stabiliser_model.h"
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -74,6 +76,8 @@ std::string StabiliserParameters::validate() const {
              !(stroke_y_deg > 0.0 && stroke_y_deg < 45.0)) {
     why << "stroke_x_deg, stroke_y_deg: must be in (0, 45) degrees (got " << stroke_x_deg << ", "
         << stroke_y_deg << ")";
+  } else if (!std::isfinite(excursion_centring) || excursion_centring < 0.0) {
+    why << "excursion_centring: must be >= 0, 0 = off (got " << excursion_centring << ")";
   } else if (!std::isfinite(pan_detection_rate_rad_s) || pan_detection_rate_rad_s < 0.0) {
     why << "pan_detection_rate_rad_s: must be >= 0, 0 = off (got " << pan_detection_rate_rad_s
         << ")";
@@ -155,6 +159,15 @@ LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, d
     }
     features_ = Eigen::VectorXd::Zero(nonlinearFeatureCount(parameters_.nonlinear_features));
   }
+  // Anti-windup needs the angle that gives a limited command: with a gain that is not invertible
+  // (no lens motion, gain 0) there is none, and nothing winds up that the lens would show.
+  if (parameters_.anti_windup) {
+    const double scale = parameters_.gain.cwiseAbs().maxCoeff();
+    if (scale > 0.0 && std::abs(parameters_.gain.determinant()) > 1e-6 * scale * scale) {
+      anti_windup_ = true;
+      inverse_gain_ = parameters_.gain.inverse();
+    }
+  }
   // A fractional lag: the acted command is interpolated between the two stored around it (so the
   // fit sees a smooth cost in the lag).
   const double lag_steps = parameters_.sensor_lag_s / step_s;
@@ -169,6 +182,7 @@ void LensShiftPredictor::reset() {
   theta_.setZero();
   smoothed_rate_ = 0.0;
   panning_ = false;
+  excursion_sq_ = 0.0;
   residual_state_.assign(parameters_.residual_time_constants_s.size(), Eigen::Vector2d::Zero());
   pending_commands_.assign(lag_steps_ + 1, Eigen::Vector2d::Zero());  // commands of the last steps
   actuator_x_ = LensActuator(parameters_.actuator_natural_hz, parameters_.actuator_damping, step_s_,
@@ -221,11 +235,25 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
     if (!panning_ && smoothed_rate_ > p.pan_detection_rate_rad_s) panning_ = true;
     if (panning_ && smoothed_rate_ < 0.7 * p.pan_detection_rate_rad_s) panning_ = false;
   }
-  theta_ = (panning_ ? decay_pan_ : decay_hold_) * theta_ +
-           (panning_ ? weight_pan_ : weight_hold_) * pan_tilt;
-  const Eigen::Vector2d raw_command =
+  if (panning_ || !(p.excursion_centring > 0.0)) {
+    theta_ = (panning_ ? decay_pan_ : decay_hold_) * theta_ +
+             (panning_ ? weight_pan_ : weight_hold_) * pan_tilt;
+  } else {
+    // The corner grows with the last command's excursion (at most kMaxExcursion strokes).
+    const double corner = 2.0 * kPi * p.highpass_corner_hz *
+                          (1.0 + p.excursion_centring * std::min(excursion_sq_, kMaxExcursion * kMaxExcursion));
+    theta_ = leakDecay(corner, step_s_) * theta_ + leakWeight(corner, step_s_) * pan_tilt;
+  }
+  Eigen::Vector2d raw_command =
       focal_px_ * (p.gain * Eigen::Vector2d(std::tan(theta_.x()), std::tan(theta_.y())));
   const Eigen::Vector2d command = limitToStroke(raw_command, stroke_px_, p.circular_stroke);
+  if (anti_windup_ && command != raw_command) {
+    // Held at the end stop: the angle is the one whose command is the limited one.
+    const Eigen::Vector2d tangent = inverse_gain_ * (command / focal_px_);
+    theta_ = Eigen::Vector2d(std::atan(tangent.x()), std::atan(tangent.y()));
+    raw_command = command;
+  }
+  excursion_sq_ = (raw_command.cwiseQuotient(stroke_px_)).squaredNorm();
   // Holds lag_steps_ + 2 commands after the push: front = lag_steps_ + 1 steps old.
   pending_commands_.push_back(command);
   const Eigen::Vector2d acted =

@@ -61,6 +61,11 @@ std::string StabiliserModelFile::toYaml() const {
   out << YAML::Key << "stroke_x_deg" << YAML::Value << p.stroke_x_deg;
   out << YAML::Key << "stroke_y_deg" << YAML::Value << p.stroke_y_deg;
   out << YAML::Key << "circular_stroke" << YAML::Value << p.circular_stroke;
+  // Optional (written only when used): files without them, every model before these mechanisms,
+  // load as a winding-up integrator with a fixed corner.
+  if (p.anti_windup) out << YAML::Key << "anti_windup" << YAML::Value << p.anti_windup;
+  if (p.excursion_centring != 0.0)
+    out << YAML::Key << "excursion_centring" << YAML::Value << p.excursion_centring;
   out << YAML::Key << "pan_detection_rate_rad_s" << YAML::Value << p.pan_detection_rate_rad_s;
   out << YAML::Key << "pan_detection_time_constant_s" << YAML::Value
       << p.pan_detection_time_constant_s;
@@ -130,6 +135,8 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   p.stroke_x_deg = required<double>(s, "stroke_x_deg");
   p.stroke_y_deg = required<double>(s, "stroke_y_deg");
   p.circular_stroke = required<bool>(s, "circular_stroke");
+  p.anti_windup = optional<bool>(s, "anti_windup", false);
+  p.excursion_centring = optional<double>(s, "excursion_centring", 0.0);
   p.pan_detection_rate_rad_s = required<double>(s, "pan_detection_rate_rad_s");
   p.pan_detection_time_constant_s = required<double>(s, "pan_detection_time_constant_s");
   p.pan_release_corner_hz = required<double>(s, "pan_release_corner_hz");

@@ -70,6 +70,11 @@ std::string stabiliserParameterTable(const StabiliserParameters& p,
   out += "| stroke | " + format("%.3f", p.stroke_x_deg) + bound("stroke_x_deg") + " x " +
          format("%.3f", p.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
          (p.circular_stroke ? "ellipse" : "box") + ") |\n";
+  out += std::string("| integrator at the stroke | ") +
+         (p.anti_windup ? "held (anti-windup)" : "winds up") + " |\n";
+  if (p.excursion_centring > 0.0)
+    out += "| excursion-dependent re-centring | corner x (1 + " + format("%.2f", p.excursion_centring) +
+           " e^2) |\n";
   out += "| pan detection | " +
          (p.pan_detection_rate_rad_s > 0.0
               ? format("%.2f", p.pan_detection_rate_rad_s) + " rad/s, release " +

@@ -37,6 +37,16 @@ struct StabiliserParameters {
   double stroke_x_deg = 1.0;  // commanded shift limits, as angles (f tan(limit) pixels)
   double stroke_y_deg = 1.0;
   bool circular_stroke = false;  // false: a box of the two limits; true: the ellipse inside it
+  // The integrated angle at the end stop. false: it keeps integrating beyond the stroke (the lens
+  // leaves the stroke only once the angle has come back inside); true (anti-windup): it is held
+  // where the command meets the stroke, so the lens leaves the stroke as soon as the rate turns.
+  // A stabiliser whose lens sits on its stroke much of the time shows which one it has (the
+  // Pixel 4's log: anti-windup, docs/stabiliser_model.md).
+  bool anti_windup = false;
+  // Excursion-dependent re-centring: the centring corner is highpass_corner_hz * (1 + k e^2),
+  // e^2 = (u_x / stroke_x)^2 + (u_y / stroke_y)^2 for the command u before the stroke limit
+  // (e = 1 on the stroke). k = excursion_centring, 0 = a fixed corner.
+  double excursion_centring = 0.0;
   // Pan detection: while the low-passed |pan/tilt rate| exceeds the threshold (0 = off) the
   // stabiliser re-centres with pan_release_corner_hz; below 0.7 x the threshold it holds again.
   double pan_detection_rate_rad_s = 0.0;
@@ -142,6 +152,11 @@ class LensShiftPredictor {
   std::vector<Eigen::Vector2d> rate_bank_state_;
   Eigen::VectorXd features_;
   bool record_features_ = false;
+  // Anti-windup: the inverse of the gain (valid when the gain is invertible) maps the limited
+  // command back to the angle.
+  bool anti_windup_ = false;
+  Eigen::Matrix2d inverse_gain_ = Eigen::Matrix2d::Zero();
+  double excursion_sq_ = 0.0;  // e^2 of the last step's command (excursion_centring)
   std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };
