@@ -536,12 +536,14 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
     std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
                 c.training.rms_px, c.held_out.rms_px);
   std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, rate filter, nonlinear, both: the nonlinear set is what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 4u);
-  EXPECT_NE(selection.candidates[2].name.find("excursion_v1"), std::string::npos);
-  EXPECT_EQ(selection.kept, 2u);  // "both" is no better: the simpler one is kept
-  EXPECT_LT(selection.candidates[2].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
-  EXPECT_LT(selection.candidates[2].held_out.rms_px, 0.5 * selection.candidates[1].held_out.rms_px);
+  // physical, the three structural variants, rate filter, nonlinear, both: the nonlinear set is
+  // what the truth has.
+  ASSERT_EQ(selection.candidates.size(), 7u);
+  EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
+  EXPECT_NE(selection.candidates[5].name.find("excursion_v1"), std::string::npos);
+  EXPECT_EQ(selection.kept, 5u);  // "both" is no better: the simpler one is kept
+  EXPECT_LT(selection.candidates[5].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
+  EXPECT_LT(selection.candidates[5].held_out.rms_px, 0.5 * selection.candidates[4].held_out.rms_px);
   EXPECT_NE(selection.reason.find("held-out"), std::string::npos);
 
   const std::vector<StabiliserFitRecording> plain = {observe(knownStabiliser(), 31, 0.05)};
@@ -552,6 +554,138 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
   EXPECT_EQ(plain_selection.candidates[plain_selection.kept].name.find("nonlinear"), std::string::npos);
 }
 
+// The chain with its integrator held at the end stop: a stabiliser driven onto its stroke and
+// back. The anti-windup lens leaves the stroke as soon as the rate turns; a winding-up one stays
+// until the angle it integrated beyond the stroke has come back.
+StabiliserParameters saturatingStabiliser(bool anti_windup) {
+  StabiliserParameters p;
+  p.highpass_corner_hz = 0.2;
+  p.actuator_natural_hz = 200.0;
+  p.actuator_damping = 0.9;
+  p.stroke_x_deg = p.stroke_y_deg = 0.5;
+  p.circular_stroke = true;
+  p.anti_windup = anti_windup;
+  return p;
+}
+
+// A turn about y at 0.2 rad/s for 0.2 s (2.3 deg, far past the 0.5 deg stroke), then back at
+// -0.2 rad/s for 0.2 s, 400 Hz.
+std::vector<CameraRateSample> turnAndBack() {
+  std::vector<CameraRateSample> rates;
+  for (double t = 0.0; t <= 0.4 + 1e-9; t += 1.0 / 400.0)
+    rates.push_back({t, Eigen::Vector3d(0.0, t < 0.2 ? 0.2 : -0.2, 0.0)});
+  return rates;
+}
+
+TEST(AntiWindup, TheLensLeavesItsStrokeAsSoonAsTheTurnReverses) {
+  LensShiftPredictor held(saturatingStabiliser(true), kFocalPx),
+      winding(saturatingStabiliser(false), kFocalPx);
+  for (const auto& r : turnAndBack()) held.addRate(r), winding.addRate(r);
+  const double stroke_px = kFocalPx * std::tan(0.5 * 3.14159265358979 / 180.0);
+  // Both sit on the stroke at the end of the turn.
+  EXPECT_NEAR(held.lensShiftAt(0.2).x(), stroke_px, 0.02 * stroke_px);
+  EXPECT_NEAR(winding.lensShiftAt(0.2).x(), stroke_px, 0.02 * stroke_px);
+  // 50 ms into the turn back: the held integrator has come off by about the angle turned back
+  // (0.2 rad/s x 50 ms = 0.57 deg, more than the stroke: the lens is near the other side's
+  // direction); the winding one still has 1.7 deg beyond the stroke to unwind.
+  const double back = kFocalPx * std::tan(0.2 * 0.05);
+  EXPECT_NEAR(held.lensShiftAt(0.25).x(), stroke_px - back, 0.1 * stroke_px);
+  EXPECT_NEAR(winding.lensShiftAt(0.25).x(), stroke_px, 0.02 * stroke_px);
+}
+
+TEST(AntiWindup, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
+  StabiliserParameters p = saturatingStabiliser(true);
+  p.excursion_centring = 2.0;
+  ASSERT_EQ(p.validate(), "");
+  const auto rates = shake(10.0, 3.0, 1);  // reaches the 0.5 deg stroke
+  LensShiftPredictor whole(p, kFocalPx), framewise(p, kFocalPx),
+      winding(saturatingStabiliser(false), kFocalPx);
+  for (const auto& r : rates) whole.addRate(r), winding.addRate(r);
+  std::size_t k = 0;
+  for (double frame_end = 10.0; k < rates.size(); frame_end += 1.0 / 30.0)
+    while (k < rates.size() && rates[k].stamp_s <= frame_end) framewise.addRate(rates[k++]);
+  double max_difference = 0.0, structural_part = 0.0;
+  for (double t = 11.0; t < 12.95; t += 0.01) {
+    max_difference = std::max(max_difference, (framewise.lensShiftAt(t) - whole.lensShiftAt(t)).norm());
+    structural_part = std::max(structural_part, (whole.lensShiftAt(t) - winding.lensShiftAt(t)).norm());
+  }
+  EXPECT_EQ(framewise.resets(), 0);
+  EXPECT_LT(max_difference, 1e-12);
+  EXPECT_GT(structural_part, 0.1);  // the mechanisms act on this stream
+
+  // A gap: a centred lens, as a fresh model.
+  const CameraRateSample after{whole.newestStamp() + 0.5, Eigen::Vector3d(0.3, -0.2, 0.0)};
+  EXPECT_TRUE(whole.addRate(after));
+  EXPECT_EQ(whole.resets(), 1);
+  EXPECT_NEAR(whole.lensShiftAt(after.stamp_s).norm(), 0.0, 1e-12);
+  // Time jumps back: it starts over and predicts exactly as a fresh model fed the same samples.
+  LensShiftPredictor fresh(p, kFocalPx);
+  for (const auto& r : rates) {
+    if (r.stamp_s > 11.5) break;
+    EXPECT_TRUE(whole.addRate(r));
+    fresh.addRate(r);
+  }
+  EXPECT_EQ(whole.resets(), 2);
+  EXPECT_LT((whole.lensShiftAt(11.45) - fresh.lensShiftAt(11.45)).norm(), 1e-12);
+}
+
+TEST(AntiWindup, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
+  StabiliserModelFile file;
+  file.name = "anti-windup";
+  file.parameters = saturatingStabiliser(true);
+  file.parameters.excursion_centring = 1.5;
+  file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
+  const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
+  EXPECT_TRUE(back.parameters.anti_windup);
+  EXPECT_DOUBLE_EQ(back.parameters.excursion_centring, 1.5);
+  LensShiftPredictor a(file.parameters, kFocalPx), b(back.parameters, kFocalPx);
+  for (const auto& r : shake(0.0, 2.0, 7)) a.addRate(r), b.addRate(r);
+  EXPECT_LT((a.lensShiftAt(1.9) - b.lensShiftAt(1.9)).norm(), 1e-6);
+  // A file without the fields (every model before them) is a winding-up fixed-corner chain.
+  StabiliserModelFile plain = file;
+  plain.parameters = saturatingStabiliser(false);
+  const std::string yaml = plain.toYaml();
+  EXPECT_EQ(yaml.find("anti_windup"), std::string::npos);
+  EXPECT_EQ(yaml.find("excursion_centring"), std::string::npos);
+  const StabiliserModelFile old = StabiliserModelFile::fromYaml(yaml);
+  EXPECT_FALSE(old.parameters.anti_windup);
+  EXPECT_EQ(old.parameters.excursion_centring, 0.0);
+  // A negative excursion_centring is named.
+  std::string bad = file.toYaml();
+  bad.replace(bad.find("excursion_centring: 1.5"), 23, "excursion_centring: -1");
+  try {
+    StabiliserModelFile::fromYaml(bad);
+    FAIL() << "a negative excursion_centring was accepted";
+  } catch (const StabiliserModelFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("excursion_centring"), std::string::npos) << e.what();
+  }
+}
+
+// A stabiliser with an anti-windup integrator that sits on its stroke much of the time: the chain
+// refitted with that structure is what the held-out rule keeps, and it is much better than the
+// winding-up chain fitted to the same data.
+TEST(AntiWindup, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.iterations = 15;
+  StabiliserParameters truth = knownStabiliser();
+  truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
+  truth.circular_stroke = true;
+  truth.anti_windup = true;
+  const std::vector<StabiliserFitRecording> training = {observe(truth, 41, 0.02), observe(truth, 42, 0.02)};
+  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 43, 0.0)};
+  const StabiliserFitResult fit = fitStabiliser(training, options);
+  EXPECT_FALSE(fit.parameters.anti_windup);
+  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
+  for (const auto& c : selection.candidates)
+    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
+                c.training.rms_px, c.held_out.rms_px);
+  std::printf("[ figures  ] %s\n", selection.reason.c_str());
+  const StabiliserCandidate& kept = selection.candidates[selection.kept];
+  EXPECT_TRUE(kept.parameters.anti_windup) << kept.name;
+  EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
+  EXPECT_NEAR(kept.parameters.stroke_x_deg, 0.5, 0.05);
+}
 
 // The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
 // included. The largest feature set, fed 30 s of 400 Hz gyro as 900 frames.
@@ -561,6 +695,8 @@ TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
   p.residual = Eigen::MatrixXd::Constant(2, 10, 0.01);
   p.nonlinear_features = "excursion_rate_v1";
   p.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount(p.nonlinear_features), 1e-3);
+  p.anti_windup = true;  // and both structural variants (an exp and an atan per step at most)
+  p.excursion_centring = 1.0;
   const auto rates = shake(0.0, 30.0, 9);
   LensShiftPredictor predictor(p, kFocalPx);
   const auto start = std::chrono::steady_clock::now();
