@@ -113,6 +113,41 @@ RSquared scoreFold(const deep_ois::StabiliserParameters& parameters,
   return r;
 }
 
+// How well any model could score: an upper bound of the log's own noise per sample (pixels RMS
+// per axis) from each sample's distance to the line through its neighbours (white noise of
+// variance s^2 gives (1 + a^2 + b^2) s^2 for the interpolation weights a + b = 1; the lens' own
+// curvature only adds to it, so this bounds the noise from above), and the R^2 of the lens motion
+// that noise alone leaves (each motion is a difference of two samples: 2 s^2 per axis), a lower
+// bound of the ceiling.
+struct NoiseCeiling {
+  Eigen::Vector2d noise_px = Eigen::Vector2d::Constant(std::nan(""));
+  double r_squared_motion = std::nan("");
+};
+NoiseCeiling noiseCeiling(const std::vector<LoggedLensSample>& lens,
+                          const std::vector<deep_ois::LensMotionObservation>& motions) {
+  NoiseCeiling c;
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  std::size_t n = 0;
+  for (std::size_t i = 1; i + 1 < lens.size(); ++i) {
+    const double span = lens[i + 1].stamp_s - lens[i - 1].stamp_s;
+    if (!(span > 0.0)) continue;
+    const double b = (lens[i].stamp_s - lens[i - 1].stamp_s) / span, a = 1.0 - b;
+    const Eigen::Vector2d r = lens[i].shift_px - (a * lens[i - 1].shift_px + b * lens[i + 1].shift_px);
+    sum += r.cwiseAbs2() / (1.0 + a * a + b * b);
+    ++n;
+  }
+  if (n == 0 || motions.empty()) return c;
+  c.noise_px = (sum / static_cast<double>(n)).cwiseSqrt();
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& m : motions) mean += m.motion_px;
+  mean /= static_cast<double>(motions.size());
+  double spread = 0.0;
+  for (const auto& m : motions) spread += (m.motion_px - mean).squaredNorm();
+  spread /= static_cast<double>(motions.size());
+  c.r_squared_motion = 1.0 - 2.0 * c.noise_px.squaredNorm() / spread;
+  return c;
+}
+
 // Predicted (offset as scored) and logged lens on a 5 ms grid over [from, to): CSV and PNG.
 void writeTrajectory(const deep_ois::StabiliserParameters& parameters, const deep_ois::AndroidOisLog& log,
                      double from, double to, const std::string& prefix, const std::string& title) {
@@ -155,7 +190,7 @@ int main(int argc, char** argv) {
   CLI::App& app = command_line.app();
   std::string folder, out_path, plots;
   deep_ois::AndroidOisLogOptions log_options;
-  double split_s = 6.0, interval_s = 1.0 / 30.0;
+  double split_s = 6.0, interval_s = 1.0 / 30.0, lens_time_offset_s = 0.0;
   deep_ois::StabiliserFitOptions fit_options;
   app.add_option("--log", folder, "the log folder")->required()->check(deep_ois::existingDirectory());
   command_line.addNumber("--split", split_s, "seconds from the start of the gyro log")
@@ -168,8 +203,16 @@ int main(int argc, char** argv) {
   command_line.addNumber("--active-array-width", log_options.active_array_width_px,
                          "the sensor's active-array width, pixels")
       ->check(deep_ois::greaterThan(0));
+  command_line.addNumber("--lens-time-offset", lens_time_offset_s,
+                         "seconds added to the lens log's stamps (as the gyro config's "
+                         "lens_shift_time_offset); each fold's timing check says what its training "
+                         "time prefers");
   command_line.addNumber("--warm-up", fit_options.warm_up_s, "seconds of gyro before a scored motion")
       ->check(deep_ois::atLeast(0));
+  bool fit_time_offset = false;
+  app.add_flag("--fit-time-offset", fit_time_offset,
+               "per fold, move the lens log by what the fit's timing check finds on the training "
+               "time (never the held-out time), then fit again");
   app.add_option("--out", out_path, "write the first fold's kept model here")->type_name("MODEL.yaml");
   app.add_option("--plots", plots, "write PREFIX_fold<N>.csv/.png: predicted and logged lens")
       ->type_name("PREFIX");
@@ -182,41 +225,67 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "lens_log_fit: %s\n", e.what());
     return 1;
   }
+  for (LoggedLensSample& sample : log.lens) sample.stamp_s += lens_time_offset_s;
   std::printf("%s: %zu gyro samples, %zu lens rows: %zu repeats dropped, %zu steps back in file "
               "order (sorted); focal %.1f px\n\n",
               folder.c_str(), log.rates.size(), log.lens_rows,
               log.lens_repeats_dropped, log.lens_out_of_order, log.focal_px);
   const double t0 = log.rates.front().stamp_s, t_split = t0 + split_s, t_end = log.rates.back().stamp_s;
-  auto recording = [&](double from, double to, const char* name) {
+  auto recording = [&](const deep_ois::AndroidOisLog& from_log, double from, double to, const char* name) {
     deep_ois::StabiliserFitRecording r;
     r.name = name;
-    r.focal_px = log.focal_px;
-    r.rates = log.rates;
-    r.observations = motionsIn(log.lens, from, to, interval_s);
+    r.focal_px = from_log.focal_px;
+    r.rates = from_log.rates;
+    r.observations = motionsIn(from_log.lens, from, to, interval_s);
     return r;
   };
+  {
+    const NoiseCeiling ceiling = noiseCeiling(log.lens, motionsIn(log.lens, t0, t_end + 1.0, interval_s));
+    std::printf("The log's noise is at most %.2f / %.2f px RMS per sample (x / y, from each sample's "
+                "distance to the line through its neighbours): a model that is exact would still "
+                "score at least R^2 %.4f of the lens motion (the noise ceiling).\n\n",
+                ceiling.noise_px.x(), ceiling.noise_px.y(), ceiling.r_squared_motion);
+  }
   std::printf("| fold | candidate | training lens-motion RMS px | held-out RMS px | R^2 motion | R^2 position |\n");
   std::printf("|---|---|---:|---:|---:|---:|\n");
   int status = 0;
   for (int fold = 1; fold <= 2; ++fold) {
     const double train_from = fold == 1 ? t0 : t_split, train_to = fold == 1 ? t_split : t_end + 1.0;
     const double test_from = fold == 1 ? t_split : t0, test_to = fold == 1 ? t_end + 1.0 : t_split;
-    const auto train = recording(train_from, train_to, "train");
-    const auto test = recording(test_from, test_to, "held out");
+    deep_ois::AndroidOisLog fold_log = log;
+    auto train = recording(fold_log, train_from, train_to, "train");
+    auto test = recording(fold_log, test_from, test_to, "held out");
     try {
-      const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser({train}, fit_options);
+      deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser({train}, fit_options);
+      if (fit_time_offset && std::isfinite(fit.review.best_lens_lag_ms)) {
+        // The training time's own timing check moves the lens log onto the gyro (a lens that
+        // fits best 2 ms ahead of the gyro gets 2 ms added), then everything is fitted again.
+        const double moved_s = -1e-3 * fit.review.best_lens_lag_ms;
+        for (LoggedLensSample& sample : fold_log.lens) sample.stamp_s += moved_s;
+        std::printf("| | lens log moved by %+.1f ms (this fold's training time's timing check) | | | | |\n",
+                    1e3 * moved_s);
+        train = recording(fold_log, train_from, train_to, "train");
+        test = recording(fold_log, test_from, test_to, "held out");
+        fit = deep_ois::fitStabiliser({train}, fit_options);
+      }
       const deep_ois::StabiliserSelection selection =
           deep_ois::selectStabiliser(fit, {train}, {test}, fit_options);
       for (const auto& c : selection.candidates) {
-        const RSquared r = scoreFold(c.parameters, test, log, test_from, test_to, fit_options.warm_up_s);
+        const RSquared r = scoreFold(c.parameters, test, fold_log, test_from, test_to, fit_options.warm_up_s);
         std::printf("| %s | %s | %.3f | %.3f | %.4f | %.4f |\n",
                     fold == 1 ? "train first, score rest" : "train rest, score first",
                     c.name.c_str(), c.training.rms_px, c.held_out.rms_px, r.motion, r.position);
       }
       std::printf("| | %s | | | | |\n", selection.reason.c_str());
+      // The fit's timing check, on this fold's training time only: where the lens motion fits
+      // best against the gyro (a lens log leading it shows as a negative lag).
+      if (std::isfinite(fit.review.best_lens_lag_ms))
+        std::printf("| | timing check (training time only): the lens motion fits best %.1f ms behind the gyro%s | | | | |\n",
+                    fit.review.best_lens_lag_ms,
+                    lens_time_offset_s != 0.0 || fit_time_offset ? " (after the lens log was moved)" : "");
       const auto& kept = selection.candidates[selection.kept].parameters;
       if (!plots.empty())
-        writeTrajectory(kept, log, test_from, std::min(test_to, t_end),
+        writeTrajectory(kept, fold_log, test_from, std::min(test_to, t_end),
                         plots + "_fold" + std::to_string(fold),
                         "lens_log_fit fold " + std::to_string(fold) + ": held-out time");
       if (fold == 1 && !out_path.empty()) {
