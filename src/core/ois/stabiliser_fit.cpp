@@ -469,6 +469,9 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
   check("stroke_y_deg", "stroke y", p.stroke_y_deg, kStrokeDeg, "deg");
   if (p.pan_detection_rate_rad_s > 0.0)
     check("pan_release_corner_hz", "pan release corner", p.pan_release_corner_hz, kReleaseHz, "Hz");
+  if (p.excursion_centring > 0.0)
+    check("excursion_centring", "excursion-dependent re-centring", p.excursion_centring,
+          kExcursionCentring, "");
 
   constexpr double kMostStrokeDeg = 3.0;  // modules travel about +-0.5 to +-1.5 deg
   const Eigen::Vector2d singular = Eigen::JacobiSVD<Eigen::Matrix2d>(p.gain).singularValues();
