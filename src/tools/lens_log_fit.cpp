@@ -3,7 +3,9 @@
 // held-out time: trained on the first SPLIT seconds and scored on the rest, then the reverse.
 // Every candidate of core/ois/stabiliser_candidates.h is scored (R^2 of the lens motion over one
 // frame interval and of the lens position), the predicted and logged lens are written as CSV and
-// PNG per fold, and the model of the first fold is written when --out is given.
+// PNG per fold, and the model of the first fold is written when --out is given. It also prints
+// the log's noise ceiling (the R^2 an exact model would reach against the log's own noise) and,
+// per fold, the fit's timing check on the training time (--fit-time-offset applies it).
 //
 // The gyro is used over the whole log in both folds (the stabiliser's state needs its history and
 // the gyro is always there); only the lens labels are split.
@@ -185,7 +187,8 @@ int main(int argc, char** argv) {
       "Learns a phone's stabiliser from its gyro and OIS lens log (deep-stabilization layout: "
       "gyro_log_*.txt, ois_log_*.txt, calib.txt) and scores every stabiliser-model candidate on "
       "held-out time in two folds (first SPLIT s / rest, and the reverse): R^2 of the lens motion "
-      "over one frame interval and of the lens position.",
+      "over one frame interval and of the lens position; and the R^2 the log's own noise leaves "
+      "(its noise ceiling).",
       "Exit status: 0 done, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
   std::string folder, out_path, plots;
