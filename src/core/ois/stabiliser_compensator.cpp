@@ -43,6 +43,9 @@ double StabiliserCompensator::followTimeline(double frame_a_s, double frame_b_s)
 }
 
 void StabiliserCompensator::addRates(const std::vector<CameraRateSample>& rates) {
+  // Consecutive pairs repeat up to a second of gyro history, so older samples are skipped here
+  // and the predictor's own jump-back reset (for a single stream) never sees a bag loop: that is
+  // what followTimeline() detects, at the pair level.
   for (const CameraRateSample& sample : rates) {
     if (predictor_.started() && sample.stamp_s <= predictor_.newestStamp()) continue;
     predictor_.addRate(sample);

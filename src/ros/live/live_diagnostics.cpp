@@ -2,20 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 
+#include "deep_ois/core/common/printf_text.h"
 #include "deep_ois/ros/live/parameter_source.h"
 
 namespace deep_ois {
-
-namespace {
-std::string formatted(const char* format, double value) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), format, value);
-  return buffer;
-}
-}  // namespace
 
 double loadDiagnosticPeriodS(const ParameterSource& source) {
   const double period_s = source.param("diagnostic_period", 1.0);
@@ -81,7 +73,7 @@ void LiveDiagnostics::report(diagnostic_updater::DiagnosticStatusWrapper& status
   const double window_s = std::max(1e-6, (now - window_start_).toSec());
   bool inputs_flow = false;
   for (const std::string& stream : streams_) {
-    status.add(stream + " rate [Hz]", formatted("%.2f", window_ticks_[stream] / window_s));
+    status.add(stream + " rate [Hz]", printfText("%.2f", window_ticks_[stream] / window_s));
     status.add(stream + " total", total_ticks_[stream]);
     if (stream != output_stream_ && window_ticks_[stream] > 0) inputs_flow = true;
   }
@@ -92,8 +84,8 @@ void LiveDiagnostics::report(diagnostic_updater::DiagnosticStatusWrapper& status
   }
   status.add("dropped total", drops_total);
   status.add("dropped in last period", drops_in_window_);
-  status.add("latency mean [s]", formatted("%.4f", latency_count_ > 0 ? latency_sum_s_ / latency_count_ : 0.0));
-  status.add("latency max [s]", formatted("%.4f", latency_max_s_));
+  status.add("latency mean [s]", printfText("%.4f", latency_count_ > 0 ? latency_sum_s_ / latency_count_ : 0.0));
+  status.add("latency max [s]", printfText("%.4f", latency_max_s_));
   for (const auto& [key, value] : values_) status.add(key, value);
 
   const std::size_t outputs = window_ticks_[output_stream_];

@@ -2,18 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
+
+#include "deep_ois/core/common/printf_text.h"
 
 namespace deep_ois {
-namespace {
-
-std::string format(const char* pattern, double value) {
-  char text[64];
-  std::snprintf(text, sizeof(text), pattern, value);
-  return text;
-}
-
-}  // namespace
 
 std::string countOf(std::size_t count, const std::string& singular, const std::string& plural) {
   return std::to_string(count) + " " + (count == 1 ? singular : plural);
@@ -33,7 +25,7 @@ std::string recordingSummary(const std::string& bag, const StabiliserRecordingDa
             " the lens log does not cover (left out)";
   // Only the images' estimate has tracks to leave a residual.
   if (target == LensMotionTarget::kImages)
-    line += ", track residual " + format("%.3f", data.median_track_residual_px) + " px";
+    line += ", track residual " + printfText("%.3f", data.median_track_residual_px) + " px";
   if (cached) line += " (cached)";
   return line;
 }
@@ -43,11 +35,11 @@ std::string readoutMismatch(const StabiliserRecordingData& data, double config_r
   if (recorded < 0.0) return "";
   const double difference = std::abs(recorded - config_readout_s);
   if (difference <= std::max(0.0005, 0.02 * recorded)) return "";
-  return "readout_time: the gyro config says " + format("%.1f", 1000.0 * config_readout_s) +
-         " ms but the recording says " + format("%.1f", 1000.0 * recorded) +
+  return "readout_time: the gyro config says " + printfText("%.1f", 1000.0 * config_readout_s) +
+         " ms but the recording says " + printfText("%.1f", 1000.0 * recorded) +
          " ms (its simulator truth): the lens motions and the model are computed with the wrong "
          "readout; set readout_time: " +
-         format("%g", recorded) + " in the gyro config";
+         printfText("%g", recorded) + " in the gyro config";
 }
 
 std::string stabiliserParameterTable(const StabiliserParameters& p,
@@ -55,20 +47,18 @@ std::string stabiliserParameterTable(const StabiliserParameters& p,
   auto bound = [&](const char* parameter) {
     return review.onBound(parameter) ? std::string(" (on the fit's bound)") : std::string();
   };
-  char text[256];
   std::string out = "| parameter | value |\n|---|---|\n";
-  std::snprintf(text, sizeof(text), "| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0),
-                p.gain(0, 1), p.gain(1, 0), p.gain(1, 1));
-  out += text;
-  out += "| centring corner | " + format("%.3f", p.highpass_corner_hz) + " Hz" +
+  out += printfText("| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0), p.gain(0, 1), p.gain(1, 0),
+                    p.gain(1, 1));
+  out += "| centring corner | " + printfText("%.3f", p.highpass_corner_hz) + " Hz" +
          bound("highpass_corner_hz") + " |\n";
-  out += "| actuator | " + format("%.1f", p.actuator_natural_hz) + " Hz" +
-         bound("actuator_natural_hz") + ", damping " + format("%.2f", p.actuator_damping) +
+  out += "| actuator | " + printfText("%.1f", p.actuator_natural_hz) + " Hz" +
+         bound("actuator_natural_hz") + ", damping " + printfText("%.2f", p.actuator_damping) +
          bound("actuator_damping") + " |\n";
-  out += "| sensor lag | " + format("%.2f", 1000.0 * p.sensor_lag_s) + " ms" +
+  out += "| sensor lag | " + printfText("%.2f", 1000.0 * p.sensor_lag_s) + " ms" +
          bound("sensor_lag_s") + " |\n";
-  out += "| stroke | " + format("%.3f", p.stroke_x_deg) + bound("stroke_x_deg") + " x " +
-         format("%.3f", p.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
+  out += "| stroke | " + printfText("%.3f", p.stroke_x_deg) + bound("stroke_x_deg") + " x " +
+         printfText("%.3f", p.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
          (p.circular_stroke ? "ellipse" : "box") + ") |\n";
   out += std::string("| integrator at the stroke | ") +
          (p.anti_windup ? "held (anti-windup)" : "winds up") + " |\n";
@@ -77,8 +67,8 @@ std::string stabiliserParameterTable(const StabiliserParameters& p,
            " e^2) |\n";
   out += "| pan detection | " +
          (p.pan_detection_rate_rad_s > 0.0
-              ? format("%.2f", p.pan_detection_rate_rad_s) + " rad/s, release " +
-                    format("%.2f", p.pan_release_corner_hz) + " Hz" + bound("pan_release_corner_hz")
+              ? printfText("%.2f", p.pan_detection_rate_rad_s) + " rad/s, release " +
+                    printfText("%.2f", p.pan_release_corner_hz) + " Hz" + bound("pan_release_corner_hz")
               : std::string("off")) +
          " |\n";
   out += "| residual bank | " +
@@ -90,7 +80,7 @@ std::string lensMotionTable(const std::vector<LensMotionScoreRow>& rows) {
   std::string out =
       "| data | lens motions | without a lens model | physical model | with residual |\n"
       "|---|---:|---:|---:|---:|\n";
-  auto cell = [](double value) { return std::isfinite(value) ? format("%.3f", value) : "n/a"; };
+  auto cell = [](double value) { return std::isfinite(value) ? printfText("%.3f", value) : "n/a"; };
   for (const LensMotionScoreRow& row : rows) {
     out += "| " + row.data + " (" + countOf(row.recordings, "recording", "recordings") + ") | " +
            std::to_string(row.observations) + " | " + cell(row.without_model_px) + " | " +
