@@ -63,7 +63,7 @@ std::string stabiliserParameterTable(const StabiliserParameters& p,
   out += std::string("| integrator at the stroke | ") +
          (p.anti_windup ? "held (anti-windup)" : "winds up") + " |\n";
   if (p.excursion_centring > 0.0)
-    out += "| excursion-dependent re-centring | corner x (1 + " + format("%.2f", p.excursion_centring) +
+    out += "| excursion-dependent re-centring | corner x (1 + " + printfText("%.2f", p.excursion_centring) +
            " e^2) |\n";
   out += "| pan detection | " +
          (p.pan_detection_rate_rad_s > 0.0
