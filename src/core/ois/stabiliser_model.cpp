@@ -274,7 +274,8 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
     int offset = 0;
     if (excursion_features_) {
       // excursion_v1, per axis i (other axis j), in focal-length units: u the unclipped command,
-      // e = u / stroke (bounded), c the clipped command, a the actuator's output.
+      // e = u / stroke (bounded), c the clipped command, a the actuator's output. With anti-windup
+      // the angle never passes the stroke, so u is the limited command there.
       const Eigen::Vector2d u = raw_command / focal_px_;
       const Eigen::Vector2d limit = stroke_px_ / focal_px_;
       const Eigen::Vector2d c = command / focal_px_;
