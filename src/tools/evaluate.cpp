@@ -59,7 +59,8 @@ constexpr char kDescription[] =
     "identity error, a method without an estimate scored as identity, Avg = mean of the category "
     "means. Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC; the gyro on the non-OIS and the "
     "OIS camera, uncompensated; the global F and Fundamental Mixtures ground truths; the shipped "
-    "model. With --recorded, the flows the live nodelets published during a replay of the same "
+    "model; the stabiliser models; with --oracle, a stabiliser design's own simulator controller "
+    "on the camera's gyro. With --recorded, the flows the live nodelets published during a replay of the same "
     "bags "
     "are scored too and must equal the offline rows. --out writes evaluation.csv, evaluation.json, "
     "evaluation_pairs.csv, bar charts and ghost images.";
