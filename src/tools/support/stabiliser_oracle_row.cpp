@@ -1,5 +1,6 @@
 #include "deep_ois/tools/support/stabiliser_oracle_row.h"
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -12,21 +13,21 @@
 namespace deep_ois {
 
 AlignmentMethod stabiliserOracleMethod(const std::string& name, const sim::SimulatorConfig& design,
-                                       unsigned scope) {
+                                       double start_before_first_frame_s, unsigned scope) {
   struct Stream {
     std::unique_ptr<sim::StabiliserOracle> oracle;
     std::string error;  // why this recording has no oracle
     std::uint64_t recording = std::numeric_limits<std::uint64_t>::max();
   };
   auto stream = std::make_shared<Stream>();
-  return {name, scope, [stream, design](const FramePairContext& pair) {
+  return {name, scope, [stream, design, start_before_first_frame_s](const FramePairContext& pair) {
             if (!pair.imu || !pair.rolling_shutter || !pair.camera ||
                 pair.gyro_rotations.empty()) {
               return AlignmentEstimate::failed("no gyro stream for the stabiliser oracle");
             }
             const RollingShutterConfig& rs = *pair.rolling_shutter;
             if (pair.recording_id != stream->recording) {
-              // The whole recording's gyro at once: the oracle starts at its first sample.
+              // The whole recording's gyro at once, from the stabiliser's start (IMU clock).
               stream->recording = pair.recording_id;
               stream->oracle.reset();
               stream->error.clear();
@@ -43,7 +44,10 @@ AlignmentMethod stabiliserOracleMethod(const std::string& name, const sim::Simul
                       design.ois, pair.camera->K()(0, 0),
                       cameraRates(*pair.imu, rs.imu_to_camera_rotation,
                                   -std::numeric_limits<double>::infinity(),
-                                  std::numeric_limits<double>::infinity()));
+                                  std::numeric_limits<double>::infinity()),
+                      std::isnan(start_before_first_frame_s)
+                          ? start_before_first_frame_s
+                          : pair.stamp_a_s + rs.time_offset_s - start_before_first_frame_s);
                 } catch (const std::invalid_argument& e) {
                   stream->error = e.what();
                 }

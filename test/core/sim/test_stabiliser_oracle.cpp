@@ -114,6 +114,30 @@ TEST(StabiliserOracle, OnTheCamerasImuItStaysCloseToTheSimulatorsLens) {
   }
 }
 
+TEST(StabiliserOracle, StartsWhenToldWithTheFirstSampleHeldBackToIt) {
+  const SimulatorConfig config = design("intended_motion_kalman");
+  const CameraMotion motion(config.motion, 31, 0.0, 1.5);
+  std::vector<CameraRateSample> rates;
+  for (double t = 0.0; t < 1.5; t += 0.0025) rates.push_back({t, motion.angularVelocity(t)});
+  const double focal_px = nominalCamera(config.sensor).K()(0, 0);
+  // Started 0.15 s early: as if the gyro had a sample then with the first sample's rate.
+  const StabiliserOracle early(config.ois, focal_px, rates, -0.15);
+  std::vector<CameraRateSample> held = rates;
+  held.insert(held.begin(), {-0.15, rates.front().rate_rad_s});
+  const StabiliserOracle same(config.ois, focal_px, held);
+  const StabiliserOracle late(config.ois, focal_px, rates);
+  EXPECT_TRUE(early.covers(-0.1));
+  EXPECT_FALSE(late.covers(-0.1));
+  double largest = 0.0, start_effect = 0.0;
+  for (double t = 0.0; t < 1.4; t += 0.01) {
+    largest = std::max(largest, (early.lensShift(t) - same.lensShift(t)).norm());
+    start_effect = std::max(start_effect, (early.lensShift(t) - late.lensShift(t)).norm());
+  }
+  EXPECT_LT(largest, 1e-9);
+  EXPECT_GT(start_effect, 0.01);  // the start matters to a slow estimator
+  EXPECT_THROW(StabiliserOracle(config.ois, focal_px, rates, 2.0), std::invalid_argument);
+}
+
 TEST(StabiliserOracle, RefusesWhatItCannotRunAndCountsDroppedSamples) {
   OisConfig ois;
   std::vector<CameraRateSample> rates = {{0.0, Eigen::Vector3d::Zero()},

@@ -8,11 +8,14 @@
 //
 // Differences to the simulator's run, by design: no noise of the stabiliser's own sensors is drawn
 // (its gyro's noise is replaced by the camera gyro's; the Hall sensor's noise is unknowable from
-// any gyro, so its mean, zero), and the stabiliser starts centred and at rest at the first gyro
-// sample (the simulator starts it at the start of its motion, which a recording does not say).
+// any gyro, so its mean, zero). The simulator starts its stabiliser centred and at rest
+// kSimulatorMarginS before the first frame, before the camera's IMU starts; the oracle starts at
+// the time it is given (the simulator's start for its recordings) and holds the first gyro sample
+// back to it, or at the first gyro sample.
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <vector>
 
 #include "deep_ois/core/ois/stabiliser_model.h"
@@ -30,17 +33,20 @@ class StabiliserOracle {
   // Throws std::invalid_argument for an invalid config (OisConfig::validate()), a config with
   // ois.enabled false or a lens_shift_csv (no stabiliser to run), a non-positive focal length or
   // fewer than two usable samples.
+  // `start_s`: when the stabiliser starts, centred and at rest, on the gyro's clock; NaN: at the
+  // first sample. Before the first sample the gyro is held at it.
   StabiliserOracle(const OisConfig& config, double focal_px,
-                   const std::vector<CameraRateSample>& rates);
+                   const std::vector<CameraRateSample>& rates,
+                   double start_s = std::numeric_limits<double>::quiet_NaN());
 
-  // Within [first sample, last sample].
-  bool covers(double t_s) const { return t_s >= first_s_ && t_s <= last_s_; }
+  // Within [start, last sample].
+  bool covers(double t_s) const { return t_s >= start_s_ && t_s <= last_s_; }
   // The lens shift (pixels, x right, y down) at t_s on the gyro's clock.
   Eigen::Vector2d lensShift(double t_s) const { return grid_.at(t_s); }
   int droppedSamples() const { return dropped_; }
 
  private:
-  double first_s_ = 0.0, last_s_ = 0.0;
+  double start_s_ = 0.0, last_s_ = 0.0;
   int dropped_ = 0;
   LensShiftGrid grid_;
 };

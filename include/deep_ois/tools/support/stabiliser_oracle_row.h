@@ -15,10 +15,14 @@
 namespace deep_ois {
 
 // `design`: the simulator config of the design (its ois section is run; its sensor must be the
-// recording's camera: a recording of another size is a failed pair saying so). A method over OIS
-// camera pairs; a pair the gyro does not cover is a failure with the reason (scored as identity
-// and counted by the evaluator).
+// recording's camera: a recording of another size is a failed pair saying so).
+// `start_before_first_frame_s`: the design's stabiliser starts, centred and at rest, this long
+// before the recording's first scored frame, the gyro held at its first sample until it has one;
+// NaN: at the recording's first gyro sample (as the stabiliser model rows start).
+// A method over OIS camera pairs; a pair the gyro does not cover is a failure with the reason
+// (scored as identity and counted by the evaluator).
 AlignmentMethod stabiliserOracleMethod(const std::string& name, const sim::SimulatorConfig& design,
+                                       double start_before_first_frame_s,
                                        unsigned scope = kOisCameraPairs);
 
 }  // namespace deep_ois
