@@ -1,12 +1,12 @@
 #include "deep_ois/core/sim/ois_model.h"
 
 #include <algorithm>
-#include <fstream>
 #include <cmath>
+#include <fstream>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
-#include "deep_ois/core/common/portable_random.h"
 #include "deep_ois/core/sim/stabiliser_lens_loop.h"
 
 namespace deep_ois {
