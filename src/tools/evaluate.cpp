@@ -9,7 +9,8 @@
 // Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC (one global homography); the gyro on the
 // non-OIS camera (the simulator's twins) and on the OIS camera, uncompensated; the global F and
 // Fundamental Mixtures ground truths; then the model, named by its file (the compensation nodelet's network
-// on the gyro flow nodelet's flow). With --recorded, the gyro_flow and compensated_flow messages
+// on the gyro flow nodelet's flow), the stabiliser models and, with --oracle, the oracle of each
+// stabiliser design given (its own simulator controller on the camera's gyro). With --recorded, the gyro_flow and compensated_flow messages
 // the live nodelets published during a replay of the same bags (rosbag record) are scored too, as
 // rows of their own: they must equal the offline rows. The work is EvaluationRunner's
 // (tools/support/evaluation_runner.h); this file parses flags and writes the outputs.
@@ -19,6 +20,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -29,6 +31,7 @@
 #include "deep_ois/core/evaluation/stabiliser_table_row.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
+#include "deep_ois/core/sim/simulator_config.h"
 #ifdef DEEP_OIS_WITH_TORCH
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
@@ -36,6 +39,7 @@
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/evaluation_runner.h"
 #include "deep_ois/tools/support/recorded_flows.h"
+#include "deep_ois/tools/support/stabiliser_oracle_row.h"
 
 #ifdef DEEP_OIS_WITH_TORCH
 namespace {
@@ -56,7 +60,8 @@ constexpr char kDescription[] =
     "identity error, a method without an estimate scored as identity, Avg = mean of the category "
     "means. Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC; the gyro on the non-OIS and the "
     "OIS camera, uncompensated; the global F and Fundamental Mixtures ground truths; the shipped "
-    "model. With --recorded, the flows the live nodelets published during a replay of the same "
+    "model; the stabiliser models; with --oracle, a stabiliser design's own simulator controller "
+    "on the camera's gyro. With --recorded, the flows the live nodelets published during a replay of the same "
     "bags "
     "are scored too and must equal the offline rows. --out writes evaluation.csv, evaluation.json, "
     "evaluation_pairs.csv, bar charts and ghost images.";
@@ -127,6 +132,38 @@ int main(int argc, char** argv) {
   bool no_stabiliser = false;
   app.add_flag("--no-stabiliser", no_stabiliser, "leave out the stabiliser model rows")
       ->excludes(stabiliser_option);
+  // The oracle of a stabiliser design: its own simulator controller on the camera's gyro.
+  std::vector<std::string> oracle_designs;
+  CLI::Option* oracle_option =
+      app.add_option("--oracle", oracle_designs,
+                     "stabiliser designs (simulator module overlays, e.g. "
+                     "config/simulator/modules/X.yaml) whose own controller and lens loop, with "
+                     "their parameters, are run on the recordings' gyro and scored as a "
+                     "compensation row each: the best a model of that design can do from the "
+                     "camera's gyro")
+          ->check(deep_ois::existingFile())
+          ->type_name("MODULE.yaml ...");
+  std::string oracle_base = package.empty() ? "" : package + "/config/simulator/RE.yaml";
+  app.add_option("--oracle-base", oracle_base,
+                 "the simulator config the --oracle overlays go over (default: the package's "
+                 "config/simulator/RE.yaml; only its ois and sensor sections matter)")
+      ->check(deep_ois::existingFile())
+      ->type_name("CONFIG.yaml")
+      ->needs(oracle_option);
+  // By default the oracle starts at each recording's first gyro sample, as the stabiliser model
+  // rows do. The simulator starts its stabiliser earlier (kSimulatorMarginS before the first
+  // frame, before its IMU starts); starting the oracle then with the first sample held back to it
+  // measured worse on 5 of 6 modules (docs/stabiliser_model.md), so it is a choice, not the default.
+  double oracle_start_s = std::numeric_limits<double>::quiet_NaN();
+  command_line
+      .addNumber("--oracle-start", oracle_start_s,
+                 "start the --oracle designs' stabilisers, centred and at rest, this many seconds "
+                 "before each recording's first scored frame (the simulator starts its own 0.25 s "
+                 "before), the gyro held at its first sample until it has one (default: at the "
+                 "first gyro sample, as the stabiliser model rows)")
+      ->default_str("")
+      ->check(deep_ois::atLeast(0.0))
+      ->needs(oracle_option);
   std::string live_model;
   app.add_option("--live-model", live_model,
                  "with --recorded: the model the live compensation ran (default: the package's "
@@ -167,7 +204,7 @@ int main(int argc, char** argv) {
   // The compensation rows score an OIS camera's pairs only: asked for on recordings said to be of
   // a camera without OIS they would be empty, so an explicit request is refused, not dropped.
   if (camera == "non-ois") {
-    for (CLI::Option* option : {stabiliser_option, model_option}) {
+    for (CLI::Option* option : {stabiliser_option, model_option, oracle_option}) {
       if (option->count() == 0) continue;
       return command_line.usageError(
           option->get_name() +
@@ -235,6 +272,18 @@ int main(int argc, char** argv) {
       const std::string row = "stabiliser model, " + std::filesystem::path(path).filename().string();
       runner.addMethod(deep_ois::stabiliserAlignmentMethod(row, file.parameters));
       model_cameras.emplace_back(row, file.camera);
+    }
+    // Stabiliser oracles: each design's own controller driven by the recordings' gyro.
+    for (const std::string& path : oracle_designs) {
+      if (oracle_base.empty()) {
+        throw std::runtime_error("--oracle: package deep_ois not found, so pass --oracle-base");
+      }
+      const deep_ois::sim::SimulatorConfig design =
+          deep_ois::sim::loadSimulatorConfig(oracle_base, {path});
+      runner.addMethod(deep_ois::stabiliserOracleMethod(
+          "oracle, " + std::filesystem::path(path).filename().string() +
+              " controller on the camera gyro",
+          design, oracle_start_s));
     }
     // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
     std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;

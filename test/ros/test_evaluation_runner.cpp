@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <limits>
 
 #include <cmath>
 #include <filesystem>
@@ -22,6 +23,7 @@
 #include "deep_ois/ros/messages/conversions.h"
 #include "deep_ois/tools/support/evaluation_runner.h"
 #include "deep_ois/tools/support/simulation_bag_writer.h"
+#include "deep_ois/tools/support/stabiliser_oracle_row.h"
 
 namespace deep_ois {
 namespace {
@@ -262,6 +264,42 @@ TEST(EvaluationRunner, LensLogRowOnTheOisCameraMatchesTheTwinsGyro) {
             << " px, OIS gyro uncompensated " << ois_gyro << " px\n";
   EXPECT_LT(lens, 0.5 * ois_gyro);
   EXPECT_LT(lens, 1.2 * twin_gyro);
+}
+
+TEST(EvaluationRunner, StabiliserOracleRowRunsTheBagsDesignOnItsGyro) {
+  const std::string ois = writeBag("eval_oracle_ois", true, 0.5),
+                    twin = writeBag("eval_oracle_twin", false, 0.5);
+  const sim::SimulatorConfig own = sim::loadSimulatorConfig(sourcePath("config/simulator/sample.yaml"));
+  // Another camera's design (360x270): not this recording's, every pair refused, saying why.
+  const sim::SimulatorConfig other = sim::loadSimulatorConfig(sourcePath("config/simulator/RE.yaml"));
+  EvaluationRunner runner(optionsFor({ois, twin}));
+  runner.addMethods(gyroMethods());
+  const double at_first_gyro_sample = std::numeric_limits<double>::quiet_NaN();
+  runner.addMethod(stabiliserOracleMethod("oracle, own", own, at_first_gyro_sample));
+  runner.addMethod(stabiliserOracleMethod("oracle, other camera", other, at_first_gyro_sample));
+  // Started with the simulator's stabiliser (0.25 s before the first frame, before the IMU).
+  runner.addMethod(stabiliserOracleMethod("oracle, simulator's start", own, sim::kSimulatorMarginS));
+  const EvaluationReport report = runner.run();
+  const EvaluationTable& table = report.table;
+  const std::size_t pairs = report.recordings[0].pairs_scored;
+  ASSERT_GE(pairs, 10u);
+  EXPECT_EQ(table.count("oracle, own", "RE"), pairs);
+  EXPECT_EQ(report.failure_reasons.count("oracle, own"), 0u) << "a pair the gyro did not cover";
+  const double oracle = table.mean("oracle, own", "RE"), twin_gyro = table.mean(kGyroNonOisMethod, "RE"),
+               ois_gyro = table.mean(kGyroOisMethod, "RE");
+  std::cout << "[ measured ] " << pairs << " pairs: oracle " << oracle << " px, twin's gyro "
+            << twin_gyro << " px, OIS gyro uncompensated " << ois_gyro << " px\n";
+  EXPECT_LT(oracle, 0.5 * ois_gyro);
+  EXPECT_LT(oracle, 1.3 * twin_gyro);
+  // Covered from its earlier start too; a different start, different figures.
+  EXPECT_EQ(table.count("oracle, simulator's start", "RE"), pairs);
+  EXPECT_EQ(report.failure_reasons.count("oracle, simulator's start"), 0u);
+  EXPECT_NE(table.mean("oracle, simulator's start", "RE"), oracle);
+  ASSERT_EQ(report.failure_reasons.count("oracle, other camera"), 1u);
+  const auto& reasons = report.failure_reasons.at("oracle, other camera");
+  ASSERT_EQ(reasons.size(), 1u);
+  EXPECT_NE(reasons.begin()->first.find("256x192"), std::string::npos) << reasons.begin()->first;
+  EXPECT_EQ(reasons.begin()->second, pairs);
 }
 
 // Writes an annotation file; returns its path.

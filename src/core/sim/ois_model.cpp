@@ -1,14 +1,13 @@
 #include "deep_ois/core/sim/ois_model.h"
 
 #include <algorithm>
-#include <fstream>
 #include <cmath>
+#include <fstream>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
-#include "deep_ois/core/common/portable_random.h"
-#include "deep_ois/core/sim/stabiliser_controller.h"
+#include "deep_ois/core/sim/stabiliser_lens_loop.h"
 
 namespace deep_ois {
 namespace sim {
@@ -139,43 +138,6 @@ std::string OisConfig::validate() const {
   return why.str();
 }
 
-namespace {
-
-// One axis of a PI position loop around a spring-mass lens: force F = kp e + ki integral(e), the
-// lens x'' = wp^2 (F - x) - 2 zeta wp x', semi-implicit Euler at the control step (wp dt << 1).
-// The lens stops dead at +-limit_px (its end stop); the integrator is held while it rests there
-// (anti-windup).
-class PiLensLoop {
- public:
-  PiLensLoop(const OisConfig& config, double step_s, double limit_px)
-      : wp_(2.0 * kPi * config.pi_plant_natural_hz),
-        zeta_(config.pi_plant_damping),
-        kp_(config.pi_kp),
-        ki_(config.pi_ki),
-        dt_(step_s),
-        limit_px_(limit_px) {}
-
-  // `command_px` minus the Hall reading's error, as the loop sees it; returns the lens position.
-  double advance(double command_px) {
-    const double error = command_px - position_px_;
-    const bool at_stop = std::abs(position_px_) >= limit_px_ && error * position_px_ > 0.0;
-    if (!at_stop) integral_ += error * dt_;
-    const double force = kp_ * error + ki_ * integral_;
-    velocity_ += dt_ * (wp_ * wp_ * (force - position_px_) - 2.0 * zeta_ * wp_ * velocity_);
-    position_px_ += dt_ * velocity_;
-    if (std::abs(position_px_) > limit_px_) {
-      position_px_ = std::copysign(limit_px_, position_px_);
-      if (velocity_ * position_px_ > 0.0) velocity_ = 0.0;
-    }
-    return position_px_;
-  }
-
- private:
-  double wp_, zeta_, kp_, ki_, dt_, limit_px_;
-  double position_px_ = 0.0, velocity_ = 0.0, integral_ = 0.0;
-};
-
-}  // namespace
 
 // Sign of the cancelling shift, in the optical frame (x right, y down, z forward) and with
 // rotationHomography(K, R_b_a) = K R_b_a K^-1, R_b_a = R_b^T R_a (camera a -> camera b):
@@ -212,91 +174,22 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
   const double dt = 1.0 / config_.control_rate_hz;
   const int steps = std::max(
       1, static_cast<int>(std::ceil((motion.endTime() - start_s_) * config_.control_rate_hz)));
-  shift_grid_.assign(steps + 1, Eigen::Vector2d::Zero());
   if (!config_.lens_shift_csv.empty()) {
     // A logged trajectory instead of the stabiliser: the same seed's motion, another lens.
     const auto rows = readLensShiftCsv(config_.lens_shift_csv);
-    for (int j = 0; j <= steps; ++j) shift_grid_[j] = interpolate(rows, j * dt);
+    std::vector<Eigen::Vector2d> shifts(steps + 1, Eigen::Vector2d::Zero());
+    for (int j = 0; j <= steps; ++j) shifts[j] = interpolate(rows, j * dt);
+    grid_ = LensShiftGrid(start_s_, config_.control_rate_hz, std::move(shifts));
     return;
   }
 
+  // The stabiliser on the true motion, with its own gyro's and Hall sensor's noise.
   std::mt19937 rng(seed);
-  // The stabiliser's gyro: turned by the mount's rotation about the optical axis, with its noise.
-  const double mount = config_.mount_rotation_deg * kPi / 180.0;
-  const double mount_c = std::cos(mount), mount_s = std::sin(mount);
-  auto measuredRate = [&](int j) {
-    const Eigen::Vector3d w = motion.angularVelocity(start_s_ + j * dt);
-    // Only pitch and tilt rates matter to the stabilizer; noise on both.
-    const double noise_x = config_.gyro_noise_rad_s * gaussian(rng);
-    const double noise_y = config_.gyro_noise_rad_s * gaussian(rng);
-    if (mount == 0.0) return Eigen::Vector2d(w.x() + noise_x, w.y() + noise_y);
-    return Eigen::Vector2d(mount_c * w.x() + mount_s * w.y() + noise_x,
-                           -mount_s * w.x() + mount_c * w.y() + noise_y);
-  };
-
-  LensActuator actuator_x(config_.actuator_natural_hz, config_.actuator_damping, dt,
-                          stroke_limit_px_);
-  LensActuator actuator_y(config_.actuator_natural_hz, config_.actuator_damping, dt,
-                          stroke_limit_y_px_);
-  const bool pi_loop = config_.position_loop == "pi";
-  PiLensLoop pi_x(config_, dt, stroke_limit_px_), pi_y(config_, dt, stroke_limit_y_px_);
-  StabiliserController controller(config_, focal_px);
-  // Commands waiting out the Hall sensor's delay and the digital loop's (the loop reacts to them
-  // that much later).
-  const int lag_steps = static_cast<int>(
-      std::lround((config_.hall_lag_s + config_.digital_delay_s) * config_.control_rate_hz));
-  std::vector<Eigen::Vector2d> pending(static_cast<std::size_t>(lag_steps) + 1,
-                                       Eigen::Vector2d::Zero());
-  // A digital loop updates every `tick` control steps from the gyro sample of that step.
-  const int tick = config_.digital_rate_hz > 0.0
-                       ? std::max(1, static_cast<int>(std::lround(config_.control_rate_hz /
-                                                                  config_.digital_rate_hz)))
-                       : 0;
-  Eigen::Vector2d rate = measuredRate(0);
-  Eigen::Vector2d command = controller.command();
-  for (int j = 0; j < steps; ++j) {
-    // The command of step j is held until the controller's next update (zero-order hold).
-    if (tick == 0) command = controller.command();
-    pending[static_cast<std::size_t>(j % (lag_steps + 1))] = command;
-    // What the loop acts on: the command of lag_steps ago, against a noisy position reading (the
-    // lens settles where the reading equals the command: off by the reading's noise).
-    Eigen::Vector2d effective = pending[static_cast<std::size_t>((j + 1) % (lag_steps + 1))];
-    if (config_.hall_noise_px > 0.0) {  // no draw otherwise: other configs keep their sequences
-      const double noise_x = gaussian(rng);
-      const double noise_y = gaussian(rng);
-      effective -= config_.hall_noise_px * Eigen::Vector2d(noise_x, noise_y);
-    }
-    Eigen::Vector2d lens =
-        pi_loop ? Eigen::Vector2d(pi_x.advance(effective.x()), pi_y.advance(effective.y()))
-                : Eigen::Vector2d(actuator_x.advance(effective.x()), actuator_y.advance(effective.y()));
-    if (config_.actuator_cross_coupling != 0.0) {
-      const double c = config_.actuator_cross_coupling;
-      lens = Eigen::Vector2d(lens.x() + c * lens.y(), lens.y() + c * lens.x());
-    }
-    shift_grid_[j + 1] = lens;
-    const Eigen::Vector2d next_rate = measuredRate(j + 1);
-    if (tick == 0) {
-      controller.advance(0.5 * (rate + next_rate), next_rate, dt);
-    } else if ((j + 1) % tick == 0) {
-      // The digital controller sees only its own samples: the rate of this step, held over its
-      // period (no anti-aliasing), then commands once.
-      controller.advance(next_rate, next_rate, tick * dt);
-      command = controller.command();
-    }
-    rate = next_rate;
-  }
+  grid_ = runStabiliser(config_, focal_px, start_s_, steps,
+                        [&motion](double t_s) { return motion.angularVelocity(t_s); }, &rng);
 }
 
-Eigen::Vector2d OisModel::lensShift(double t_s) const {
-  if (shift_grid_.empty()) return Eigen::Vector2d::Zero();
-  const double position = (t_s - start_s_) * config_.control_rate_hz;
-  const double last = static_cast<double>(shift_grid_.size() - 1);
-  if (!(position > 0.0)) return shift_grid_.front();
-  if (position >= last) return shift_grid_.back();
-  const std::size_t j = static_cast<std::size_t>(position);
-  const double alpha = position - static_cast<double>(j);
-  return (1.0 - alpha) * shift_grid_[j] + alpha * shift_grid_[j + 1];
-}
+Eigen::Vector2d OisModel::lensShift(double t_s) const { return grid_.at(t_s); }
 
 }  // namespace sim
 }  // namespace deep_ois

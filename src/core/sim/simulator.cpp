@@ -9,10 +9,6 @@
 namespace deep_ois {
 namespace sim {
 
-namespace {
-constexpr double kMarginS = 0.25;  // simulated time before the first and after the last frame
-}
-
 Simulator::Simulator(const SimulatorConfig& config, std::uint32_t seed, double duration_s)
     : config_(config), seed_(seed) {
   const std::string problem = config.validate();
@@ -23,8 +19,8 @@ Simulator::Simulator(const SimulatorConfig& config, std::uint32_t seed, double d
   const SensorConfig& sensor = config_.sensor;
   frame_count_ = static_cast<int>(std::floor(duration_s * sensor.frame_rate_hz)) + 1;
   if (frame_count_ < 2) throw std::invalid_argument("duration must cover at least two frames");
-  start_s_ = -kMarginS;
-  end_s_ = frameStamp(frame_count_ - 1) + sensor.readout_time_s + sensor.exposure_time_s + kMarginS;
+  start_s_ = -kSimulatorMarginS;
+  end_s_ = frameStamp(frame_count_ - 1) + sensor.readout_time_s + sensor.exposure_time_s + kSimulatorMarginS;
 
   motion_ = std::make_unique<CameraMotion>(config_.motion, subSeed(1), start_s_, end_s_);
   const double focal_px = nominalCamera(sensor).K()(0, 0);

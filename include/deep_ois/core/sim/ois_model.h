@@ -8,6 +8,7 @@
 
 #include "deep_ois/core/ois/lens_actuator.h"
 #include "deep_ois/core/sim/camera_motion.h"
+#include "deep_ois/core/sim/lens_shift_grid.h"
 
 namespace deep_ois {
 namespace sim {
@@ -114,7 +115,7 @@ class OisModel {
   double start_s_ = 0.0;
   double stroke_limit_px_ = 0.0;
   double stroke_limit_y_px_ = 0.0;
-  std::vector<Eigen::Vector2d> shift_grid_;  // at control_rate_hz from start_s_
+  LensShiftGrid grid_;  // at control_rate_hz from start_s_; empty when disabled
 };
 
 }  // namespace sim

@@ -21,6 +21,10 @@
 namespace deep_ois {
 namespace sim {
 
+// Simulated time before the first frame and after the last one (camera clock, seconds): the motion
+// and the stabiliser start this long before the first frame, centred and at rest.
+constexpr double kSimulatorMarginS = 0.25;
+
 struct LensShiftSample {
   double stamp_s;               // camera clock
   Eigen::Vector2d shift_px;     // principal-point shift, pixels

@@ -1,0 +1,55 @@
+// The oracle of a stabiliser design: the simulator's own controller and lens loop for that design
+// (core/sim/stabiliser_lens_loop.h, the code the simulator runs), with the design's parameters,
+// driven by a camera's gyro instead of the stabiliser's own. It is what the best possible model of
+// that design could predict from the camera's IMU: the design's structure and parameters exact,
+// only the gyro input differs (the camera IMU's noise, bias and rate instead of the stabiliser
+// gyro's). A learned stabiliser model (core/ois/) that comes close to it has learned everything
+// the camera's gyro can tell about the lens.
+//
+// Differences to the simulator's run, by design: no noise of the stabiliser's own sensors is drawn
+// (its gyro's noise is replaced by the camera gyro's; the Hall sensor's noise is unknowable from
+// any gyro, so its mean, zero). The simulator starts its stabiliser centred and at rest
+// kSimulatorMarginS before the first frame, before the camera's IMU starts; the oracle starts at
+// the time it is given (the simulator's start for its recordings) and holds the first gyro sample
+// back to it, or at the first gyro sample.
+#pragma once
+
+#include <Eigen/Core>
+#include <limits>
+#include <vector>
+
+#include "deep_ois/core/ois/stabiliser_model.h"
+#include "deep_ois/core/sim/lens_shift_grid.h"
+#include "deep_ois/core/sim/ois_model.h"
+
+namespace deep_ois {
+namespace sim {
+
+class StabiliserOracle {
+ public:
+  // `rates`: the camera's gyro in the camera's optical frame (CameraRateSample, e.g. cameraRates()
+  // of core/ois/stabiliser_compensator.h), any clock, linear between samples. Samples not later
+  // than the one before are dropped (counted). focal_px: the camera's focal length in pixels.
+  // Throws std::invalid_argument for an invalid config (OisConfig::validate()), a config with
+  // ois.enabled false or a lens_shift_csv (no stabiliser to run), a non-positive focal length or
+  // fewer than two usable samples.
+  // `start_s`: when the stabiliser starts, centred and at rest, on the gyro's clock; NaN: at the
+  // first sample. Before the first sample the gyro is held at it.
+  StabiliserOracle(const OisConfig& config, double focal_px,
+                   const std::vector<CameraRateSample>& rates,
+                   double start_s = std::numeric_limits<double>::quiet_NaN());
+
+  // Within [start, last sample].
+  bool covers(double t_s) const { return t_s >= start_s_ && t_s <= last_s_; }
+  // The lens shift (pixels, x right, y down) at t_s on the gyro's clock.
+  Eigen::Vector2d lensShift(double t_s) const { return grid_.at(t_s); }
+  int droppedSamples() const { return dropped_; }
+
+ private:
+  double start_s_ = 0.0, last_s_ = 0.0;
+  int dropped_ = 0;
+  LensShiftGrid grid_;
+};
+
+}  // namespace sim
+}  // namespace deep_ois
