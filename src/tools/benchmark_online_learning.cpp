@@ -8,6 +8,10 @@
 //   benchmark_online_learning --bags long_ois.bag --twins long_nonois.bag [--model MODEL.yaml]
 //       [--window 10] [--cpu-share 0.3] [--plot curve.png]
 //   benchmark_online_learning --bags ois_off.bag --no-ois      (a camera without OIS: vs the gyro)
+//   benchmark_online_learning --bags s1.bag s2.bag s3.bag --twins t1.bag t2.bag t3.bag --continue-bags
+//       (one camera's session longer than one recording: the learner, its check and the replay
+//        clock carry on, and the stamps of each next recording are shifted to follow the previous
+//        one after --continue-gap seconds)
 //
 // Budget: the learner gets --cpu-share of one core in REPLAY time (the replay waits while the
 // learner is over it), so the curve is the one a live camera at that budget would see, whatever
@@ -16,6 +20,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -52,10 +57,24 @@ struct OnlinePath {
   double cpu_share = 0.3;
   double replay_s = 0.0;        // replay time of the recordings before this one
   double recording_start_s = 0.0, last_stamp_s = 0.0;
+  // --continue-bags: the next recording's stamps follow the previous one's after gap_s; the
+  // learner sees them shifted by shift_s (the gyro flow and the compensator keep the bag's own).
+  bool continue_bags = false;
+  double gap_s = 1.0, shift_s = 0.0;
   std::vector<std::pair<double, std::string>> swaps;  // replay time, model
   std::size_t fallback_pairs = 0, pairs = 0;
   std::atomic<double> replay_clock_s{0.0};  // the learner's budget clock
+  // Per pair, the output path's time (the compensator's step, the pair handed to the learner and the
+  // fallback read), ms: what the compensation callback does besides the messages.
+  std::vector<double> output_ms;
 };
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return std::nan("");
+  const auto k = static_cast<std::size_t>(std::min<double>(values.size() - 1, std::floor(q * values.size())));
+  std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
+  return values[k];
+}
 
 deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigned scope) {
   return {kOnlineMethod, scope, [path](const deep_ois::FramePairContext& pair) {
@@ -64,11 +83,20 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
               return AlignmentEstimate::failed("no gyro stream for the stabiliser model");
             const deep_ois::RollingShutterConfig& rs = *pair.rolling_shutter;
             OnlinePath& p = *path;
+            const auto started = std::chrono::steady_clock::now();
             if (pair.recording_id != p.recording) {
-              if (p.recording != ~std::uint64_t{0}) p.replay_s += p.last_stamp_s - p.recording_start_s;
+              const bool first = p.recording == ~std::uint64_t{0};
+              if (!first) p.replay_s += p.last_stamp_s - p.recording_start_s;
+              if (p.continue_bags && !first) {
+                // Time goes on: the learner's windows, buffer, check and fallback carry over.
+                p.replay_s += p.gap_s;
+                p.shift_s = p.last_stamp_s + p.shift_s + p.gap_s - pair.stamp_a_s;
+              } else {
+                p.learner->restartTimeline();
+              }
               p.recording = pair.recording_id;
               p.recording_start_s = pair.stamp_a_s;
-              p.learner->restartTimeline();
+              // The stabiliser's state starts again (another recording's lens).
               p.compensator.reset();
             }
             p.last_stamp_s = pair.stamp_b_s;
@@ -92,8 +120,8 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
             if (!result.ok) return AlignmentEstimate::failed(result.reason);
 
             deep_ois::OnlineFramePair online;
-            online.stamp_a_s = pair.stamp_a_s;
-            online.stamp_b_s = pair.stamp_b_s;
+            online.stamp_a_s = pair.stamp_a_s + p.shift_s;
+            online.stamp_b_s = pair.stamp_b_s + p.shift_s;
             online.timing = rs;
             online.camera = *pair.camera;
             online.rotations = pair.gyro_rotations;
@@ -101,16 +129,24 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
             online.model_homographies = result.homographies;
             online.rates = deep_ois::cameraRates(*pair.imu, rs.imu_to_camera_rotation, pair.stamp_b_s - 1.1,
                                                  times_b.back());
-            online.image_a = pair.gray_a.clone();  // the evaluator's frames live only during the call
+            for (deep_ois::CameraRateSample& r : online.rates) r.stamp_s += p.shift_s;
+            double output_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+            // The evaluator's frames live only during the call (the nodelet shares the messages'
+            // instead): the copy is not part of the output path's time.
+            online.image_a = pair.gray_a.clone();
             online.image_b = pair.gray_b.clone();
             // The learner's budget runs on replay time (its clock); the replay waits for its queue
             // (the replay's own speed is not the camera's), and the learner skips pairs over its
             // budget as it does live.
             p.replay_clock_s.store(p.replay_s + pair.stamp_b_s - p.recording_start_s);
             while (p.learner->queued() >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+            const auto handed = std::chrono::steady_clock::now();
             p.learner->submit(std::move(online));
             ++p.pairs;
-            if (p.learner->fallingBack()) {
+            const bool falling_back = p.learner->fallingBack();
+            output_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - handed).count();
+            p.output_ms.push_back(1e3 * output_s);
+            if (falling_back) {
               ++p.fallback_pairs;
               return AlignmentEstimate::patchHomographies(pair.gyro_homographies);
             }
@@ -123,17 +159,30 @@ struct WindowMeans {
   std::size_t pairs = 0;
 };
 
-// Per method, per window of `window_s` of each recording's own time, the capped and uncapped means.
+// Per method, per window of `window_s` of replay time, the capped and uncapped means. Each
+// recording is on its own time unless `continued`: then the first `camera_recordings` follow one
+// another (with `gap_s` between them, as replayed) and the twins that come after them take the time
+// of their OIS recording (twin k of recording k).
 std::map<std::string, std::vector<WindowMeans>> windowMeans(const deep_ois::EvaluationReport& report,
-                                                            double window_s) {
-  std::map<std::size_t, std::int64_t> first_stamp;  // per recording
+                                                            double window_s, bool continued,
+                                                            std::size_t camera_recordings, double gap_s) {
+  std::map<std::size_t, std::int64_t> first_stamp, last_stamp;  // per recording
   for (const auto& s : report.pairs) {
     auto it = first_stamp.find(s.recording);
     if (it == first_stamp.end() || s.stamp_a_ns < it->second) first_stamp[s.recording] = s.stamp_a_ns;
+    auto jt = last_stamp.find(s.recording);
+    if (jt == last_stamp.end() || s.stamp_b_ns > jt->second) last_stamp[s.recording] = s.stamp_b_ns;
+  }
+  std::map<std::size_t, double> offset_s;  // replay time of each camera recording's first stamp
+  double replay_s = 0.0;
+  for (std::size_t r = 0; r < camera_recordings; ++r) {
+    offset_s[r] = replay_s;
+    if (first_stamp.count(r)) replay_s += 1e-9 * static_cast<double>(last_stamp[r] - first_stamp[r]) + gap_s;
   }
   std::map<std::string, std::vector<WindowMeans>> out;
   for (const auto& s : report.pairs) {
-    const double t = 1e-9 * static_cast<double>(s.stamp_b_ns - first_stamp[s.recording]);
+    double t = 1e-9 * static_cast<double>(s.stamp_b_ns - first_stamp[s.recording]);
+    if (continued) t += offset_s[s.recording < camera_recordings ? s.recording : s.recording - camera_recordings];
     const auto w = static_cast<std::size_t>(t / window_s);
     auto& windows = out[s.method];
     if (windows.size() <= w) windows.resize(w + 1);
@@ -166,9 +215,9 @@ int main(int argc, char** argv) {
   const std::string package = ros::package::getPath("deep_ois");
   std::string model_path = package.empty() ? "" : package + "/models/stabiliser_generic.yaml";
   std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
-  std::string plot_path;
-  double window_s = 10.0, cpu_share = 0.3;
-  bool no_ois = false;
+  std::string plot_path, final_model_path;
+  double window_s = 10.0, cpu_share = 0.3, gap_s = 1.0;
+  bool no_ois = false, continue_bags = false, no_learning = false;
   app.add_option("--bags", bags, "the camera's recordings, replayed in this order (one long one is best)")
       ->required()
       ->check(deep_ois::existingFile())
@@ -181,14 +230,28 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(deep_ois::existingFile());
   app.add_option("--plot", plot_path, "the learning curve as a PNG")->type_name("FILE.png");
+  app.add_option("--final-model", final_model_path, "writes the model in use at the end here")->type_name("FILE.yaml");
   command_line.addNumber("--window", window_s, "seconds of replay per row of the curve")->check(deep_ois::atLeast(1.0));
   command_line.addNumber("--cpu-share", cpu_share, "the learner's CPU budget, share of one core in replay time");
   app.add_flag("--no-ois", no_ois,
                "the recordings are of a camera without OIS (simulator bags made with --ois off, the "
                "non-OIS twin's pairs): scored against the plain gyro");
+  app.add_flag("--no-learning", no_learning,
+               "the learner checks every pair (residual, fallback to the plain gyro) but fits nothing: the "
+               "live pipeline with ~learning false, e.g. for the output path's latency without the learning");
+  app.add_flag("--continue-bags", continue_bags,
+               "the --bags are one camera's session, one after the other: the learner and its check go on "
+               "(not restarted per recording), the stamps of each next recording are shifted to follow "
+               "the previous one after --continue-gap, and the windows run on this continued time (twin k "
+               "takes the time of recording k)");
+  command_line.addNumber("--continue-gap", gap_s, "seconds between two recordings with --continue-bags (a gap: no learning window spans two recordings)")
+      ->check(deep_ois::atLeast(0.1));
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   if (!(cpu_share > 0.0 && cpu_share <= 1.0)) return command_line.usageError("--cpu-share must be in (0, 1]");
   if (no_ois && !twins.empty()) return command_line.usageError("--no-ois takes no --twins (the bags are the twins)");
+  if (continue_bags && !twins.empty() && twins.size() != bags.size())
+    return command_line.usageError("--continue-bags needs one twin per recording (" + std::to_string(bags.size()) +
+                                   " --bags, " + std::to_string(twins.size()) + " --twins)");
 
   deep_ois::StabiliserModelFile start;
   deep_ois::EvaluationOptions options;
@@ -206,9 +269,12 @@ int main(int argc, char** argv) {
 
   deep_ois::OnlineLearningOptions learning;
   learning.cpu_share = cpu_share;
+  learning.learning = !no_learning;
   learning.max_queued_pairs = 100000;  // the replay keeps the queue at 10, as live
   auto path = std::make_shared<OnlinePath>();
   path->cpu_share = cpu_share;
+  path->continue_bags = continue_bags;
+  path->gap_s = gap_s;
   OnlinePath* const clock_owner = path.get();  // outlives the learner (reset first below)
   learning.budget_clock = [clock_owner] { return clock_owner->replay_clock_s.load(); };
   path->learner = std::make_unique<deep_ois::OnlineStabiliserLearner>(
@@ -228,7 +294,7 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  const auto means = windowMeans(report, window_s);
+  const auto means = windowMeans(report, window_s, continue_bags, bags.size(), gap_s);
   const std::string ois_gyro = deep_ois::kGyroOisMethod, twin_gyro = deep_ois::kGyroNonOisMethod;
   const std::string plain = no_ois ? twin_gyro : ois_gyro;
   auto at = [&](const std::string& method, std::size_t w) {
@@ -237,8 +303,13 @@ int main(int argc, char** argv) {
   };
   std::size_t windows = 0;
   for (const auto& [method, rows] : means) windows = std::max(windows, rows.size());
-  std::printf("Online learning from %s ('%s'), %.0f %% of a core, windows of %.0f s of replay\n\n",
+  std::printf("Online learning from %s ('%s'), %.0f %% of a core, windows of %.0f s of replay\n",
               model_path.c_str(), start.name.c_str(), 100.0 * cpu_share, window_s);
+  if (continue_bags && bags.size() > 1)
+    std::printf("%zu recordings continued as one session, %.1f s between them (the learner's stamps shifted; "
+                "the stabiliser's state starts again in each)\n",
+                bags.size(), gap_s);
+  std::printf("\n");
   std::vector<double> gap_online, gap_fixed, ratio_online, ratio_fixed;
   if (!no_ois) {
     std::printf("| window [s] | pairs | OIS gyro | twin | fixed model | learning | gap closed: fixed | learning |\n");
@@ -280,6 +351,20 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(final_model->version),
               deep_ois::isNoLensMotion(final_model->parameters) ? " = no lens motion" : "");
   std::printf("last choice: %s\n", s.last_choice.c_str());
+  if (!final_model_path.empty()) {
+    try {
+      deep_ois::StabiliserModelFile file;
+      file.name = "benchmark_online_learning: " + final_model->name;
+      file.parameters = final_model->parameters;
+      file.training.target = "gyro-anchored lens shift (images), learned online";
+      file.training.held_out_rms_px = final_model->held_out_rms_px;
+      file.training.held_out_rms_without_model_px = final_model->held_out_rms_without_px;
+      file.save(final_model_path);
+      std::printf("model at the end written to %s\n", final_model_path.c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "benchmark_online_learning: %s\n", e.what());
+    }
+  }
   std::printf("learner: %zu pairs, %zu windows kept, %zu still, %zu failed, %zu fits (%zu failed), %zu swaps; "
               "%zu pairs not learned from (over the budget); fell back to the plain gyro on %zu of %zu pairs; CPU %.1f s over %.1f s of replay "
               "(%.0f %% of a core); wall %.1f s%s%s\n",
@@ -287,6 +372,12 @@ int main(int argc, char** argv) {
               s.pairs_over_budget, path->fallback_pairs, path->pairs, s.cpu_s, path->replay_s + path->last_stamp_s - path->recording_start_s,
               100.0 * s.cpu_s / std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s), wall_s,
               s.last_problem.empty() ? "" : "; last problem: ", s.last_problem.c_str());
+  std::printf("output path per pair (the compensator's step, the hand-over to the learner, the fallback read; "
+              "not the benchmark's frame copy or its wait for the learner's queue): p50 %.3f ms, p95 %.3f ms, "
+              "max %.3f ms over %zu pairs, learning %s\n",
+              percentile(path->output_ms, 0.5), percentile(path->output_ms, 0.95),
+              path->output_ms.empty() ? std::nan("") : *std::max_element(path->output_ms.begin(), path->output_ms.end()),
+              path->output_ms.size(), no_learning ? "off (checks only)" : "on");
   if (!plot_path.empty()) {
     const std::string x_label = "window of " + std::to_string(static_cast<int>(window_s)) + " s";
     std::vector<deep_ois::PlotSeries> series;

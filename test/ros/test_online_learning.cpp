@@ -141,6 +141,10 @@ TEST(OnlineLearning, AKillDuringAFitKeepsTheLastGoodModelFile) {
   bool kill_during_fit = false;
   private_nh.param("kill_during_fit", kill_during_fit, false);
   if (!kill_during_fit) GTEST_SKIP() << "~kill_during_fit is false (online_learning_kill.test sets it)";
+  // Longer than the swap test's stream: the kill needs a fit that starts after the first model was
+  // written (each fit tries the elliptic stroke variant too).
+  double stream_s = kStreamS;
+  private_nh.param("stream_s", stream_s, kStreamS);
   std::string learning_dir;
   ASSERT_TRUE(nh.getParam("/deep_ois/compensation/learning_dir", learning_dir));
   double readout_s = 0.0, time_offset_s = 0.0;
@@ -162,7 +166,7 @@ TEST(OnlineLearning, AKillDuringAFitKeepsTheLastGoodModelFile) {
   bool killed = false;
   std::string model_path;
   harness->stream(
-      kStreamS,
+      stream_s,
       [&](live_test::FrameEdit& edit) {
         camera.render((edit.image->header.stamp - base).toSec(), *edit.image);
         if (killed) return;

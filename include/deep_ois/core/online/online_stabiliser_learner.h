@@ -75,8 +75,8 @@ struct OnlineLearningOptions {
   std::string model_file_name = "learned online";  // the file's name field
   CameraDescription camera;                         // recorded in the file
 
-  // The fit's defaults, cheaper than train_stabiliser's (fewer pan-detection thresholds, no
-  // elliptic stroke variant, fewer iterations): it runs every few seconds in the background.
+  // The fit's defaults, cheaper than train_stabiliser's (fewer pan-detection thresholds and
+  // fewer iterations; the elliptic stroke variant stays): it runs every few seconds in the background.
   static StabiliserFitOptions onlineFitOptions();
   static CornerDetectorOptions learningCorners();
   static KltOptions learningKlt();
