@@ -536,14 +536,15 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
     std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
                 c.training.rms_px, c.held_out.rms_px);
   std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, the three structural variants, rate filter, nonlinear, both: the nonlinear set is
+  // physical, the four structural variants, rate filter, nonlinear, both: the nonlinear set is
   // what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 7u);
+  ASSERT_EQ(selection.candidates.size(), 8u);
   EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
-  EXPECT_NE(selection.candidates[5].name.find("excursion_v1"), std::string::npos);
-  EXPECT_EQ(selection.kept, 5u);  // "both" is no better: the simpler one is kept
-  EXPECT_LT(selection.candidates[5].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
-  EXPECT_LT(selection.candidates[5].held_out.rms_px, 0.5 * selection.candidates[4].held_out.rms_px);
+  EXPECT_NE(selection.candidates[4].name.find("actuator coupling"), std::string::npos);
+  EXPECT_NE(selection.candidates[6].name.find("excursion_v1"), std::string::npos);
+  EXPECT_EQ(selection.kept, 6u);  // "both" is no better: the simpler one is kept
+  EXPECT_LT(selection.candidates[6].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
+  EXPECT_LT(selection.candidates[6].held_out.rms_px, 0.5 * selection.candidates[5].held_out.rms_px);
   EXPECT_NE(selection.reason.find("held-out"), std::string::npos);
 
   const std::vector<StabiliserFitRecording> plain = {observe(knownStabiliser(), 31, 0.05)};
@@ -765,7 +766,7 @@ TEST(ActuatorCoupling, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
   EXPECT_EQ(yaml.find("actuator_coupling"), std::string::npos);
   EXPECT_TRUE(StabiliserModelFile::fromYaml(yaml).parameters.actuator_coupling.isZero(0.0));
   // A coupling beyond +-0.5 and a wrong count are named.
-  for (const std::string& replacement : {"actuator_coupling: [0.9, 0]", "actuator_coupling: [0.1]"}) {
+  for (const char* replacement : {"actuator_coupling: [0.9, 0]", "actuator_coupling: [0.1]"}) {
     std::string bad = file.toYaml();
     const std::size_t at = bad.find("actuator_coupling:");
     ASSERT_NE(at, std::string::npos);
@@ -786,8 +787,7 @@ TEST(ActuatorCoupling, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
   StabiliserFitOptions options;
   options.pan_thresholds_rad_s = {0.0};
   options.iterations = 15;
-  StabiliserParameters truth = knownStabiliser();
-  truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
+  StabiliserParameters truth = knownStabiliser();  // its 0.8 x 1.2 deg box stroke
   truth.gain = Eigen::Matrix2d(Eigen::Rotation2Dd(12.0 * 3.14159265358979 / 180.0)) * truth.gain;
   truth.actuator_coupling = Eigen::Vector2d(0.1, 0.1);
   const std::vector<StabiliserFitRecording> training = {observe(truth, 51, 0.02), observe(truth, 52, 0.02)};
