@@ -92,12 +92,14 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
   const bool has_linear = fit.parameters.residual.size() != 0;
   if (has_linear) add("physical + linear residual", fit.parameters);
   // The chain with a better structure (one mechanism or one parameter more each): an integrator
-  // held at the end stop (anti-windup), a re-centring that grows with the excursion, both. Each
-  // refitted from the chain's parameters.
+  // held at the end stop (anti-windup), a re-centring that grows with the excursion, both; the
+  // stroke in the actuator's axes with their coupling after it. Each refitted from the chain's
+  // parameters.
   for (const auto& [structure, what] :
-       {std::pair<StabiliserStructure, std::string>{{true, false}, "anti-windup integrator"},
-        {{false, true}, "excursion-dependent re-centring"},
-        {{true, true}, "anti-windup integrator + excursion-dependent re-centring"}}) {
+       {std::pair<StabiliserStructure, std::string>{{true, false, false}, "anti-windup integrator"},
+        {{false, true, false}, "excursion-dependent re-centring"},
+        {{true, true, false}, "anti-windup integrator + excursion-dependent re-centring"},
+        {{false, false, true}, "stroke in the actuator's axes + actuator coupling"}}) {
     try {
       const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, options);
       add(std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") +

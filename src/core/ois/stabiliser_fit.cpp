@@ -60,23 +60,30 @@ constexpr Bounds kLagMs{0.0, 50.0};
 constexpr Bounds kStrokeDeg{0.02, 20.0};
 constexpr Bounds kReleaseHz{0.05, 100.0};
 constexpr Bounds kExcursionCentring{1e-3, 100.0};
+constexpr Bounds kActuatorCoupling{-0.5, 0.5};
 
 // The physical parameters the Levenberg-Marquardt step moves, as an unconstrained vector.
 struct ParameterPacking {
   bool pan = false;  // pan_release_corner_hz is free
   bool excursion = false;  // excursion_centring is free (slot 10)
-  int size() const { return 11 + (pan ? 1 : 0); }
+  bool coupling = false;   // actuator_coupling is free (slots 11, 12)
+  int size() const { return 13 + (pan ? 1 : 0); }
+  // Slots whose column stays zero (the parameter is not free).
+  bool fixed(int slot) const {
+    return (slot == 10 && !excursion) || ((slot == 11 || slot == 12) && !coupling);
+  }
 
   Eigen::VectorXd pack(const StabiliserParameters& p) const {
     Eigen::VectorXd x(size());
     x << p.gain(0, 0), p.gain(0, 1), p.gain(1, 0), p.gain(1, 1), std::log(p.highpass_corner_hz),
         std::log(p.actuator_natural_hz), std::log(p.actuator_damping), 1000.0 * p.sensor_lag_s,
-        std::log(p.stroke_x_deg), std::log(p.stroke_y_deg), 0.0;
+        std::log(p.stroke_x_deg), std::log(p.stroke_y_deg), 0.0, p.actuator_coupling.x(),
+        p.actuator_coupling.y();
     // Slot 10: the excursion-dependent re-centring when it is free (else unused, its column zero).
     x(10) = excursion ? std::log(std::clamp(p.excursion_centring, kExcursionCentring.lower,
                                             kExcursionCentring.upper))
                       : 0.0;
-    if (pan) x(11) = std::log(p.pan_release_corner_hz);
+    if (pan) x(13) = std::log(p.pan_release_corner_hz);
     return x;
   }
   StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
@@ -88,7 +95,11 @@ struct ParameterPacking {
     p.stroke_x_deg = std::clamp(std::exp(x(8)), kStrokeDeg.lower, kStrokeDeg.upper);
     p.stroke_y_deg = std::clamp(std::exp(x(9)), kStrokeDeg.lower, kStrokeDeg.upper);
     if (pan)
-      p.pan_release_corner_hz = std::clamp(std::exp(x(11)), kReleaseHz.lower, kReleaseHz.upper);
+      p.pan_release_corner_hz = std::clamp(std::exp(x(13)), kReleaseHz.lower, kReleaseHz.upper);
+    if (coupling)
+      p.actuator_coupling =
+          Eigen::Vector2d(std::clamp(x(11), kActuatorCoupling.lower, kActuatorCoupling.upper),
+                          std::clamp(x(12), kActuatorCoupling.lower, kActuatorCoupling.upper));
     if (excursion)
       p.excursion_centring =
           std::clamp(std::exp(x(10)), kExcursionCentring.lower, kExcursionCentring.upper);
@@ -164,13 +175,13 @@ StabiliserParameters levenbergMarquardt(StabiliserParameters start, const Parame
   Residuals current = residualsOf(packing.unpack(x, start), recordings, options);
   double cost = huberCost(current.values, options.huber_px);
   double lambda = 1e-2;
-  const std::vector<double> deltas = {1e-4, 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3, 1e-2,
-                                      1e-3, 1e-3, 1e-3, 1e-3};
+  const std::vector<double> deltas = {1e-4, 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3,
+                                      1e-2, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-3};
   for (int iteration = 0; iteration < iterations; ++iteration) {
     const long n = current.values.size();
     Eigen::MatrixXd J(n, packing.size());
     for (int j = 0; j < packing.size(); ++j) {
-      if (j == 10 && !packing.excursion) {
+      if (packing.fixed(j)) {
         J.col(j).setZero();
         continue;
       }
@@ -472,6 +483,10 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
   if (p.excursion_centring > 0.0)
     check("excursion_centring", "excursion-dependent re-centring", p.excursion_centring,
           kExcursionCentring, "");
+  if (!p.actuator_coupling.isZero(0.0)) {
+    check("actuator_coupling", "actuator coupling c_xy", p.actuator_coupling.x(), kActuatorCoupling, "");
+    check("actuator_coupling", "actuator coupling c_yx", p.actuator_coupling.y(), kActuatorCoupling, "");
+  }
 
   constexpr double kMostStrokeDeg = 3.0;  // modules travel about +-0.5 to +-1.5 deg
   const Eigen::Vector2d singular = Eigen::JacobiSVD<Eigen::Matrix2d>(p.gain).singularValues();
@@ -787,9 +802,12 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
   start.nonlinear_residual.resize(0, 0);
   start.anti_windup = structure.anti_windup;
   start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;
+  // The coupling starts at none: the chain itself, its gain then mapping into the stroke's axes.
+  start.actuator_coupling.setZero();
   ParameterPacking packing;
   packing.pan = start.pan_detection_rate_rad_s > 0.0;
   packing.excursion = structure.excursion_centring;
+  packing.coupling = structure.actuator_coupling;
   StabiliserFitResult result;
   const Residuals initial = residualsOf(start, recordings, options);
   if (initial.used == 0)
@@ -813,7 +831,9 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
       start, packing, recordings, options, options.iterations, &refined_cost, &result.rms_history);
   std::ostringstream line;
   line << "structure: " << (refined.anti_windup ? "anti-windup" : "winding-up")
-       << " integrator, excursion re-centring " << refined.excursion_centring << ", corner "
+       << " integrator, excursion re-centring " << refined.excursion_centring
+       << ", actuator coupling (" << refined.actuator_coupling.x() << ", "
+       << refined.actuator_coupling.y() << "), corner "
        << refined.highpass_corner_hz << " Hz, actuator " << refined.actuator_natural_hz << " Hz / "
        << refined.actuator_damping << ", stroke " << refined.stroke_x_deg << " x "
        << refined.stroke_y_deg << " deg, cost " << refined_cost;

@@ -78,6 +78,9 @@ std::string StabiliserParameters::validate() const {
         << stroke_y_deg << ")";
   } else if (!std::isfinite(excursion_centring) || excursion_centring < 0.0) {
     why << "excursion_centring: must be >= 0, 0 = off (got " << excursion_centring << ")";
+  } else if (!actuator_coupling.allFinite() || actuator_coupling.cwiseAbs().maxCoeff() > 0.5) {
+    why << "actuator_coupling: must be within +-0.5 (got " << actuator_coupling.x() << ", "
+        << actuator_coupling.y() << ")";
   } else if (!std::isfinite(pan_detection_rate_rad_s) || pan_detection_rate_rad_s < 0.0) {
     why << "pan_detection_rate_rad_s: must be >= 0, 0 = off (got " << pan_detection_rate_rad_s
         << ")";
@@ -260,6 +263,8 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
       lag_fraction_ * pending_commands_[0] + (1.0 - lag_fraction_) * pending_commands_[1];
   pending_commands_.pop_front();
   Eigen::Vector2d shift(actuator_x_.advance(acted.x()), actuator_y_.advance(acted.y()));
+  // The actuator's axes to the image's (after the stroke: a coupled lens can leave the box).
+  shift += Eigen::Vector2d(p.actuator_coupling.x() * shift.y(), p.actuator_coupling.y() * shift.x());
   if (!residual_state_.empty()) {
     const std::size_t k_count = residual_state_.size();
     Eigen::VectorXd features(2 * k_count);

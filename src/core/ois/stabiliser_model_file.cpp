@@ -66,6 +66,9 @@ std::string StabiliserModelFile::toYaml() const {
   if (p.anti_windup) out << YAML::Key << "anti_windup" << YAML::Value << p.anti_windup;
   if (p.excursion_centring != 0.0)
     out << YAML::Key << "excursion_centring" << YAML::Value << p.excursion_centring;
+  if (!p.actuator_coupling.isZero(0.0))
+    out << YAML::Key << "actuator_coupling" << YAML::Value << YAML::Flow
+        << std::vector<double>{p.actuator_coupling.x(), p.actuator_coupling.y()};
   out << YAML::Key << "pan_detection_rate_rad_s" << YAML::Value << p.pan_detection_rate_rad_s;
   out << YAML::Key << "pan_detection_time_constant_s" << YAML::Value
       << p.pan_detection_time_constant_s;
@@ -137,6 +140,10 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   p.circular_stroke = required<bool>(s, "circular_stroke");
   p.anti_windup = optional<bool>(s, "anti_windup", false);
   p.excursion_centring = optional<double>(s, "excursion_centring", 0.0);
+  const auto coupling = optional<std::vector<double>>(s, "actuator_coupling", {0.0, 0.0});
+  if (coupling.size() != 2)
+    throw StabiliserModelFileError("field 'actuator_coupling' must have 2 values (c_xy, c_yx)");
+  p.actuator_coupling = Eigen::Vector2d(coupling[0], coupling[1]);
   p.pan_detection_rate_rad_s = required<double>(s, "pan_detection_rate_rad_s");
   p.pan_detection_time_constant_s = required<double>(s, "pan_detection_time_constant_s");
   p.pan_release_corner_hz = required<double>(s, "pan_release_corner_hz");

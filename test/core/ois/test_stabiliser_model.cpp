@@ -536,14 +536,15 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
     std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
                 c.training.rms_px, c.held_out.rms_px);
   std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, the three structural variants, rate filter, nonlinear, both: the nonlinear set is
+  // physical, the four structural variants, rate filter, nonlinear, both: the nonlinear set is
   // what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 7u);
+  ASSERT_EQ(selection.candidates.size(), 8u);
   EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
-  EXPECT_NE(selection.candidates[5].name.find("excursion_v1"), std::string::npos);
-  EXPECT_EQ(selection.kept, 5u);  // "both" is no better: the simpler one is kept
-  EXPECT_LT(selection.candidates[5].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
-  EXPECT_LT(selection.candidates[5].held_out.rms_px, 0.5 * selection.candidates[4].held_out.rms_px);
+  EXPECT_NE(selection.candidates[4].name.find("actuator coupling"), std::string::npos);
+  EXPECT_NE(selection.candidates[6].name.find("excursion_v1"), std::string::npos);
+  EXPECT_EQ(selection.kept, 6u);  // "both" is no better: the simpler one is kept
+  EXPECT_LT(selection.candidates[6].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
+  EXPECT_LT(selection.candidates[6].held_out.rms_px, 0.5 * selection.candidates[5].held_out.rms_px);
   EXPECT_NE(selection.reason.find("held-out"), std::string::npos);
 
   const std::vector<StabiliserFitRecording> plain = {observe(knownStabiliser(), 31, 0.05)};
@@ -687,6 +688,123 @@ TEST(AntiWindup, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
   EXPECT_NEAR(kept.parameters.stroke_x_deg, 0.5, 0.05);
 }
 
+// A mount turned against the image with coupled lens axes: the gain maps the camera's angles into
+// the actuator's axes, the box stroke holds there, and the image shift is the coupled output.
+StabiliserParameters coupledStabiliser() {
+  StabiliserParameters p = saturatingStabiliser(false);
+  p.circular_stroke = false;
+  const double turn = 12.0 * 3.14159265358979 / 180.0;
+  p.gain = Eigen::Matrix2d(Eigen::Rotation2Dd(turn)) * p.gain;
+  p.actuator_coupling = Eigen::Vector2d(0.1, -0.08);
+  return p;
+}
+
+TEST(ActuatorCoupling, TheLensShiftIsTheCoupledOutputOfTheActuatorsBox) {
+  // A turn about y far past the stroke, gain ideal: the actuator sits at (stroke, 0) and the image
+  // shift is (stroke, c_yx stroke), outside the image-axes box the chain alone could reach.
+  StabiliserParameters p = saturatingStabiliser(false);
+  p.circular_stroke = false;
+  p.actuator_coupling = Eigen::Vector2d(0.1, -0.08);
+  LensShiftPredictor predictor(p, kFocalPx);
+  for (const auto& r : turnAndBack()) predictor.addRate(r);
+  const double stroke_px = kFocalPx * std::tan(0.5 * 3.14159265358979 / 180.0);
+  EXPECT_NEAR(predictor.lensShiftAt(0.2).x(), stroke_px, 0.01 * stroke_px);
+  EXPECT_NEAR(predictor.lensShiftAt(0.2).y(), -0.08 * stroke_px, 0.01 * stroke_px);
+}
+
+TEST(ActuatorCoupling, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
+  const StabiliserParameters p = coupledStabiliser();
+  ASSERT_EQ(p.validate(), "");
+  StabiliserParameters uncoupled = p;
+  uncoupled.actuator_coupling.setZero();
+  const auto rates = shake(10.0, 3.0, 1);  // reaches the 0.5 deg stroke
+  LensShiftPredictor whole(p, kFocalPx), framewise(p, kFocalPx), plain(uncoupled, kFocalPx);
+  for (const auto& r : rates) whole.addRate(r), plain.addRate(r);
+  std::size_t k = 0;
+  for (double frame_end = 10.0; k < rates.size(); frame_end += 1.0 / 30.0)
+    while (k < rates.size() && rates[k].stamp_s <= frame_end) framewise.addRate(rates[k++]);
+  double max_difference = 0.0, structural_part = 0.0;
+  for (double t = 11.0; t < 12.95; t += 0.01) {
+    max_difference = std::max(max_difference, (framewise.lensShiftAt(t) - whole.lensShiftAt(t)).norm());
+    structural_part = std::max(structural_part, (whole.lensShiftAt(t) - plain.lensShiftAt(t)).norm());
+  }
+  EXPECT_EQ(framewise.resets(), 0);
+  EXPECT_LT(max_difference, 1e-12);
+  EXPECT_GT(structural_part, 0.1);  // the coupling acts on this stream
+
+  // A gap: a centred lens, as a fresh model.
+  const CameraRateSample after{whole.newestStamp() + 0.5, Eigen::Vector3d(0.3, -0.2, 0.0)};
+  EXPECT_TRUE(whole.addRate(after));
+  EXPECT_EQ(whole.resets(), 1);
+  EXPECT_NEAR(whole.lensShiftAt(after.stamp_s).norm(), 0.0, 1e-12);
+  // Time jumps back: it starts over and predicts exactly as a fresh model fed the same samples.
+  LensShiftPredictor fresh(p, kFocalPx);
+  for (const auto& r : rates) {
+    if (r.stamp_s > 11.5) break;
+    EXPECT_TRUE(whole.addRate(r));
+    fresh.addRate(r);
+  }
+  EXPECT_EQ(whole.resets(), 2);
+  EXPECT_LT((whole.lensShiftAt(11.45) - fresh.lensShiftAt(11.45)).norm(), 1e-12);
+}
+
+TEST(ActuatorCoupling, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
+  StabiliserModelFile file;
+  file.name = "coupled";
+  file.parameters = coupledStabiliser();
+  file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
+  const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
+  EXPECT_DOUBLE_EQ(back.parameters.actuator_coupling.x(), 0.1);
+  EXPECT_DOUBLE_EQ(back.parameters.actuator_coupling.y(), -0.08);
+  LensShiftPredictor a(file.parameters, kFocalPx), b(back.parameters, kFocalPx);
+  for (const auto& r : shake(0.0, 2.0, 7)) a.addRate(r), b.addRate(r);
+  EXPECT_LT((a.lensShiftAt(1.9) - b.lensShiftAt(1.9)).norm(), 1e-6);
+  // A file without the field (every model before it) is an uncoupled chain.
+  StabiliserModelFile plain = file;
+  plain.parameters.actuator_coupling.setZero();
+  const std::string yaml = plain.toYaml();
+  EXPECT_EQ(yaml.find("actuator_coupling"), std::string::npos);
+  EXPECT_TRUE(StabiliserModelFile::fromYaml(yaml).parameters.actuator_coupling.isZero(0.0));
+  // A coupling beyond +-0.5 and a wrong count are named.
+  for (const char* replacement : {"actuator_coupling: [0.9, 0]", "actuator_coupling: [0.1]"}) {
+    std::string bad = file.toYaml();
+    const std::size_t at = bad.find("actuator_coupling:");
+    ASSERT_NE(at, std::string::npos);
+    bad.replace(at, bad.find('\n', at) - at, replacement);
+    try {
+      StabiliserModelFile::fromYaml(bad);
+      FAIL() << replacement << " was accepted";
+    } catch (const StabiliserModelFileError& e) {
+      EXPECT_NE(std::string(e.what()).find("actuator_coupling"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// A turned, coupled mount whose lens sits on its box stroke much of the time: the chain refitted
+// with the stroke in the actuator's axes and the coupling after it is kept by the held-out rule,
+// with about the true coupling.
+TEST(ActuatorCoupling, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.iterations = 15;
+  StabiliserParameters truth = knownStabiliser();  // its 0.8 x 1.2 deg box stroke
+  truth.gain = Eigen::Matrix2d(Eigen::Rotation2Dd(12.0 * 3.14159265358979 / 180.0)) * truth.gain;
+  truth.actuator_coupling = Eigen::Vector2d(0.1, 0.1);
+  const std::vector<StabiliserFitRecording> training = {observe(truth, 51, 0.02), observe(truth, 52, 0.02)};
+  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 53, 0.0)};
+  const StabiliserFitResult fit = fitStabiliser(training, options);
+  EXPECT_TRUE(fit.parameters.actuator_coupling.isZero(0.0));
+  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
+  for (const auto& c : selection.candidates)
+    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
+                c.training.rms_px, c.held_out.rms_px);
+  std::printf("[ figures  ] %s\n", selection.reason.c_str());
+  const StabiliserCandidate& kept = selection.candidates[selection.kept];
+  EXPECT_NEAR(kept.parameters.actuator_coupling.x(), 0.1, 0.03) << kept.name;
+  EXPECT_NEAR(kept.parameters.actuator_coupling.y(), 0.1, 0.03) << kept.name;
+  EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
+}
+
 // The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
 // included. The largest feature set, fed 30 s of 400 Hz gyro as 900 frames.
 TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
@@ -695,8 +813,9 @@ TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
   p.residual = Eigen::MatrixXd::Constant(2, 10, 0.01);
   p.nonlinear_features = "excursion_rate_v1";
   p.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount(p.nonlinear_features), 1e-3);
-  p.anti_windup = true;  // and both structural variants (an exp and an atan per step at most)
+  p.anti_windup = true;  // and the structural variants (an exp and an atan per step at most)
   p.excursion_centring = 1.0;
+  p.actuator_coupling = Eigen::Vector2d(0.1, 0.1);
   const auto rates = shake(0.0, 30.0, 9);
   LensShiftPredictor predictor(p, kFocalPx);
   const auto start = std::chrono::steady_clock::now();

@@ -7,7 +7,9 @@
 //  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
 //    returns);
 //  - the chain with a better structure, refitted (refitStabiliserStructure): an integrator held at
-//    the end stop (anti-windup), a re-centring corner that grows with the excursion, both;
+//    the end stop (anti-windup), a re-centring corner that grows with the excursion, both; the
+//    stroke in the actuator's own axes with a cross-coupling after the actuator (a turned or
+//    coupled mount);
 //  - then, each by ridge regression on what that leaves (StabiliserParameters::nonlinear_features):
 //    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
 //    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,

@@ -113,10 +113,12 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
                                   const StabiliserFitOptions& options,
                                   const ProgressCallback& progress = {});
 
-// Structural variants of the chain (StabiliserParameters::anti_windup, excursion_centring).
+// Structural variants of the chain (StabiliserParameters::anti_windup, excursion_centring,
+// actuator_coupling).
 struct StabiliserStructure {
   bool anti_windup = false;
   bool excursion_centring = false;  // its k fitted (from 1) with the other parameters
+  bool actuator_coupling = false;   // fitted (from 0) with the other parameters
 };
 
 // The chain of `fitted` (a fitStabiliser result) with `structure` switched on, refined by

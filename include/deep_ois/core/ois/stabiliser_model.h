@@ -47,6 +47,12 @@ struct StabiliserParameters {
   // e^2 = (u_x / stroke_x)^2 + (u_y / stroke_y)^2 for the command u before the stroke limit
   // (e = 1 on the stroke). k = excursion_centring, 0 = a fixed corner.
   double excursion_centring = 0.0;
+  // Cross-coupling after the actuator: the stroke limit and the actuator act in the actuator's own
+  // axes (the gain maps the camera's angles into them), and the image shift is
+  // (a_x + c_xy a_y, a_y + c_yx a_x) for the actuator's output a and actuator_coupling =
+  // (c_xy, c_yx) (a lens whose axes drag each other, a magnet turned against its coil). 0 = none.
+  // With the gain it places the stroke's box in the actuator's axes instead of the image's.
+  Eigen::Vector2d actuator_coupling = Eigen::Vector2d::Zero();
   // Pan detection: while the low-passed |pan/tilt rate| exceeds the threshold (0 = off) the
   // stabiliser re-centres with pan_release_corner_hz; below 0.7 x the threshold it holds again.
   double pan_detection_rate_rad_s = 0.0;
