@@ -331,6 +331,32 @@ StabiliserParameters withLinearResidual(const StabiliserParameters& physical,
   return final_parameters;
 }
 
+// `refined` with its linear residual bank (withLinearResidual) as the fit's result: parameters,
+// observation counts and the RMS with and without the bank. The bank is dropped, and the log says
+// so, when it raises the residual (it was fitted on Huber-weighted data).
+void keepWithLinearResidual(const StabiliserParameters& refined,
+                            const std::vector<StabiliserFitRecording>& recordings,
+                            const StabiliserFitOptions& options, StabiliserFitResult* result) {
+  const StabiliserParameters with_bank = withLinearResidual(refined, recordings, options);
+  const Residuals physical = residualsOf(refined, recordings, options);
+  const Residuals full = residualsOf(with_bank, recordings, options);
+  auto rms = [](const Residuals& r) {
+    return weightedRms(r.values, Eigen::VectorXd::Ones(r.values.size()));
+  };
+  result->parameters = with_bank;
+  result->observations_used = full.used;
+  result->observations_skipped = full.skipped;
+  result->rms_physical_px = rms(physical);
+  result->rms_px = rms(full);
+  if (result->rms_px > result->rms_physical_px) {
+    result->parameters = refined;
+    result->parameters.residual_time_constants_s.clear();
+    result->parameters.residual.resize(0, 0);
+    result->rms_px = result->rms_physical_px;
+    result->log.push_back("residual bank dropped: it did not lower the residual");
+  }
+}
+
 // A stabiliser cancels (about) the rotation: the gain's largest singular value is near 1 (0.8-1.1
 // on the simulator's modules, 0.97 for the generic model), whatever the axes' mapping and sign.
 constexpr double kMostGain = 1.5, kLeastGain = 0.3;
@@ -738,7 +764,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   }
 
   // The linear residual on what the physical model leaves (ridge least squares).
-  StabiliserParameters final_parameters = withLinearResidual(refined, recordings, options);
+  keepWithLinearResidual(refined, recordings, options, &result);
   tick();
 
   const Residuals none_residuals = [&] {
@@ -756,25 +782,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     r.values = Eigen::Map<Eigen::VectorXd>(values.data(), static_cast<long>(values.size()));
     return r;
   }();
-  const Residuals physical = residualsOf(refined, recordings, physical_options);
-  const Residuals full = residualsOf(final_parameters, recordings, physical_options);
-  auto rms = [&](const Residuals& r) {
-    return weightedRms(r.values, Eigen::VectorXd::Ones(r.values.size()));
-  };
-  result.parameters = final_parameters;
-  result.observations_used = full.used;
-  result.observations_skipped = full.skipped;
-  result.rms_without_model_px = rms(none_residuals);
-  result.rms_physical_px = rms(physical);
-  result.rms_px = rms(full);
-  // A residual that makes the fit worse (it was fitted on Huber-weighted data) is dropped.
-  if (result.rms_px > result.rms_physical_px) {
-    result.parameters = refined;
-    result.parameters.residual_time_constants_s.clear();
-    result.parameters.residual.resize(0, 0);
-    result.rms_px = result.rms_physical_px;
-    log("residual bank dropped: it did not lower the residual");
-  }
+  result.rms_without_model_px = weightedRms(none_residuals.values, Eigen::VectorXd::Ones(none_residuals.values.size()));
   result.review = reviewStabiliserFit(result.parameters);
   if (options.check_timing) {
     checkTiming(refined, recordings, physical_options, &result.review);
@@ -838,24 +846,7 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
        << refined.actuator_damping << ", stroke " << refined.stroke_x_deg << " x "
        << refined.stroke_y_deg << " deg, cost " << refined_cost;
   result.log.push_back(line.str());
-  StabiliserParameters final_parameters = withLinearResidual(refined, recordings, options);
-  const Residuals physical = residualsOf(refined, recordings, options);
-  const Residuals full = residualsOf(final_parameters, recordings, options);
-  auto rms = [&](const Residuals& r) {
-    return weightedRms(r.values, Eigen::VectorXd::Ones(r.values.size()));
-  };
-  result.parameters = final_parameters;
-  result.observations_used = full.used;
-  result.observations_skipped = full.skipped;
-  result.rms_physical_px = rms(physical);
-  result.rms_px = rms(full);
-  if (result.rms_px > result.rms_physical_px) {
-    result.parameters = refined;
-    result.parameters.residual_time_constants_s.clear();
-    result.parameters.residual.resize(0, 0);
-    result.rms_px = result.rms_physical_px;
-    result.log.push_back("residual bank dropped: it did not lower the residual");
-  }
+  keepWithLinearResidual(refined, recordings, options, &result);
   result.review = reviewStabiliserFit(result.parameters);
   return result;
 }
