@@ -178,7 +178,13 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     msg->model_version = static_cast<std::uint32_t>(version_in_use_);
     check_pub_.publish(msg);
   }
-  if (pairs_ % 15 == 0) updateDiagnostics();
+  // The figures every 15 pairs; the learning state every pair, as a fit lasts a fraction of a
+  // second and /diagnostics would otherwise rarely show "fitting".
+  if (pairs_ % 15 == 0) {
+    updateDiagnostics();
+  } else if (learner_) {
+    diagnostics_.setValue("learning", learner_->status().state);
+  }
 }
 
 bool OnlineLearningRos::fallingBack() const {
