@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/common/uniform_grid_interpolation.h"
+
 namespace deep_ois {
 namespace {
 
@@ -328,12 +330,7 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
 Eigen::VectorXd LensShiftPredictor::featuresAt(double t_s) const {
   if (feature_history_.empty()) return features_;
   const double last = static_cast<double>(feature_history_.size() - 1);
-  const double position = last - (clock_s_ - t_s) / step_s_;
-  if (!(position > 0.0)) return feature_history_.front();
-  if (position >= last) return feature_history_.back();
-  const std::size_t j = static_cast<std::size_t>(position);
-  const double alpha = position - static_cast<double>(j);
-  return (1.0 - alpha) * feature_history_[j] + alpha * feature_history_[j + 1];
+  return interpolateOnUniformGrid(feature_history_, last - (clock_s_ - t_s) / step_s_);
 }
 
 bool LensShiftPredictor::covers(double t_s) const {
@@ -346,12 +343,7 @@ bool LensShiftPredictor::covers(double t_s) const {
 Eigen::Vector2d LensShiftPredictor::lensShiftAt(double t_s) const {
   if (shifts_.empty()) return Eigen::Vector2d::Zero();
   const double last = static_cast<double>(shifts_.size() - 1);
-  const double position = last - (clock_s_ - t_s) / step_s_;
-  if (!(position > 0.0)) return shifts_.front();
-  if (position >= last) return shifts_.back();
-  const std::size_t j = static_cast<std::size_t>(position);
-  const double alpha = position - static_cast<double>(j);
-  return (1.0 - alpha) * shifts_[j] + alpha * shifts_[j + 1];
+  return interpolateOnUniformGrid(shifts_, last - (clock_s_ - t_s) / step_s_);
 }
 
 }  // namespace deep_ois

@@ -3,6 +3,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "deep_ois/core/common/uniform_grid_interpolation.h"
+
 namespace deep_ois {
 namespace sim {
 
@@ -18,13 +20,7 @@ double LensShiftGrid::endS() const {
 
 Eigen::Vector2d LensShiftGrid::at(double t_s) const {
   if (samples_.empty()) return Eigen::Vector2d::Zero();
-  const double position = (t_s - start_s_) * rate_hz_;
-  const double last = static_cast<double>(samples_.size() - 1);
-  if (!(position > 0.0)) return samples_.front();
-  if (position >= last) return samples_.back();
-  const std::size_t j = static_cast<std::size_t>(position);
-  const double alpha = position - static_cast<double>(j);
-  return (1.0 - alpha) * samples_[j] + alpha * samples_[j + 1];
+  return interpolateOnUniformGrid(samples_, (t_s - start_s_) * rate_hz_);
 }
 
 }  // namespace sim
