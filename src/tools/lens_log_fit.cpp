@@ -221,6 +221,14 @@ int main(int argc, char** argv) {
   app.add_option("--plots", plots, "write PREFIX_fold<N>.csv/.png: predicted and logged lens")
       ->type_name("PREFIX");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (!out_path.empty()) {
+    try {  // now, not after the fit: a mistyped --out folder must not cost the fit
+      deep_ois::StabiliserModelFile::checkSavable(out_path);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "lens_log_fit: --out: %s\n", e.what());
+      return 1;
+    }
+  }
 
   deep_ois::AndroidOisLog log;
   try {

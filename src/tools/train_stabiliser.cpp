@@ -104,6 +104,13 @@ int main(int argc, char** argv) {
   if (gyro_config.empty())
     return command_line.usageError("--gyro-config: package deep_ois not found, so give the file");
 
+  try {  // now, not after the fit: a mistyped --out folder must not cost the fit
+    deep_ois::StabiliserModelFile::checkSavable(out_path);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "train_stabiliser: --out: %s\n", e.what());
+    return 2;
+  }
+
   const auto started = std::chrono::steady_clock::now();
   deep_ois::GyroFlowParameters gyro;
   try {

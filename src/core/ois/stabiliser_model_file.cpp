@@ -2,7 +2,10 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 
 #include <yaml-cpp/yaml.h>
 
@@ -18,6 +21,30 @@ namespace deep_ois {
 namespace {
 
 constexpr const char* kFormatName = "deep_ois_stabiliser_model";
+
+// Why the model cannot be written beside `path` (the file is created in the target's folder, then
+// renamed): names the folder, since a mistyped --out folder is the usual cause, and the system's
+// reason (`error`, the errno of the failed open).
+std::string whyNotWritable(const std::string& path, int error) {
+  std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  if (parent.empty()) parent = ".";
+  const std::string folder = parent.string();
+  std::error_code ignored;
+  std::string problem;
+  if (!std::filesystem::exists(parent, ignored))
+    problem = "the folder " + folder + " does not exist";
+  else if (!std::filesystem::is_directory(parent, ignored))
+    problem = folder + " is not a folder";
+  else
+    problem = "cannot create a file in the folder " + folder;
+  return "cannot write the stabiliser model: " + problem + " (" + std::strerror(error) + ")";
+}
+
+// The complete file written beside `path` and renamed onto it (per process: two writers of the
+// same model do not write into one partial file).
+std::string partialPathFor(const std::string& path) {
+  return path + ".partial." + std::to_string(::getpid());
+}
 
 template <typename T>
 T required(const YAML::Node& node, const std::string& key) {
@@ -208,24 +235,42 @@ StabiliserModelFile StabiliserModelFile::load(const std::string& path) {
   }
 }
 
+void StabiliserModelFile::checkSavable(const std::string& path) {
+  const std::string partial = partialPathFor(path);
+  {
+    std::ofstream probe(partial);
+    if (!probe) {
+      const int error = errno;  // of the failed open, before anything else can change it
+      throw StabiliserModelFileError(path + ": " + whyNotWritable(path, error));
+    }
+  }
+  std::remove(partial.c_str());
+}
+
 void StabiliserModelFile::save(const std::string& path) const {
   // Written beside the target, then renamed over it: a reader (or a process killed mid-write)
   // sees the old complete file or the new complete file, never a partial one.
-  const std::string partial = path + ".partial." + std::to_string(::getpid());
+  const std::string partial = partialPathFor(path);
   {
     std::ofstream out(partial);
-    if (!out) throw StabiliserModelFileError(path + ": cannot write the stabiliser model (" + partial + ")");
+    if (!out) {
+      const int error = errno;  // of the failed open, before anything else can change it
+      throw StabiliserModelFileError(path + ": " + whyNotWritable(path, error));
+    }
     out << "# deep_ois learned stabiliser model (core/ois/stabiliser_model.h): " << name << "\n"
         << toYaml();
     out.flush();
     if (!out) {
+      const int error = errno;
       std::remove(partial.c_str());
-      throw StabiliserModelFileError(path + ": write failed");
+      throw StabiliserModelFileError(path + ": write failed (" + std::strerror(error) + ")");
     }
   }
   if (std::rename(partial.c_str(), path.c_str()) != 0) {
+    const int error = errno;
     std::remove(partial.c_str());
-    throw StabiliserModelFileError(path + ": cannot replace it with the new model (rename failed)");
+    throw StabiliserModelFileError(path + ": cannot replace it with the new model (rename failed: " +
+                                   std::strerror(error) + ")");
   }
 }
 

@@ -2,12 +2,17 @@
 // case with a closed form, the fit recovering a known stabiliser, the model file and the camera
 // check, and the compensated homographies.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "deep_ois/core/camera/camera_description.h"
@@ -389,6 +394,58 @@ TEST(StabiliserModelFile, RoundTripsEveryFieldAndNamesABadOne) {
   expectRefusedNaming(yaml, "actuator_damping", "a model without actuator_damping was accepted");
   EXPECT_THROW(StabiliserModelFile::fromYaml("format: something_else\n"), StabiliserModelFileError);
   EXPECT_THROW(StabiliserModelFile::load("/nonexistent/model.yaml"), StabiliserModelFileError);
+}
+
+// A mistyped --out folder (train_stabiliser, lens_log_fit, the online learner all save through
+// StabiliserModelFile::save): the error names the folder and the system's reason, and the folder
+// is not created behind the user's back.
+TEST(StabiliserModelFile, SavingWhereTheFolderIsMissingNamesTheFolder) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("deep_ois_model_file_test_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  StabiliserModelFile file;
+  file.name = "test camera";
+  file.parameters = knownStabiliser();
+
+  const fs::path missing = dir / "mistyped_folder";
+  for (const bool probe_only : {true, false}) {
+    try {
+      if (probe_only)
+        StabiliserModelFile::checkSavable((missing / "model.yaml").string());
+      else
+        file.save((missing / "model.yaml").string());
+      ADD_FAILURE() << "saving into a missing folder was accepted";
+    } catch (const StabiliserModelFileError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("the folder " + missing.string() + " does not exist"), std::string::npos)
+          << what;
+      EXPECT_NE(what.find(std::strerror(ENOENT)), std::string::npos) << "the system's reason: " << what;
+    }
+    EXPECT_FALSE(fs::exists(missing)) << "the folder was created behind the user's back";
+  }
+
+  const fs::path not_a_folder = dir / "a_file";
+  std::ofstream(not_a_folder) << "not a folder\n";
+  try {
+    file.save((not_a_folder / "model.yaml").string());
+    ADD_FAILURE() << "saving below a file was accepted";
+  } catch (const StabiliserModelFileError& e) {
+    EXPECT_NE(std::string(e.what()).find(not_a_folder.string() + " is not a folder"),
+              std::string::npos)
+        << e.what();
+  }
+
+  // Where the folder exists: the probe leaves nothing behind, the model reads back.
+  const std::string good = (dir / "model.yaml").string();
+  StabiliserModelFile::checkSavable(good);
+  file.save(good);
+  EXPECT_EQ(StabiliserModelFile::load(good).name, file.name);
+  std::size_t entries = 0;
+  for ([[maybe_unused]] const auto& entry : fs::directory_iterator(dir)) ++entries;
+  EXPECT_EQ(entries, 2u) << "a partial file was left beside the model";
+  fs::remove_all(dir);
 }
 
 TEST(CameraDescription, FrameRateFromStampsIgnoresADroppedFrame) {

@@ -46,7 +46,12 @@ struct StabiliserModelFile {
   // Throws StabiliserModelFileError naming the missing or malformed field.
   static StabiliserModelFile fromYaml(const std::string& yaml_text);
   static StabiliserModelFile load(const std::string& path);  // errors name the file
+  // Atomic (written beside `path`, then renamed). Errors name the file and, when it cannot be
+  // created, its folder (missing, not a folder or not writable) and the system's reason.
   void save(const std::string& path) const;
+  // Throws the error save() would throw for a missing or unwritable folder, without writing the
+  // model: tools call it before a long fit, so a mistyped --out does not cost the fit.
+  static void checkSavable(const std::string& path);
 };
 
 // Whether a path names a stabiliser model (.yaml) rather than a network (.pt).
