@@ -10,6 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/ois/camera_rate_cursor.h"
+
 namespace deep_ois {
 namespace {
 
@@ -255,16 +257,10 @@ class ResidualBank {
     const double end = recording.rates.back().stamp_s;
     const std::size_t steps = static_cast<std::size_t>((end - start) / step_s_) + 1;
     std::vector<Eigen::VectorXd> states(steps + 1, Eigen::VectorXd::Zero(2 * k_count));
-    std::size_t r = 0;
+    CameraRateCursor rates(recording.rates);
     for (std::size_t j = 0; j < steps; ++j) {
       const double middle = start + (static_cast<double>(j) + 0.5) * step_s_;
-      while (r + 1 < recording.rates.size() && recording.rates[r + 1].stamp_s < middle) ++r;
-      Eigen::Vector2d rate = recording.rates[r].rate_rad_s.head<2>();
-      if (r + 1 < recording.rates.size()) {
-        const double t0 = recording.rates[r].stamp_s, t1 = recording.rates[r + 1].stamp_s;
-        const double alpha = std::clamp((middle - t0) / (t1 - t0), 0.0, 1.0);
-        rate = (1.0 - alpha) * rate + alpha * recording.rates[r + 1].rate_rad_s.head<2>();
-      }
+      const Eigen::Vector2d rate = rates.at(middle).head<2>();
       Eigen::VectorXd next = states[j];
       for (std::size_t k = 0; k < k_count; ++k) {
         next(static_cast<long>(k)) = decay_[k] * next(static_cast<long>(k)) + weight_[k] * rate.x();

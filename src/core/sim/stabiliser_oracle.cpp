@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "deep_ois/core/ois/camera_rate_cursor.h"
 #include "deep_ois/core/sim/stabiliser_lens_loop.h"
 
 namespace deep_ois {
@@ -38,19 +39,10 @@ StabiliserOracle::StabiliserOracle(const OisConfig& config, double focal_px,
   }
   const int steps = std::max(
       1, static_cast<int>(std::ceil((last_s_ - start_s_) * config.control_rate_hz)));
-  // The controller asks for the rate at its steps in increasing time: a cursor, linear between
-  // the gyro's samples, held before the first and after the last.
-  std::size_t next = 1;
-  auto rate = [&samples, &next](double t_s) -> Eigen::Vector3d {
-    while (next < samples.size() && samples[next].stamp_s < t_s) ++next;
-    if (next >= samples.size()) return samples.back().rate_rad_s;
-    const CameraRateSample& before = samples[next - 1];
-    const CameraRateSample& after = samples[next];
-    if (t_s <= before.stamp_s) return before.rate_rad_s;
-    const double alpha = (t_s - before.stamp_s) / (after.stamp_s - before.stamp_s);
-    return (1.0 - alpha) * before.rate_rad_s + alpha * after.rate_rad_s;
-  };
-  grid_ = runStabiliser(config, focal_px, start_s_, steps, rate, nullptr);
+  // The controller asks for the rate at its steps in increasing time.
+  CameraRateCursor rate(samples);
+  grid_ = runStabiliser(config, focal_px, start_s_, steps,
+                        [&rate](double t_s) { return rate.at(t_s); }, nullptr);
 }
 
 }  // namespace sim

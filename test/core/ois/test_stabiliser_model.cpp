@@ -16,6 +16,7 @@
 #include <random>
 
 #include "deep_ois/core/camera/camera_description.h"
+#include "deep_ois/core/ois/camera_rate_cursor.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
@@ -446,6 +447,20 @@ TEST(StabiliserModelFile, SavingWhereTheFolderIsMissingNamesTheFolder) {
   for ([[maybe_unused]] const auto& entry : fs::directory_iterator(dir)) ++entries;
   EXPECT_EQ(entries, 2u) << "a partial file was left beside the model";
   fs::remove_all(dir);
+}
+
+TEST(CameraRateCursor, IsLinearBetweenSamplesAndHeldOutsideThem) {
+  const std::vector<CameraRateSample> rates = {{1.0, Eigen::Vector3d(1.0, 0.0, -2.0)},
+                                               {1.5, Eigen::Vector3d(3.0, 1.0, -2.0)},
+                                               {2.5, Eigen::Vector3d(-1.0, 1.0, 0.0)}};
+  CameraRateCursor cursor(rates);
+  EXPECT_TRUE(cursor.at(0.2).isApprox(rates[0].rate_rad_s)) << "held before the first sample";
+  EXPECT_TRUE(cursor.at(1.0).isApprox(rates[0].rate_rad_s));
+  EXPECT_TRUE(cursor.at(1.25).isApprox(Eigen::Vector3d(2.0, 0.5, -2.0)));
+  EXPECT_TRUE(cursor.at(1.5).isApprox(rates[1].rate_rad_s));
+  EXPECT_TRUE(cursor.at(2.0).isApprox(Eigen::Vector3d(1.0, 1.0, -1.0)));
+  EXPECT_TRUE(cursor.at(2.5).isApprox(rates[2].rate_rad_s));
+  EXPECT_TRUE(cursor.at(9.0).isApprox(rates[2].rate_rad_s)) << "held after the last sample";
 }
 
 TEST(CameraDescription, FrameRateFromStampsIgnoresADroppedFrame) {
