@@ -210,8 +210,7 @@ class OnlineStabiliserLearner {
   OnlineLearningStatus status_;
   double credit_s_ = 0.0;  // CPU seconds the budget allows now, less a running fit's reservation
   double credit_stamp_s_ = 0.0;
-  // The last fits' measured CPU per lens motion, seconds, after a conservative start value.
-  std::deque<double> fit_cpu_per_motion_s_;
+  std::deque<double> fit_cpu_per_motion_s_;  // the last fits' measured CPU per lens motion, seconds
   double fit_waiting_cpu_s_ = 0.0;  // the credit a requested fit waits for (0: none waits)
   bool fit_held_ = false;           // the credit was found short for the requested fit...
   double fit_held_at_s_ = 0.0;      // ...at this budget clock time
