@@ -30,6 +30,18 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kMinimumWindowFraction = 0.5;
 // Credit the budget may save up while idle, in seconds of the share (a burst after a quiet time).
 constexpr double kBudgetBurstS = 20.0;
+// A fit's expected CPU: the highest CPU per lens motion among the last kFitCostHistory fits, times
+// the lens motions it will use (its training and held-out windows: its cost grows with both), times
+// a margin. Measured, so it follows whatever a fit costs on this machine with these options. The
+// cost per lens motion is not constant: it grew with the data, 0.07-0.41 ms from one fit to the
+// next in the replays (up to 1.8x between consecutive fits); the highest of a few and the margin
+// keep most fits within their estimate, and the leftover of an overestimate is spent afterwards.
+constexpr std::size_t kFitCostHistory = 4;
+constexpr double kFitCostMargin = 1.5;
+// Before any fit was measured, CPU seconds per lens motion: above the first fits measured at
+// 360x270-640x480, 30 and 60 frames/s (0.07-0.17 ms on the development machine).
+// Whatever a fit costs beyond its estimate is a debt, paid back before any other work starts.
+constexpr double kStartFitCpuPerMotionS = 0.4e-3;
 
 double wallNow() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -190,7 +202,11 @@ OnlineLearningStatus OnlineStabiliserLearner::status() const {
 void OnlineStabiliserLearner::setLearning(bool on) {
   std::lock_guard<std::mutex> lock(mutex_);
   options_.learning = on;
-  if (!on) fit_requested_ = false;
+  if (!on) {
+    fit_requested_ = false;
+    fit_waiting_cpu_s_ = 0.0;  // the tracking need not yield to a fit that will not run
+    fit_held_ = false;
+  }
   status_.state = on ? "collecting" : "off";
 }
 
@@ -211,13 +227,16 @@ void OnlineStabiliserLearner::restartTimeline() {
 bool OnlineStabiliserLearner::waitIdle(double timeout_s) {
   std::unique_lock<std::mutex> lock(mutex_);
   return idle_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] {
-    return stopping_ || (queue_.empty() && !tracking_busy_ && !fit_requested_ && !fitting_);
+    // A fit held for credit on the caller's clock waits for the caller (the wall clock moves alone).
+    const bool fit_waits_for_caller =
+        fit_requested_ && fit_held_ && options_.budget_clock && clockNow() == fit_held_at_s_;
+    return stopping_ || (queue_.empty() && !tracking_busy_ && !fitting_ && (!fit_requested_ || fit_waits_for_caller));
   });
 }
 
-void OnlineStabiliserLearner::charge(double cpu_s) {
+void OnlineStabiliserLearner::charge(double cpu_s, double reserved_s) {
   std::lock_guard<std::mutex> lock(mutex_);
-  credit_s_ -= cpu_s;
+  credit_s_ += reserved_s - cpu_s;
   status_.cpu_s += cpu_s;
 }
 
@@ -225,23 +244,53 @@ double OnlineStabiliserLearner::clockNow() const {
   return options_.budget_clock ? options_.budget_clock() : wallNow();
 }
 
-bool OnlineStabiliserLearner::withinBudget() {
+void OnlineStabiliserLearner::accrueCredit() {
   const double now = clockNow();
-  credit_s_ = std::min(credit_s_ + options_.cpu_share * std::max(0.0, now - credit_stamp_s_),
-                       options_.cpu_share * kBudgetBurstS);
+  // The saving is capped (a quiet time buys a bounded burst), but never below what a waiting fit
+  // needs: a fit dearer than the cap would otherwise never start.
+  const double cap = std::max(options_.cpu_share * kBudgetBurstS, fit_waiting_cpu_s_);
+  credit_s_ = std::min(credit_s_ + options_.cpu_share * std::max(0.0, now - credit_stamp_s_), cap);
   credit_stamp_s_ = now;
-  return credit_s_ >= 0.0;
 }
 
-bool OnlineStabiliserLearner::waitForBudget() {
-  std::unique_lock<std::mutex> lock(mutex_);
+bool OnlineStabiliserLearner::withinBudget(double expected_cpu_s) {
+  accrueCredit();
+  // A waiting fit goes first: tracking that took the credit as it came would starve it.
+  return fit_waiting_cpu_s_ == 0.0 && credit_s_ >= expected_cpu_s;
+}
+
+double OnlineStabiliserLearner::expectedFitCpuS(std::size_t lens_motions) const {
+  const double per_motion_s =
+      fit_cpu_per_motion_s_.empty()
+          ? kStartFitCpuPerMotionS
+          : kFitCostMargin * *std::max_element(fit_cpu_per_motion_s_.begin(), fit_cpu_per_motion_s_.end());
+  return per_motion_s * static_cast<double>(lens_motions);
+}
+
+bool OnlineStabiliserLearner::waitForBudget(std::unique_lock<std::mutex>& lock) {
+  bool delayed = false;
   for (;;) {
     if (stopping_) return false;
-    if (withinBudget()) return true;
-    // Sleeps until the share has paid the debt back (woken early only to stop).
-    const double wait_s = std::min(-credit_s_ / options_.cpu_share, 1.0);
-    wake_fit_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; });
+    if (!fit_requested_) break;  // learning switched off meanwhile
+    std::size_t motions = 0;
+    for (const auto& w : windows_) motions += w->recording.observations.size();
+    fit_waiting_cpu_s_ = expectedFitCpuS(motions);
+    accrueCredit();
+    if (credit_s_ >= fit_waiting_cpu_s_) break;
+    if (!delayed) ++status_.fits_delayed_by_budget;
+    delayed = true;
+    fit_held_ = true;
+    fit_held_at_s_ = credit_stamp_s_;
+    status_.state = "over budget";
+    idle_.notify_all();
+    // Sleeps until the share should have brought the credit (woken early by a skipped pair or to
+    // stop); at most 0.1 s, as the budget clock need not run at the wall clock's pace (a replay).
+    const double wait_s = std::clamp((fit_waiting_cpu_s_ - credit_s_) / options_.cpu_share, 0.005, 0.1);
+    wake_fit_.wait_for(lock, std::chrono::duration<double>(wait_s));
   }
+  fit_waiting_cpu_s_ = 0.0;
+  fit_held_ = false;
+  return true;
 }
 
 void OnlineStabiliserLearner::trackingLoop() {
@@ -260,9 +309,11 @@ void OnlineStabiliserLearner::trackingLoop() {
       if (queue_.empty()) continue;  // dropped by restartTimeline
       pair = std::move(queue_.front());
       queue_.pop_front();
-      // Over the budget, pairs are skipped until it is back, but a window being built is finished.
-      if (window_stamps_s_.empty() && !withinBudget()) {
+      // A new window (or a pair outside windows) starts only when the credit covers what the last
+      // one cost; skipped pairs are counted. A window being built is finished.
+      if (window_stamps_s_.empty() && !withinBudget(last_window_cpu_s_)) {
         ++status_.pairs_over_budget;
+        if (fit_waiting_cpu_s_ > 0.0) wake_fit_.notify_all();  // the budget clock moved: it may start
         continue;
       }
     }
@@ -274,7 +325,13 @@ void OnlineStabiliserLearner::trackingLoop() {
       status_.last_problem = std::string("pair ") + std::to_string(pair.stamp_b_s) + ": " + e.what();
     }
     pair = OnlineFramePair();  // the frames go back to their owner now
-    charge(threadCpuNow() - cpu_start);
+    const double cpu_s = threadCpuNow() - cpu_start;
+    charge(cpu_s);
+    window_cpu_s_ += cpu_s;
+    if (window_stamps_s_.empty()) {  // the window ended (or the pair was not part of one)
+      last_window_cpu_s_ = window_cpu_s_;
+      window_cpu_s_ = 0.0;
+    }
   }
 }
 
@@ -392,7 +449,7 @@ void OnlineStabiliserLearner::closeWindow() {
   if (count == 0 || window->motion_rad_s < options_.still_rate_rad_s) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++status_.windows_still;
-    if (options_.learning && !fitting_) status_.state = "waiting for motion";
+    if (options_.learning && !fitting_ && !fit_held_) status_.state = "waiting for motion";
     return;
   }
   try {
@@ -424,7 +481,7 @@ void OnlineStabiliserLearner::closeWindow() {
     windows_.push_back(window);
     ++status_.windows_kept;
     new_seconds_ += window->seconds();
-    if (!fitting_) status_.state = "collecting";
+    if (!fitting_ && !fit_held_) status_.state = "collecting";
     // Bounded: beyond buffer_s, the least moving window outside the held-out end goes.
     double total = 0.0;
     for (const auto& w : windows_) total += w->seconds();
@@ -451,26 +508,34 @@ void OnlineStabiliserLearner::closeWindow() {
 void OnlineStabiliserLearner::fitLoop() {
   for (;;) {
     std::vector<std::shared_ptr<const Window>> windows;
+    std::size_t motions = 0;
+    double reserved_s = 0.0;
     {
       std::unique_lock<std::mutex> lock(mutex_);
       idle_.notify_all();
       wake_fit_.wait(lock, [this] { return stopping_ || fit_requested_; });
-      if (stopping_) return;
-    }
-    if (!waitForBudget()) return;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
+      if (!waitForBudget(lock)) return;
       if (!fit_requested_) continue;  // learning switched off meanwhile
       fit_requested_ = false;
       fitting_ = true;
       new_seconds_ = 0.0;
       status_.state = "fitting";
       windows = windows_;
+      for (const auto& w : windows) motions += w->recording.observations.size();
+      // The expected cost is taken from the credit now, so that the tracking meanwhile spends only
+      // what is left; the difference to the measured cost is settled when the fit ends.
+      reserved_s = expectedFitCpuS(motions);
+      credit_s_ -= reserved_s;
     }
     const double cpu_start = threadCpuNow();
     fitOnce(std::move(windows));
-    charge(threadCpuNow() - cpu_start);
+    const double cpu_s = threadCpuNow() - cpu_start;
+    charge(cpu_s, reserved_s);
     std::lock_guard<std::mutex> lock(mutex_);
+    if (motions > 0) {
+      fit_cpu_per_motion_s_.push_back(cpu_s / static_cast<double>(motions));
+      if (fit_cpu_per_motion_s_.size() > kFitCostHistory) fit_cpu_per_motion_s_.pop_front();
+    }
     fitting_ = false;
     if (status_.state == "fitting") status_.state = options_.learning ? "collecting" : "off";
   }

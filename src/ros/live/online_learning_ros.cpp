@@ -209,7 +209,7 @@ void OnlineLearningRos::updateDiagnostics() {
   if (!learner_) return;
   const std::shared_ptr<const LearnedStabiliser> model = learner_->model();
   const OnlineLearningStatus s = learner_->status();
-  char text[160];
+  char text[200];
   diagnostics_.setValue("model in use", model->name + " (version " + std::to_string(model->version) + ")");
   std::snprintf(text, sizeof text, "%.3f px (no lens motion %.3f px)", model->held_out_rms_px,
                 model->held_out_rms_without_px);
@@ -222,9 +222,11 @@ void OnlineLearningRos::updateDiagnostics() {
                 s.pairs_checked ? 100.0 * s.pairs_falling_back / s.pairs_checked : 0.0, s.pairs_checked,
                 s.pairs_unusable);
   diagnostics_.setValue("fallback to the plain gyro", params_.fallback_to_gyro ? text : "off (~fallback_to_gyro)");
-  std::snprintf(text, sizeof text, "%.1f %% of a core (budget %.0f %%); %zu pairs skipped over budget",
+  std::snprintf(text, sizeof text,
+                "%.1f %% of a core (budget %.0f %%); %zu pairs skipped over budget, %zu fits waited for it; "
+                "%zu pairs dropped (queue full)",
                 s.wall_s > 0.0 ? 100.0 * s.cpu_s / s.wall_s : 0.0, 100.0 * params_.learning_cpu_share,
-                s.pairs_dropped_busy);
+                s.pairs_over_budget, s.fits_delayed_by_budget, s.pairs_dropped_busy);
   diagnostics_.setValue("learning CPU", text);
   if (!s.last_choice.empty()) diagnostics_.setValue("learning: last choice", s.last_choice);
   if (!s.last_problem.empty()) diagnostics_.setValue("learning: last problem", s.last_problem);

@@ -9,6 +9,8 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -121,6 +123,10 @@ StabiliserParameters wrongPrior() {
   return p;
 }
 
+// The budget test: a share tight enough that fits wait for their credit; the charged CPU may
+// exceed the share by this much (CPU seconds).
+constexpr double kBudgetTestShare = 0.01, kBudgetTestToleranceS = 0.02;
+
 OnlineLearningOptions testOptions() {
   OnlineLearningOptions o;
   o.window_s = 2.0;
@@ -129,6 +135,11 @@ OnlineLearningOptions testOptions() {
   o.buffer_s = 20.0;
   o.refit_every_s = 100.0;  // one fit, requested by feedAndFit
   o.cpu_share = 1.0;
+  // These tests are about the choice, not the budget: its clock runs at 5x the wall clock's pace, so
+  // that a fit does not wait a second of the test for its credit.
+  o.budget_clock = [] {
+    return 5.0 * std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  };
   o.max_queued_pairs = 100000;
   o.fit.iterations = 10;
   o.fit.pan_thresholds_rad_s = {0.0};
@@ -210,6 +221,53 @@ TEST(OnlineStabiliserLearner, LearningOffChecksButNeverFits) {
   EXPECT_EQ(status.windows_kept, 0u);
   EXPECT_GT(status.pairs_checked, 200u);
   EXPECT_EQ(learner.takeVerdicts().size(), status.pairs_checked);
+}
+
+// The budget holds on average with the fits counted: on a budget clock that runs in the pairs'
+// time (a replay), the CPU the learner charged must never exceed the share of the time so far by
+// more than a small tolerance (a window of tracking dearer than the last one). The share is tight:
+// the tracking fits in it, a fit (~0.1-0.3 s here) does not, so each fit has to wait for its
+// credit. Charged when it ended (a debt), a fit started on any credit above zero and its whole
+// cost landed on top of the share.
+TEST(OnlineStabiliserLearner, ChargedCpuStaysWithinTheShareFitsIncluded) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 2.0;
+  options.cpu_share = kBudgetTestShare;
+  std::atomic<double> clock_s{0.0};
+  options.budget_clock = [&clock_s] { return clock_s.load(); };
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  double worst_excess_s = -1e9, largest_step_s = 0.0, charged_s = 0.0;
+  // Sets the clock, lets the learner do what its credit allows, and checks what it charged.
+  auto advanceTo = [&](double t) {
+    clock_s.store(t);
+    ASSERT_TRUE(learner.waitIdle(10.0));
+    const OnlineLearningStatus s = learner.status();
+    worst_excess_s = std::max(worst_excess_s, s.cpu_s - options.cpu_share * t);
+    largest_step_s = std::max(largest_step_s, s.cpu_s - charged_s);
+    charged_s = s.cpu_s;
+  };
+  double t = 0.0;
+  for (int round = 0; round < 3; ++round) {
+    // Pairs in real time, then time without pairs until a fit waiting for its credit has run.
+    for (auto& pair : makePairs(ideal(), 12.0, 1.0, 7 + round, 20.0 * round)) {
+      ASSERT_TRUE(learner.submit(std::move(pair)));
+      advanceTo(t += kFramePeriod);
+    }
+    for (int k = 0; k < 40 && learner.status().state == "over budget"; ++k) advanceTo(t += 25.0);
+  }
+  const OnlineLearningStatus status = learner.status();
+  std::printf("budget test: %zu fits (%zu delayed), %zu pairs skipped, %.3f s CPU over %.1f s, worst excess %.3f s, "
+              "largest step %.3f s\n", status.fits, status.fits_delayed_by_budget, status.pairs_over_budget,
+              status.cpu_s, t, worst_excess_s, largest_step_s);
+  EXPECT_LE(worst_excess_s, kBudgetTestToleranceS) << "charged above the share";
+  // The test can fail: a fit costs several times the tolerance, and the budget did hold fits back.
+  EXPECT_GT(largest_step_s, 3.0 * kBudgetTestToleranceS);
+  EXPECT_GE(status.fits_delayed_by_budget, 2u);
+  EXPECT_GT(status.pairs_over_budget, 0u);
+  // Learning goes on within the budget: a fit per round, the first one swapped in.
+  EXPECT_GE(status.fits, 3u) << status.last_problem;
+  EXPECT_GE(status.swaps, 1u) << status.last_choice;
+  EXPECT_EQ(learner.model()->name.rfind("fit on", 0), 0u) << learner.model()->name;
 }
 
 TEST(OnlineStabiliserLearner, RefusesBadOptions) {

@@ -12,9 +12,14 @@
 // Threads: submit() only moves a pair into a bounded queue (it never waits for tracking or a fit;
 // a full queue drops the pair, counted). A tracking thread tracks, checks and builds the windows;
 // a fit thread fits. Both share one CPU budget (a share of one core, measured on their own thread
-// CPU time): over it, the fit waits, and the tracking skips pairs (counted) until the budget is
-// back, but only between windows (a window of consecutive pairs is tracked whole: a pair skipped
-// inside one would cut it). The destructor stops both (it waits for a fit in progress to end).
+// CPU time): a credit accrues at the share and each piece of work is charged what it cost. Work
+// starts only when the credit already covers its expected cost, measured on the work before it (a
+// fit: the last fits' CPU per lens motion times the lens motions it will use; a window of tracking:
+// the last window's), so the average holds over any span, the last fit included; a fit waiting for
+// its credit has priority (no new window starts meanwhile). Pairs not tracked for the budget are
+// skipped (counted), but only between windows (a window of consecutive pairs is tracked whole: a
+// pair skipped inside one would cut it). The destructor stops both (it waits for a fit in progress
+// to end).
 //
 // A still camera learns nothing and loses nothing: a window whose gyro barely moves is not kept
 // (its lens motion says nothing about the stabiliser), and without new data no fit runs. Pure
@@ -119,9 +124,11 @@ struct PairVerdict {
 };
 
 struct OnlineLearningStatus {
-  std::string state;  // "off", "collecting", "fitting", "waiting for motion", "over budget"
+  // "off", "collecting", "fitting", "waiting for motion", "over budget" (a fit waits for its credit)
+  std::string state;
   std::size_t pairs_submitted = 0, pairs_dropped_busy = 0, pairs_checked = 0, pairs_unusable = 0;
-  std::size_t pairs_over_budget = 0;  // skipped by the tracking while over the CPU budget
+  std::size_t pairs_over_budget = 0;  // skipped by the tracking for the CPU budget
+  std::size_t fits_delayed_by_budget = 0;  // fits that waited for their credit before starting
   std::size_t pairs_falling_back = 0;  // checked pairs after which the plain gyro was in use
   std::size_t windows_kept = 0, windows_still = 0, windows_failed = 0, windows_dropped = 0;
   std::size_t pairs_without_tracks = 0;  // left out of the lens motions (too few inlier tracks)
@@ -160,7 +167,9 @@ class OnlineStabiliserLearner {
   // Time went back (a bag that loops): the window being built and the queued pairs belong to the
   // other timeline and are dropped; the kept windows stay (the camera is the same).
   void restartTimeline();
-  // For tests and benchmarks: waits until the queue is empty and no fit runs (or the timeout).
+  // For tests and benchmarks: waits until the queue is empty and no fit runs (or the timeout). With
+  // options.budget_clock given, a fit waiting for credit that the clock has not brought yet counts
+  // as idle (the caller moves that clock: nothing happens until it does).
   bool waitIdle(double timeout_s);
 
  private:
@@ -170,11 +179,17 @@ class OnlineStabiliserLearner {
   void process(OnlineFramePair& pair);
   void closeWindow();
   void fitOnce(std::vector<std::shared_ptr<const Window>> windows);
-  // Blocks while the CPU budget is spent (or until stopping); returns false when stopping.
-  bool waitForBudget();
-  bool withinBudget();  // under mutex_: updates the credit, true when not over the budget
+  // Under mutex_ (held by `lock`): blocks until the credit covers the requested fit's expected cost,
+  // the request is withdrawn (learning off) or the learner stops; false when stopping.
+  bool waitForBudget(std::unique_lock<std::mutex>& lock);
+  // Under mutex_: accrues the credit up to now; true when it covers `expected_cpu_s` of tracking
+  // and no fit is waiting for the credit.
+  bool withinBudget(double expected_cpu_s);
+  void accrueCredit();                                // under mutex_
+  double expectedFitCpuS(std::size_t lens_motions) const;  // under mutex_
   double clockNow() const;
-  void charge(double cpu_s);
+  // Charges `cpu_s` spent, giving back `reserved_s` set aside for it when it started.
+  void charge(double cpu_s, double reserved_s = 0.0);
 
   OnlineLearningOptions options_;
   std::vector<ModelCandidate> priors_;
@@ -193,8 +208,12 @@ class OnlineStabiliserLearner {
   std::vector<std::shared_ptr<const Window>> windows_;  // oldest first
   double new_seconds_ = 0.0;  // of windows since the last fit
   OnlineLearningStatus status_;
-  double credit_s_ = 0.0;  // CPU seconds the budget allows now (negative: over it)
+  double credit_s_ = 0.0;  // CPU seconds the budget allows now, less a running fit's reservation
   double credit_stamp_s_ = 0.0;
+  std::deque<double> fit_cpu_per_motion_s_;  // the last fits' measured CPU per lens motion, seconds
+  double fit_waiting_cpu_s_ = 0.0;  // the credit a requested fit waits for (0: none waits)
+  bool fit_held_ = false;           // the credit was found short for the requested fit...
+  double fit_held_at_s_ = 0.0;      // ...at this budget clock time
   double started_s_ = 0.0;
 
   // Tracking thread only: the window being built.
@@ -205,6 +224,8 @@ class OnlineStabiliserLearner {
   std::deque<CameraRateSample> rates_;  // recent camera-frame gyro, increasing stamps
   std::uint64_t timeline_ = 0;          // bumped by restartTimeline (under mutex_)
   std::uint64_t window_timeline_ = 0;
+  double window_cpu_s_ = 0.0;       // CPU of the window being tracked so far
+  double last_window_cpu_s_ = 0.0;  // CPU of the last window (of the last pair outside windows)
 
   std::thread tracking_thread_, fit_thread_;
 };
