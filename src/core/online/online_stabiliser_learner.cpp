@@ -491,8 +491,15 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
   const std::shared_ptr<const LearnedStabiliser> current = model();
   std::vector<ModelCandidate> candidates = {{current->name + " (in use)", current->parameters}};
   try {
-    StabiliserFitResult fit = fitStabiliser(training, options_.fit);
-    candidates.push_back({"fit on " + std::to_string(fit.observations_used) + " lens motions", fit.parameters});
+    const StabiliserFitResult fit = fitStabiliser(training, options_.fit);
+    const std::string on = "fit on " + std::to_string(fit.observations_used) + " lens motions: ";
+    // The first fit offers the chain alone: it is a few times cheaper than the refitted variants,
+    // so a camera far from its starting model gets a close model seconds earlier; the variants
+    // come from the next fit on.
+    const StabiliserCandidateKinds kinds =
+        fits_started_++ == 0 ? StabiliserCandidateKinds{false, false} : options_.candidate_kinds;
+    for (ModelCandidate& built : stabiliserCandidates(fit, training, options_.fit, kinds))
+      candidates.push_back({on + built.name, std::move(built.parameters)});
   } catch (const std::exception& e) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++status_.fits_failed;

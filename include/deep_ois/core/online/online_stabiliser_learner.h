@@ -65,6 +65,8 @@ struct OnlineLearningOptions {
   CornerDetectorOptions corners = learningCorners();
   KltOptions klt = learningKlt();
   StabiliserFitOptions fit = onlineFitOptions();
+  // The candidates built from each fit besides the chain (train_stabiliser's, stabiliser_candidates.h).
+  StabiliserCandidateKinds candidate_kinds;
   LensShiftOptions lens;             // patch count and readout come from each pair's timing
   StabiliserChoiceOptions choice;
   CompensationCheckOptions check;
@@ -178,6 +180,7 @@ class OnlineStabiliserLearner {
 
   OnlineLearningOptions options_;
   std::vector<ModelCandidate> priors_;
+  std::size_t fits_started_ = 0;  // the fit thread's own count (no lock)
   FeatureTracker tracker_;
   CompensationFallback fallback_;  // tracking thread only
   std::atomic<bool> falling_back_{false};
