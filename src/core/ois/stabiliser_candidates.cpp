@@ -88,13 +88,15 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
   // stroke in the actuator's axes with their coupling after it. Each refitted from the chain's
   // parameters.
   if (kinds.structural) {
+    StabiliserFitOptions refit_options = options;
+    if (kinds.structural_iterations > 0) refit_options.iterations = kinds.structural_iterations;
     for (const auto& [structure, what] :
          {std::pair<StabiliserStructure, std::string>{{true, false, false}, "anti-windup integrator"},
           {{false, true, false}, "excursion-dependent re-centring"},
           {{true, true, false}, "anti-windup integrator + excursion-dependent re-centring"},
           {{false, false, true}, "stroke in the actuator's axes + actuator coupling"}}) {
       try {
-        const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, options);
+        const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, refit_options);
         candidates.push_back(
             {std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") + ", " + what,
              refit.parameters});

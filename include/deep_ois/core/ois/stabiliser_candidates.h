@@ -43,6 +43,9 @@ struct ModelCandidate {
 // Which candidates stabiliserCandidates builds besides the physical chain and its linear bank.
 struct StabiliserCandidateKinds {
   bool structural = true;        // the refitted structural variants (an LM refit each)
+  // Levenberg-Marquardt iterations of each structural refit (0: the fit options' iterations). The
+  // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
+  int structural_iterations = 0;
   bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
 };
 
