@@ -70,56 +70,72 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
   return fitted;
 }
 
-StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
-                                     const std::vector<StabiliserFitRecording>& training,
-                                     const std::vector<StabiliserFitRecording>& held_out,
-                                     const StabiliserFitOptions& options, double simpler_within) {
-  StabiliserSelection selection;
-  auto add = [&](const std::string& name, const StabiliserParameters& parameters) {
-    StabiliserCandidate candidate;
-    candidate.name = name;
-    candidate.parameters = parameters;
-    candidate.training = scoreStabiliser(parameters, training, options);
-    candidate.held_out = scoreStabiliser(parameters, held_out, options);
-    selection.candidates.push_back(candidate);
-  };
+std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
+                                                 const std::vector<StabiliserFitRecording>& training,
+                                                 const StabiliserFitOptions& options,
+                                                 const StabiliserCandidateKinds& kinds) {
+  std::vector<ModelCandidate> candidates;
   StabiliserParameters physical = fit.parameters;
   physical.residual_time_constants_s.clear();
   physical.residual.resize(0, 0);
   physical.nonlinear_features.clear();
   physical.nonlinear_residual.resize(0, 0);
-  add("physical", physical);
+  candidates.push_back({"physical", physical});
   const bool has_linear = fit.parameters.residual.size() != 0;
-  if (has_linear) add("physical + linear residual", fit.parameters);
+  if (has_linear) candidates.push_back({"physical + linear residual", fit.parameters});
   // The chain with a better structure (one mechanism or one parameter more each): an integrator
   // held at the end stop (anti-windup), a re-centring that grows with the excursion, both; the
   // stroke in the actuator's axes with their coupling after it. Each refitted from the chain's
   // parameters.
-  for (const auto& [structure, what] :
-       {std::pair<StabiliserStructure, std::string>{{true, false, false}, "anti-windup integrator"},
-        {{false, true, false}, "excursion-dependent re-centring"},
-        {{true, true, false}, "anti-windup integrator + excursion-dependent re-centring"},
-        {{false, false, true}, "stroke in the actuator's axes + actuator coupling"}}) {
-    try {
-      const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, options);
-      add(std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") +
-              ", " + what,
-          refit.parameters);
-    } catch (const std::invalid_argument&) {
-      // No usable lens motion: the simpler candidates stand.
+  if (kinds.structural) {
+    StabiliserFitOptions refit_options = options;
+    if (kinds.structural_iterations > 0) refit_options.iterations = kinds.structural_iterations;
+    for (const auto& [structure, what] :
+         {std::pair<StabiliserStructure, std::string>{{true, false, false}, "anti-windup integrator"},
+          {{false, true, false}, "excursion-dependent re-centring"},
+          {{true, true, false}, "anti-windup integrator + excursion-dependent re-centring"},
+          {{false, false, true}, "stroke in the actuator's axes + actuator coupling"}}) {
+      try {
+        const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, refit_options);
+        candidates.push_back(
+            {std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") + ", " + what,
+             refit.parameters});
+      } catch (const std::invalid_argument&) {
+        // No usable lens motion: the simpler candidates stand.
+      }
     }
   }
   // Learned dynamics on top of the chain (with its linear bank when it has one), simplest first:
   // a higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
-  const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
-  for (const auto& [set, what] : {std::pair<std::string, std::string>{"rate_bank_v1", "learned rate filter"},
-                                  {"excursion_v1", "nonlinear residual"},
-                                  {"excursion_rate_v1", "nonlinear residual + learned rate filter"}}) {
-    try {
-      add(prefix + what + " (" + set + ")", fitNonlinearResidual(fit.parameters, training, options, set));
-    } catch (const std::invalid_argument&) {
-      // No usable lens motion for the residual: the simpler candidates stand.
+  if (kinds.learned_features) {
+    const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
+    for (const auto& [set, what] :
+         {std::pair<std::string, std::string>{"rate_bank_v1", "learned rate filter"},
+          {"excursion_v1", "nonlinear residual"},
+          {"excursion_rate_v1", "nonlinear residual + learned rate filter"}}) {
+      try {
+        candidates.push_back(
+            {prefix + what + " (" + set + ")", fitNonlinearResidual(fit.parameters, training, options, set)});
+      } catch (const std::invalid_argument&) {
+        // No usable lens motion for the residual: the simpler candidates stand.
+      }
     }
+  }
+  return candidates;
+}
+
+StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
+                                     const std::vector<StabiliserFitRecording>& training,
+                                     const std::vector<StabiliserFitRecording>& held_out,
+                                     const StabiliserFitOptions& options, double simpler_within) {
+  StabiliserSelection selection;
+  for (ModelCandidate& built : stabiliserCandidates(fit, training, options)) {
+    StabiliserCandidate candidate;
+    candidate.name = std::move(built.name);
+    candidate.parameters = std::move(built.parameters);
+    candidate.training = scoreStabiliser(candidate.parameters, training, options);
+    candidate.held_out = scoreStabiliser(candidate.parameters, held_out, options);
+    selection.candidates.push_back(std::move(candidate));
   }
   const bool by_held_out = !held_out.empty() && selection.candidates.front().held_out.observations > 0;
   auto key = [&](const StabiliserCandidate& c) {

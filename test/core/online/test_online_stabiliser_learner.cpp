@@ -170,6 +170,29 @@ TEST(OnlineStabiliserLearner, SwapsToAFitThatIsBetterOnTheHeldOutWindow) {
   EXPECT_EQ(status.windows_still, 0u);
 }
 
+// A stabiliser the chain cannot name (an integrator held at a small stroke: anti-windup). The first
+// fit offers the chain alone (the quick swap); the next ones also offer train_stabiliser's
+// structural variants and learned residuals, and the anti-windup chain must win on the held-out
+// window.
+TEST(OnlineStabiliserLearner, LaterFitsOfferTheStructuralVariants) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 6.0;  // fits at 12 s and 18 s of windows
+  StabiliserParameters truth = ideal();
+  truth.anti_windup = true;
+  truth.stroke_x_deg = truth.stroke_y_deg = 0.8;
+  truth.highpass_corner_hz = 0.3;
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  feed(learner, makePairs(truth, 19.0, 0.4, 11));
+  std::printf("%s\n", learner.status().last_choice.c_str());
+  const OnlineLearningStatus status = learner.status();
+  const auto model = learner.model();
+  EXPECT_EQ(status.fits, 2u) << status.last_problem;
+  EXPECT_EQ(status.swaps, 2u) << status.last_choice;  // the chain first, then its better structure
+  EXPECT_NE(status.last_choice.find("anti-windup integrator"), std::string::npos) << status.last_choice;
+  EXPECT_TRUE(model->parameters.anti_windup) << model->name << ": " << status.last_choice;
+  EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
+}
+
 TEST(OnlineStabiliserLearner, KeepsAModelThatIsAlreadyRight) {
   OnlineLearningOptions options = testOptions();
   options.refit_every_s = 11.0;

@@ -34,6 +34,29 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
                                           const std::string& feature_set = "excursion_v1",
                                           double ridge = 1e-4);
 
+// A stabiliser model with a name for messages ("fit", "no lens motion", "generic", ...).
+struct ModelCandidate {
+  std::string name;
+  StabiliserParameters parameters;
+};
+
+// Which candidates stabiliserCandidates builds besides the physical chain and its linear bank.
+struct StabiliserCandidateKinds {
+  bool structural = true;        // the refitted structural variants (an LM refit each)
+  // Levenberg-Marquardt iterations of each structural refit (0: the fit options' iterations). The
+  // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
+  int structural_iterations = 0;
+  bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
+};
+
+// The candidates built from a physical fit (a fitStabiliser result), simplest first, unscored:
+// "physical", "physical + linear residual" (when the fit has a bank), then the kinds asked for.
+// A variant whose refit finds no usable lens motion is left out (the simpler ones stand).
+std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
+                                                 const std::vector<StabiliserFitRecording>& training,
+                                                 const StabiliserFitOptions& options,
+                                                 const StabiliserCandidateKinds& kinds = {});
+
 struct StabiliserCandidate {
   std::string name;
   StabiliserParameters parameters;
@@ -47,7 +70,7 @@ struct StabiliserSelection {
   std::string reason;  // one sentence: why candidates[kept]
 };
 
-// Builds and scores the candidates from the physical fit. Kept: the lowest held-out RMS (the
+// Builds (stabiliserCandidates, every kind) and scores the candidates from the physical fit. Kept: the lowest held-out RMS (the
 // training RMS when there are no held-out recordings: then said in the reason), unless a simpler
 // candidate is within `simpler_within` (relative) of it, which is kept instead.
 StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,

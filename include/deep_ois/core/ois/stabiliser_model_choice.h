@@ -31,11 +31,6 @@ void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings
                            double held_out_fraction, std::vector<StabiliserFitRecording>* training,
                            std::vector<StabiliserFitRecording>* held_out);
 
-struct ModelCandidate {
-  std::string name;  // "fit", "no lens motion", "generic", ... (for messages)
-  StabiliserParameters parameters;
-};
-
 struct StabiliserChoiceOptions {
   // A candidate replaces the incumbent only when its held-out RMS is below the incumbent's by this
   // fraction (it must be clearly better: the held-out window is small and noisy).

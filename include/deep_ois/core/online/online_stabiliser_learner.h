@@ -3,8 +3,9 @@
 // residual, a confidence and a fallback to the plain gyro: compensation_check.h) and are turned
 // into gyro-anchored lens motions (the same code path as train_stabiliser's images target:
 // estimateLensShiftTrajectory + lensMotionsOfTrajectory, over windows of a few seconds), kept in a
-// rolling, motion-rich buffer; a background fit on it makes a candidate, and the candidates (the
-// fit, the priors given at the start, and always "no lens motion") are scored on the newest
+// rolling, motion-rich buffer; a background fit on it makes candidates (train_stabiliser's: the
+// chain, its learned residuals and, from the second fit on, its structural variants), and the
+// candidates (those, the priors given at the start, and always "no lens motion") are scored on the newest
 // held-out window (chooseStabiliserModel). The model in use is replaced only by a clearly better
 // one; the swap is atomic (a shared_ptr swapped under a mutex, versioned) and the file written
 // atomically.
@@ -70,6 +71,8 @@ struct OnlineLearningOptions {
   CornerDetectorOptions corners = learningCorners();
   KltOptions klt = learningKlt();
   StabiliserFitOptions fit = onlineFitOptions();
+  // The candidates built from each fit besides the chain (train_stabiliser's, stabiliser_candidates.h).
+  StabiliserCandidateKinds candidate_kinds = onlineCandidateKinds();
   LensShiftOptions lens;             // patch count and readout come from each pair's timing
   StabiliserChoiceOptions choice;
   CompensationCheckOptions check;
@@ -83,6 +86,7 @@ struct OnlineLearningOptions {
   // The fit's defaults, cheaper than train_stabiliser's (fewer pan-detection thresholds and
   // fewer iterations; the elliptic stroke variant stays): it runs every few seconds in the background.
   static StabiliserFitOptions onlineFitOptions();
+  static StabiliserCandidateKinds onlineCandidateKinds();
   static CornerDetectorOptions learningCorners();
   static KltOptions learningKlt();
   std::string validate() const;
@@ -193,6 +197,7 @@ class OnlineStabiliserLearner {
 
   OnlineLearningOptions options_;
   std::vector<ModelCandidate> priors_;
+  std::size_t fits_started_ = 0;  // the fit thread's own count (no lock)
   FeatureTracker tracker_;
   CompensationFallback fallback_;  // tracking thread only
   std::atomic<bool> falling_back_{false};
