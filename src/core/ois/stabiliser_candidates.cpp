@@ -85,7 +85,8 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
   if (has_linear) candidates.push_back({"physical + linear residual", fit.parameters});
   // The chain with a better structure (one mechanism or one parameter more each): an integrator
   // held at the end stop (anti-windup), a re-centring that grows with the excursion, both; the
-  // stroke in the actuator's axes with their coupling after it. Each refitted from the chain's
+  // stroke in the actuator's axes with their coupling after it; a soft stroke instead of an end
+  // stop, alone and with the excursion-dependent re-centring. Each refitted from the chain's
   // parameters.
   if (kinds.structural) {
     StabiliserFitOptions refit_options = options;
@@ -94,7 +95,9 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
          {std::pair<StabiliserStructure, std::string>{{true, false, false}, "anti-windup integrator"},
           {{false, true, false}, "excursion-dependent re-centring"},
           {{true, true, false}, "anti-windup integrator + excursion-dependent re-centring"},
-          {{false, false, true}, "stroke in the actuator's axes + actuator coupling"}}) {
+          {{false, false, true}, "stroke in the actuator's axes + actuator coupling"},
+          {{false, false, false, true}, "soft stroke"},
+          {{false, true, false, true}, "soft stroke + excursion-dependent re-centring"}}) {
       try {
         const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, refit_options);
         candidates.push_back(

@@ -805,6 +805,7 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
   start.nonlinear_features.clear();
   start.nonlinear_residual.resize(0, 0);
   start.anti_windup = structure.anti_windup;
+  start.soft_stroke = structure.soft_stroke;
   start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;
   // The coupling starts at none: the chain itself, its gain then mapping into the stroke's axes.
   start.actuator_coupling.setZero();
@@ -834,7 +835,8 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
   const StabiliserParameters refined = levenbergMarquardt(
       start, packing, recordings, options, options.iterations, &refined_cost, &result.rms_history);
   std::ostringstream line;
-  line << "structure: " << (refined.anti_windup ? "anti-windup" : "winding-up")
+  line << "structure: " << (refined.soft_stroke ? "soft stroke, " : "")
+       << (refined.anti_windup ? "anti-windup" : "winding-up")
        << " integrator, excursion re-centring " << refined.excursion_centring
        << ", actuator coupling (" << refined.actuator_coupling.x() << ", "
        << refined.actuator_coupling.y() << "), corner "

@@ -22,9 +22,18 @@ double leakWeight(double corner_rad_s, double h) {
   return corner_rad_s > 0.0 ? -std::expm1(-corner_rad_s * h) / corner_rad_s : h;
 }
 
-// The point of the stroke nearest to `command`: per axis for a box, radially for an ellipse.
+// The command the stroke lets through: per axis for a box, radially for an ellipse; an end stop
+// (the nearest point of the stroke) or, soft, stroke * tanh(command / stroke).
 Eigen::Vector2d limitToStroke(const Eigen::Vector2d& command, const Eigen::Vector2d& limit_px,
-                              bool circular) {
+                              bool circular, bool soft) {
+  if (soft && !circular) {
+    return Eigen::Vector2d(limit_px.x() * std::tanh(command.x() / limit_px.x()),
+                           limit_px.y() * std::tanh(command.y() / limit_px.y()));
+  }
+  if (soft) {
+    const double r = std::hypot(command.x() / limit_px.x(), command.y() / limit_px.y());
+    return r > 1e-12 ? Eigen::Vector2d(command * (std::tanh(r) / r)) : command;
+  }
   if (!circular) {
     return Eigen::Vector2d(std::clamp(command.x(), -limit_px.x(), limit_px.x()),
                            std::clamp(command.y(), -limit_px.y(), limit_px.y()));
@@ -78,6 +87,9 @@ std::string StabiliserParameters::validate() const {
              !(stroke_y_deg > 0.0 && stroke_y_deg < 45.0)) {
     why << "stroke_x_deg, stroke_y_deg: must be in (0, 45) degrees (got " << stroke_x_deg << ", "
         << stroke_y_deg << ")";
+  } else if (soft_stroke && anti_windup) {
+    why << "soft_stroke, anti_windup: one or the other (a soft stroke is never met, so there is no "
+           "angle for anti-windup to hold)";
   } else if (!std::isfinite(excursion_centring) || excursion_centring < 0.0) {
     why << "excursion_centring: must be >= 0, 0 = off (got " << excursion_centring << ")";
   } else if (!actuator_coupling.allFinite() || actuator_coupling.cwiseAbs().maxCoeff() > 0.5) {
@@ -251,7 +263,7 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
   }
   Eigen::Vector2d raw_command =
       focal_px_ * (p.gain * Eigen::Vector2d(std::tan(theta_.x()), std::tan(theta_.y())));
-  const Eigen::Vector2d command = limitToStroke(raw_command, stroke_px_, p.circular_stroke);
+  const Eigen::Vector2d command = limitToStroke(raw_command, stroke_px_, p.circular_stroke, p.soft_stroke);
   if (anti_windup_ && command != raw_command) {
     // Held at the end stop: the angle is the one whose command is the limited one.
     const Eigen::Vector2d tangent = inverse_gain_ * (command / focal_px_);

@@ -89,7 +89,8 @@ std::string StabiliserModelFile::toYaml() const {
   out << YAML::Key << "stroke_y_deg" << YAML::Value << p.stroke_y_deg;
   out << YAML::Key << "circular_stroke" << YAML::Value << p.circular_stroke;
   // Optional (written only when used): files without them, every model before these mechanisms,
-  // load as a winding-up integrator with a fixed corner.
+  // load as a winding-up integrator with a fixed corner and an end stop.
+  if (p.soft_stroke) out << YAML::Key << "soft_stroke" << YAML::Value << p.soft_stroke;
   if (p.anti_windup) out << YAML::Key << "anti_windup" << YAML::Value << p.anti_windup;
   if (p.excursion_centring != 0.0)
     out << YAML::Key << "excursion_centring" << YAML::Value << p.excursion_centring;
@@ -165,6 +166,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   p.stroke_x_deg = required<double>(s, "stroke_x_deg");
   p.stroke_y_deg = required<double>(s, "stroke_y_deg");
   p.circular_stroke = required<bool>(s, "circular_stroke");
+  p.soft_stroke = optional<bool>(s, "soft_stroke", false);
   p.anti_windup = optional<bool>(s, "anti_windup", false);
   p.excursion_centring = optional<double>(s, "excursion_centring", 0.0);
   const auto coupling = optional<std::vector<double>>(s, "actuator_coupling", {0.0, 0.0});

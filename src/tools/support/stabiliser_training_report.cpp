@@ -59,7 +59,8 @@ std::string stabiliserParameterTable(const StabiliserParameters& p,
          bound("sensor_lag_s") + " |\n";
   out += "| stroke | " + printfText("%.3f", p.stroke_x_deg) + bound("stroke_x_deg") + " x " +
          printfText("%.3f", p.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
-         (p.circular_stroke ? "ellipse" : "box") + ") |\n";
+         (p.circular_stroke ? "ellipse" : "box") + (p.soft_stroke ? ", soft: stroke x tanh(u / stroke)" : "") +
+         ") |\n";
   out += std::string("| integrator at the stroke | ") +
          (p.anti_windup ? "held (anti-windup)" : "winds up") + " |\n";
   if (p.excursion_centring > 0.0)

@@ -851,6 +851,69 @@ TEST(ActuatorCoupling, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
   EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
 }
 
+// A soft stroke: the command passes as stroke * tanh(command / stroke), so the lens nears the stroke
+// but never stops on it, and halfway to it the lens is already held back (tanh(0.5) = 0.46).
+TEST(SoftStroke, CompressesTheCommandTowardsTheStrokeWithoutReachingIt) {
+  StabiliserParameters hard = saturatingStabiliser(false), soft = hard;
+  hard.circular_stroke = soft.circular_stroke = false;
+  soft.soft_stroke = true;
+  ASSERT_EQ(soft.validate(), "");
+  LensShiftPredictor hard_lens(hard, kFocalPx), soft_lens(soft, kFocalPx);
+  for (const auto& r : turnAndBack()) hard_lens.addRate(r), soft_lens.addRate(r);
+  const double stroke_px = kFocalPx * std::tan(0.5 * 3.14159265358979 / 180.0);
+  // 2.3 deg turned against a 0.5 deg stroke: the end stop holds the lens on it, the soft stroke
+  // just inside it.
+  EXPECT_NEAR(hard_lens.lensShiftAt(0.2).x(), stroke_px, 0.02 * stroke_px);
+  EXPECT_LT(soft_lens.lensShiftAt(0.2).x(), stroke_px);
+  EXPECT_GT(soft_lens.lensShiftAt(0.2).x(), 0.95 * stroke_px);
+  // 0.25 deg turned (21.8 ms at 0.2 rad/s, half the stroke; the actuator at 200 Hz follows within
+  // a millisecond): the soft lens has moved about tanh(0.5) / 0.5 = 0.92 of the hard one.
+  const double ratio = soft_lens.lensShiftAt(0.0218).x() / hard_lens.lensShiftAt(0.0218).x();
+  EXPECT_NEAR(ratio, std::tanh(0.5) / 0.5, 0.03);
+}
+
+TEST(SoftStroke, RoundTripsItsFileAndIsRefusedWithAntiWindup) {
+  StabiliserModelFile file;
+  file.name = "soft stroke";
+  file.parameters = saturatingStabiliser(false);
+  file.parameters.soft_stroke = true;
+  file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
+  const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
+  EXPECT_TRUE(back.parameters.soft_stroke);
+  expectSamePredictions(file.parameters, back.parameters);
+  StabiliserModelFile hard = file;
+  hard.parameters.soft_stroke = false;
+  EXPECT_EQ(hard.toYaml().find("soft_stroke"), std::string::npos);  // older files load unchanged
+  EXPECT_FALSE(StabiliserModelFile::fromYaml(hard.toYaml()).parameters.soft_stroke);
+  std::string both = file.toYaml();
+  both.replace(both.find("soft_stroke: true"), 17, "soft_stroke: true\n  anti_windup: true");
+  expectRefusedNaming(both, "soft_stroke, anti_windup", "a soft stroke with anti-windup was accepted");
+}
+
+// A stabiliser with a soft stroke driven well into it: the chain refitted with a soft stroke is
+// what the held-out rule keeps, much better than the end-stop chain fitted to the same data.
+TEST(SoftStroke, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.iterations = 15;
+  StabiliserParameters truth = knownStabiliser();
+  truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
+  truth.soft_stroke = true;
+  const std::vector<StabiliserFitRecording> training = {observe(truth, 61, 0.02), observe(truth, 62, 0.02)};
+  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 63, 0.0)};
+  const StabiliserFitResult fit = fitStabiliser(training, options);
+  EXPECT_FALSE(fit.parameters.soft_stroke);
+  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
+  for (const auto& c : selection.candidates)
+    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
+                c.training.rms_px, c.held_out.rms_px);
+  std::printf("[ figures  ] %s\n", selection.reason.c_str());
+  const StabiliserCandidate& kept = selection.candidates[selection.kept];
+  EXPECT_TRUE(kept.parameters.soft_stroke) << kept.name;
+  EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
+  EXPECT_NEAR(kept.parameters.stroke_x_deg, 0.5, 0.05);
+}
+
 // The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
 // included. The largest feature set, fed 30 s of 400 Hz gyro as 900 frames.
 TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {

@@ -9,7 +9,8 @@
 //  - the chain with a better structure, refitted (refitStabiliserStructure): an integrator held at
 //    the end stop (anti-windup), a re-centring corner that grows with the excursion, both; the
 //    stroke in the actuator's own axes with a cross-coupling after the actuator (a turned or
-//    coupled mount);
+//    coupled mount); a soft stroke (stroke x tanh(u / stroke)) instead of an end stop, alone and
+//    with the excursion-dependent re-centring;
 //  - then, each by ridge regression on what that leaves (StabiliserParameters::nonlinear_features):
 //    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
 //    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,

@@ -114,11 +114,12 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
                                   const ProgressCallback& progress = {});
 
 // Structural variants of the chain (StabiliserParameters::anti_windup, excursion_centring,
-// actuator_coupling).
+// actuator_coupling, soft_stroke).
 struct StabiliserStructure {
   bool anti_windup = false;
   bool excursion_centring = false;  // its k fitted (from 1) with the other parameters
   bool actuator_coupling = false;   // fitted (from 0) with the other parameters
+  bool soft_stroke = false;         // exclusive with anti_windup
 };
 
 // The chain of `fitted` (a fitStabiliser result) with `structure` switched on, refined by

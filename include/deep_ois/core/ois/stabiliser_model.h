@@ -37,6 +37,11 @@ struct StabiliserParameters {
   double stroke_x_deg = 1.0;  // commanded shift limits, as angles (f tan(limit) pixels)
   double stroke_y_deg = 1.0;
   bool circular_stroke = false;  // false: a box of the two limits; true: the ellipse inside it
+  // A soft stroke: the command u becomes stroke * tanh(u / stroke) (per axis for the box, radially
+  // for the ellipse) instead of stopping at the stroke: a lens held by springs whose pull grows
+  // towards the end, or a controller that compresses its command as it nears the limit. Exclusive
+  // with anti_windup (a soft stroke is never met, so there is no angle to hold).
+  bool soft_stroke = false;
   // The integrated angle at the end stop. false: it keeps integrating beyond the stroke (the lens
   // leaves the stroke only once the angle has come back inside); true (anti-windup): it is held
   // where the command meets the stroke, so the lens leaves the stroke as soon as the rate turns.
