@@ -613,15 +613,16 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
     std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
                 c.training.rms_px, c.held_out.rms_px);
   std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, the four structural variants, rate filter, nonlinear, both: the nonlinear set is
+  // physical, the six structural variants, rate filter, nonlinear, both: the nonlinear set is
   // what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 8u);
+  ASSERT_EQ(selection.candidates.size(), 10u);
   EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
   EXPECT_NE(selection.candidates[4].name.find("actuator coupling"), std::string::npos);
-  EXPECT_NE(selection.candidates[6].name.find("excursion_v1"), std::string::npos);
-  EXPECT_EQ(selection.kept, 6u);  // "both" is no better: the simpler one is kept
-  EXPECT_LT(selection.candidates[6].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
-  EXPECT_LT(selection.candidates[6].held_out.rms_px, 0.5 * selection.candidates[5].held_out.rms_px);
+  EXPECT_NE(selection.candidates[5].name.find("soft stroke"), std::string::npos);
+  EXPECT_NE(selection.candidates[8].name.find("excursion_v1"), std::string::npos);
+  EXPECT_EQ(selection.kept, 8u);  // "both" is no better: the simpler one is kept
+  EXPECT_LT(selection.candidates[8].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
+  EXPECT_LT(selection.candidates[8].held_out.rms_px, 0.5 * selection.candidates[7].held_out.rms_px);
   EXPECT_NE(selection.reason.find("held-out"), std::string::npos);
 
   const std::vector<StabiliserFitRecording> plain = {observe(knownStabiliser(), 31, 0.05)};
