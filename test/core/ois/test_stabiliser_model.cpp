@@ -740,30 +740,45 @@ TEST(AntiWindup, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
   expectRefusedNaming(bad, "excursion_centring", "a negative excursion_centring was accepted");
 }
 
+// The structural-refit tests' common run: two noisy training recordings and one clean held-out one
+// of `truth` (seeds first_seed, +1, +2), the chain fitted (without the mechanism: checked by the
+// caller on the returned fit), the candidates selected and printed.
+struct RefitRun {
+  StabiliserFitResult fit;
+  StabiliserSelection selection;
+  const StabiliserCandidate& kept() const { return selection.candidates[selection.kept]; }
+  double chainHeldOutRmsPx() const { return selection.candidates[0].held_out.rms_px; }
+};
+RefitRun fitAndSelect(const StabiliserParameters& truth, unsigned first_seed) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.iterations = 15;
+  const std::vector<StabiliserFitRecording> training = {observe(truth, first_seed, 0.02),
+                                                        observe(truth, first_seed + 1, 0.02)};
+  const std::vector<StabiliserFitRecording> held_out = {observe(truth, first_seed + 2, 0.0)};
+  RefitRun run;
+  run.fit = fitStabiliser(training, options);
+  run.selection = selectStabiliser(run.fit, training, held_out, options);
+  for (const auto& c : run.selection.candidates)
+    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
+                c.training.rms_px, c.held_out.rms_px);
+  std::printf("[ figures  ] %s\n", run.selection.reason.c_str());
+  return run;
+}
+
 // A stabiliser with an anti-windup integrator that sits on its stroke much of the time: the chain
 // refitted with that structure is what the held-out rule keeps, and it is much better than the
 // winding-up chain fitted to the same data.
 TEST(AntiWindup, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
-  StabiliserFitOptions options;
-  options.pan_thresholds_rad_s = {0.0};
-  options.iterations = 15;
   StabiliserParameters truth = knownStabiliser();
   truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
   truth.circular_stroke = true;
   truth.anti_windup = true;
-  const std::vector<StabiliserFitRecording> training = {observe(truth, 41, 0.02), observe(truth, 42, 0.02)};
-  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 43, 0.0)};
-  const StabiliserFitResult fit = fitStabiliser(training, options);
-  EXPECT_FALSE(fit.parameters.anti_windup);
-  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
-  for (const auto& c : selection.candidates)
-    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
-                c.training.rms_px, c.held_out.rms_px);
-  std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  const StabiliserCandidate& kept = selection.candidates[selection.kept];
-  EXPECT_TRUE(kept.parameters.anti_windup) << kept.name;
-  EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
-  EXPECT_NEAR(kept.parameters.stroke_x_deg, 0.5, 0.05);
+  const RefitRun run = fitAndSelect(truth, 41);
+  EXPECT_FALSE(run.fit.parameters.anti_windup);
+  EXPECT_TRUE(run.kept().parameters.anti_windup) << run.kept().name;
+  EXPECT_LT(run.kept().held_out.rms_px, 0.5 * run.chainHeldOutRmsPx());
+  EXPECT_NEAR(run.kept().parameters.stroke_x_deg, 0.5, 0.05);
 }
 
 // A mount turned against the image with coupled lens axes: the gain maps the camera's angles into
@@ -831,25 +846,14 @@ TEST(ActuatorCoupling, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
 // with the stroke in the actuator's axes and the coupling after it is kept by the held-out rule,
 // with about the true coupling.
 TEST(ActuatorCoupling, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
-  StabiliserFitOptions options;
-  options.pan_thresholds_rad_s = {0.0};
-  options.iterations = 15;
   StabiliserParameters truth = knownStabiliser();  // its 0.8 x 1.2 deg box stroke
   truth.gain = Eigen::Matrix2d(Eigen::Rotation2Dd(12.0 * 3.14159265358979 / 180.0)) * truth.gain;
   truth.actuator_coupling = Eigen::Vector2d(0.1, 0.1);
-  const std::vector<StabiliserFitRecording> training = {observe(truth, 51, 0.02), observe(truth, 52, 0.02)};
-  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 53, 0.0)};
-  const StabiliserFitResult fit = fitStabiliser(training, options);
-  EXPECT_TRUE(fit.parameters.actuator_coupling.isZero(0.0));
-  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
-  for (const auto& c : selection.candidates)
-    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
-                c.training.rms_px, c.held_out.rms_px);
-  std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  const StabiliserCandidate& kept = selection.candidates[selection.kept];
-  EXPECT_NEAR(kept.parameters.actuator_coupling.x(), 0.1, 0.03) << kept.name;
-  EXPECT_NEAR(kept.parameters.actuator_coupling.y(), 0.1, 0.03) << kept.name;
-  EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
+  const RefitRun run = fitAndSelect(truth, 51);
+  EXPECT_TRUE(run.fit.parameters.actuator_coupling.isZero(0.0));
+  EXPECT_NEAR(run.kept().parameters.actuator_coupling.x(), 0.1, 0.03) << run.kept().name;
+  EXPECT_NEAR(run.kept().parameters.actuator_coupling.y(), 0.1, 0.03) << run.kept().name;
+  EXPECT_LT(run.kept().held_out.rms_px, 0.5 * run.chainHeldOutRmsPx());
 }
 
 // A soft stroke: the command passes as stroke * tanh(command / stroke), so the lens nears the stroke
@@ -894,25 +898,14 @@ TEST(SoftStroke, RoundTripsItsFileAndIsRefusedWithAntiWindup) {
 // A stabiliser with a soft stroke driven well into it: the chain refitted with a soft stroke is
 // what the held-out rule keeps, much better than the end-stop chain fitted to the same data.
 TEST(SoftStroke, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
-  StabiliserFitOptions options;
-  options.pan_thresholds_rad_s = {0.0};
-  options.iterations = 15;
   StabiliserParameters truth = knownStabiliser();
   truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
   truth.soft_stroke = true;
-  const std::vector<StabiliserFitRecording> training = {observe(truth, 61, 0.02), observe(truth, 62, 0.02)};
-  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 63, 0.0)};
-  const StabiliserFitResult fit = fitStabiliser(training, options);
-  EXPECT_FALSE(fit.parameters.soft_stroke);
-  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
-  for (const auto& c : selection.candidates)
-    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
-                c.training.rms_px, c.held_out.rms_px);
-  std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  const StabiliserCandidate& kept = selection.candidates[selection.kept];
-  EXPECT_TRUE(kept.parameters.soft_stroke) << kept.name;
-  EXPECT_LT(kept.held_out.rms_px, 0.5 * selection.candidates[0].held_out.rms_px);
-  EXPECT_NEAR(kept.parameters.stroke_x_deg, 0.5, 0.05);
+  const RefitRun run = fitAndSelect(truth, 61);
+  EXPECT_FALSE(run.fit.parameters.soft_stroke);
+  EXPECT_TRUE(run.kept().parameters.soft_stroke) << run.kept().name;
+  EXPECT_LT(run.kept().held_out.rms_px, 0.5 * run.chainHeldOutRmsPx());
+  EXPECT_NEAR(run.kept().parameters.stroke_x_deg, 0.5, 0.05);
 }
 
 // The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
