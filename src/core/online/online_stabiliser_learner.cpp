@@ -231,6 +231,9 @@ void OnlineStabiliserLearner::restartTimeline() {
   std::lock_guard<std::mutex> lock(mutex_);
   ++timeline_;
   queue_.clear();
+  // A swap on probation cannot be confirmed on windows of another timeline: it stays.
+  replaced_.reset();
+  confirm_requested_ = false;
 }
 
 bool OnlineStabiliserLearner::waitIdle(double timeout_s) {
@@ -239,7 +242,8 @@ bool OnlineStabiliserLearner::waitIdle(double timeout_s) {
     // A fit held for credit on the caller's clock waits for the caller (the wall clock moves alone).
     const bool fit_waits_for_caller =
         fit_requested_ && fit_held_ && options_.budget_clock && clockNow() == fit_held_at_s_;
-    return stopping_ || (queue_.empty() && !tracking_busy_ && !fitting_ && (!fit_requested_ || fit_waits_for_caller));
+    return stopping_ || (queue_.empty() && !tracking_busy_ && !fitting_ && !confirm_requested_ && !confirming_ &&
+                         (!fit_requested_ || fit_waits_for_caller));
   });
 }
 
@@ -506,6 +510,15 @@ void OnlineStabiliserLearner::closeWindow() {
       windows_.erase(windows_.begin() + static_cast<long>(weakest));
       ++status_.windows_dropped;
     }
+    if (replaced_ && !confirm_requested_) {
+      double fresh = 0.0;
+      for (const auto& w : windows_)
+        if (w->start_s >= probation_after_s_) fresh += w->seconds();
+      if (fresh >= options_.held_out_s) {
+        confirm_requested_ = true;
+        wake_fit_.notify_all();
+      }
+    }
     if (new_seconds_ >= options_.refit_every_s && total >= options_.held_out_s + options_.min_training_s &&
         options_.learning) {
       fit_requested_ = true;
@@ -519,10 +532,33 @@ void OnlineStabiliserLearner::fitLoop() {
     std::vector<std::shared_ptr<const Window>> windows;
     std::size_t motions = 0;
     double reserved_s = 0.0;
+    std::shared_ptr<const LearnedStabiliser> replaced;
     {
       std::unique_lock<std::mutex> lock(mutex_);
       idle_.notify_all();
-      wake_fit_.wait(lock, [this] { return stopping_ || fit_requested_; });
+      wake_fit_.wait(lock, [this] { return stopping_ || fit_requested_ || confirm_requested_; });
+      if (stopping_) return;
+      if (confirm_requested_) {
+        // A confirmation goes before a fit: it scores two models on a few seconds (no fit), and a
+        // swap that did worse should not wait for the fit's credit to be taken back.
+        confirm_requested_ = false;
+        confirming_ = true;
+        replaced = std::move(replaced_);
+        replaced_.reset();
+        for (const auto& w : windows_)
+          if (w->start_s >= probation_after_s_) windows.push_back(w);
+      }
+    }
+    if (replaced) {
+      const double cpu_start = threadCpuNow();
+      confirmSwap(replaced, windows);
+      charge(threadCpuNow() - cpu_start);
+      std::lock_guard<std::mutex> lock(mutex_);
+      confirming_ = false;
+      continue;
+    }
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
       if (!waitForBudget(lock)) return;
       if (!fit_requested_) continue;  // learning switched off meanwhile
       fit_requested_ = false;
@@ -591,25 +627,7 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     replacement->held_out_rms_without_px = choice.scores[choice.chosen].rms_without_model_px;
     replacement->reason = choice.reason;
   }
-  std::string save_problem;
-  if (replacement && !options_.model_path.empty()) {
-    try {
-      StabiliserModelFile file;
-      file.name = options_.model_file_name + ": " + replacement->name;
-      file.parameters = replacement->parameters;
-      file.camera = options_.camera;
-      file.training.target = "gyro-anchored lens shift (images), learned online";
-      file.training.recordings = training.size();
-      for (const auto& r : training) file.training.observations += r.observations.size();
-      file.training.rms_px = kNaN;
-      file.training.rms_without_model_px = kNaN;
-      file.training.held_out_rms_px = replacement->held_out_rms_px;
-      file.training.held_out_rms_without_model_px = replacement->held_out_rms_without_px;
-      file.save(options_.model_path);  // atomic: written beside it, then renamed
-    } catch (const std::exception& e) {
-      save_problem = e.what();
-    }
-  }
+  const std::string save_problem = replacement ? saveModel(*replacement, training) : std::string();
   std::lock_guard<std::mutex> lock(mutex_);
   ++status_.fits;
   status_.last_choice = choice.reason;
@@ -618,10 +636,66 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     status_.last_problem = "saving the model: " + save_problem;
   }
   if (replacement) {
-    // A model swapped in is still the incumbent's equal if the camera changes back: the current
-    // one stays among the later candidates through model_.
+    // On probation: confirmed or undone on the first held_out_s of windows after the ones it was
+    // decided on (confirmSwap).
+    replaced_ = current;
+    probation_after_s_ = windows.empty() ? 0.0 : windows.back()->end_s;
+    confirm_requested_ = false;
     model_ = replacement;
     ++status_.swaps;
+  }
+}
+
+std::string OnlineStabiliserLearner::saveModel(const LearnedStabiliser& model,
+                                               const std::vector<StabiliserFitRecording>& training) const {
+  if (options_.model_path.empty()) return "";
+  try {
+    StabiliserModelFile file;
+    file.name = options_.model_file_name + ": " + model.name;
+    file.parameters = model.parameters;
+    file.camera = options_.camera;
+    file.training.target = "gyro-anchored lens shift (images), learned online";
+    file.training.recordings = training.size();
+    for (const auto& r : training) file.training.observations += r.observations.size();
+    file.training.rms_px = kNaN;
+    file.training.rms_without_model_px = kNaN;
+    file.training.held_out_rms_px = model.held_out_rms_px;
+    file.training.held_out_rms_without_model_px = model.held_out_rms_without_px;
+    file.save(options_.model_path);  // atomic: written beside it, then renamed
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+void OnlineStabiliserLearner::confirmSwap(const std::shared_ptr<const LearnedStabiliser>& replaced,
+                                          const std::vector<std::shared_ptr<const Window>>& fresh) {
+  std::vector<StabiliserFitRecording> held_out;
+  for (const auto& w : fresh) held_out.push_back(w->recording);
+  const std::shared_ptr<const LearnedStabiliser> current = model();
+  const StabiliserChoice choice = chooseStabiliserModel(
+      {{current->name + " (in use)", current->parameters}, {replaced->name + " (replaced)", replaced->parameters}},
+      0, held_out, options_.choice);
+  std::shared_ptr<LearnedStabiliser> restored;
+  if (choice.replaced_incumbent) {
+    restored = std::make_shared<LearnedStabiliser>(*replaced);
+    restored->version = current->version + 1;
+    restored->held_out_rms_px = choice.scores[1].rms_px;
+    restored->held_out_rms_without_px = choice.scores[1].rms_without_model_px;
+    restored->reason = "the swap to " + current->name + " undone: " + choice.reason;
+  }
+  const std::string save_problem = restored ? saveModel(*restored, {}) : std::string();
+  std::lock_guard<std::mutex> lock(mutex_);
+  status_.last_choice = "confirming the last swap: " + choice.reason;
+  if (!save_problem.empty()) {
+    ++status_.saves_failed;
+    status_.last_problem = "saving the model: " + save_problem;
+  }
+  // Only if no other swap came meanwhile (the fit thread is the only one that swaps, so none did).
+  if (restored && model_ == current) {
+    model_ = restored;
+    ++status_.swaps;
+    ++status_.swaps_undone;
   }
 }
 

@@ -215,8 +215,8 @@ void OnlineLearningRos::updateDiagnostics() {
                 model->held_out_rms_without_px);
   diagnostics_.setValue("model in use: held-out lens-motion RMS", std::isfinite(model->held_out_rms_px) ? text : "not scored yet");
   diagnostics_.setValue("learning", s.state);
-  std::snprintf(text, sizeof text, "%.1f s kept, %zu windows (%zu still), %zu fits, %zu swaps", s.buffered_s,
-                s.windows_kept, s.windows_still, s.fits, s.swaps);
+  std::snprintf(text, sizeof text, "%.1f s kept, %zu windows (%zu still), %zu fits, %zu swaps (%zu undone)",
+                s.buffered_s, s.windows_kept, s.windows_still, s.fits, s.swaps, s.swaps_undone);
   diagnostics_.setValue("learning data", text);
   std::snprintf(text, sizeof text, "%.1f %% of the pairs checked (%zu checked, %zu without enough tracks)",
                 s.pairs_checked ? 100.0 * s.pairs_falling_back / s.pairs_checked : 0.0, s.pairs_checked,

@@ -199,6 +199,36 @@ TEST(OnlineStabiliserLearner, LaterFitsOfferTheStructuralVariants) {
   EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
 }
 
+// A swap is confirmed on the windows after the ones it was decided on. The camera's stabiliser
+// changes after the swap (here: back to what the replaced prior describes), so on the fresh
+// windows the replaced model is clearly better and is restored, without waiting for another fit;
+// on a camera that stays the same the swap is confirmed and kept.
+TEST(OnlineStabiliserLearner, UndoesASwapThatDoesWorseOnTheNextWindows) {
+  for (const bool camera_changes : {true, false}) {
+    OnlineLearningOptions options = testOptions();
+    options.refit_every_s = 11.0;  // one fit, when 12 s of windows are in; no other after it
+    OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+    feed(learner, makePairs(ideal(), 13.0, 1.0, 21));
+    ASSERT_EQ(learner.status().swaps, 1u) << learner.status().last_choice;
+    // 8 s more (the stamps go on): at least held_out_s of windows after the swap.
+    feed(learner, makePairs(camera_changes ? wrongPrior() : ideal(), 8.0, 1.0, 22, 14.0));
+    const OnlineLearningStatus status = learner.status();
+    const auto model = learner.model();
+    EXPECT_EQ(status.fits, 1u) << status.last_problem;
+    EXPECT_NE(status.last_choice.find("confirming the last swap"), std::string::npos) << status.last_choice;
+    if (camera_changes) {
+      EXPECT_EQ(status.swaps_undone, 1u) << status.last_choice;
+      EXPECT_EQ(status.swaps, 2u);
+      EXPECT_EQ(model->name, "generic") << model->reason;
+      EXPECT_EQ(model->version, 2u);
+      EXPECT_NE(model->reason.find("undone"), std::string::npos) << model->reason;
+    } else {
+      EXPECT_EQ(status.swaps_undone, 0u) << status.last_choice;
+      EXPECT_EQ(model->name.rfind("fit on", 0), 0u) << model->name;
+    }
+  }
+}
+
 TEST(OnlineStabiliserLearner, KeepsAModelThatIsAlreadyRight) {
   OnlineLearningOptions options = testOptions();
   options.refit_every_s = 11.0;

@@ -137,6 +137,10 @@ struct OnlineLearningStatus {
   std::size_t windows_kept = 0, windows_still = 0, windows_failed = 0, windows_dropped = 0;
   std::size_t pairs_without_tracks = 0;  // left out of the lens motions (too few inlier tracks)
   std::size_t fits = 0, fits_failed = 0, swaps = 0, saves_failed = 0;
+  // Swaps taken back: a swap is decided on one held-out window and confirmed on the next (the
+  // first held_out_s of windows after it); where the model it replaced is clearly better there,
+  // that model is restored (counted in swaps too).
+  std::size_t swaps_undone = 0;
   double buffered_s = 0.0;
   double cpu_s = 0.0;       // thread CPU time spent, seconds
   double wall_s = 0.0;      // since the start
@@ -183,6 +187,13 @@ class OnlineStabiliserLearner {
   void process(OnlineFramePair& pair);
   void closeWindow();
   void fitOnce(std::vector<std::shared_ptr<const Window>> windows);
+  // Scores the model in use against the one its swap replaced on the windows after the swap, and
+  // restores the replaced one where it is clearly better (chooseStabiliserModel's margins).
+  void confirmSwap(const std::shared_ptr<const LearnedStabiliser>& replaced,
+                   const std::vector<std::shared_ptr<const Window>>& fresh);
+  // Writes `model` to options_.model_path (atomic); returns the problem, empty when written or
+  // when no path is set.
+  std::string saveModel(const LearnedStabiliser& model, const std::vector<StabiliserFitRecording>& training) const;
   // Under mutex_ (held by `lock`): blocks until the credit covers the requested fit's expected cost,
   // the request is withdrawn (learning off) or the learner stops; false when stopping.
   bool waitForBudget(std::unique_lock<std::mutex>& lock);
@@ -208,6 +219,12 @@ class OnlineStabiliserLearner {
   std::deque<OnlineFramePair> queue_;
   bool tracking_busy_ = false;
   bool fit_requested_ = false, fitting_ = false;
+  // The last swap on probation: the model it replaced, and the end of the newest window it was
+  // decided on; confirm_requested_ once held_out_s of windows after it are in, confirming_ while
+  // the fit thread scores the two there.
+  std::shared_ptr<const LearnedStabiliser> replaced_;
+  double probation_after_s_ = 0.0;
+  bool confirm_requested_ = false, confirming_ = false;
   std::shared_ptr<const LearnedStabiliser> model_;
   std::vector<PairVerdict> verdicts_;
   std::vector<std::shared_ptr<const Window>> windows_;  // oldest first
