@@ -281,13 +281,8 @@ int main(int argc, char** argv) {
       deep_ois::scoreStabiliser(fit.parameters, held_out, fit_options);
   // The physical model alone (without its residual bank and learned residual), as in the training
   // row.
-  deep_ois::StabiliserParameters physical = fit.parameters;
-  physical.residual_time_constants_s.clear();
-  physical.residual.resize(0, 0);
-  physical.nonlinear_features.clear();
-  physical.nonlinear_residual.resize(0, 0);
   const deep_ois::StabiliserScore physical_score =
-      deep_ois::scoreStabiliser(physical, held_out, fit_options);
+      deep_ois::scoreStabiliser(fit.parameters.physicalChain(), held_out, fit_options);
   // The refused fit's implausible values do not describe the model written (no lens motion).
   if (lens_check.refused) implausible = false;
   model.training.held_out_rms_without_model_px = score.rms_without_model_px;

@@ -75,12 +75,7 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
                                                  const StabiliserFitOptions& options,
                                                  const StabiliserCandidateKinds& kinds) {
   std::vector<ModelCandidate> candidates;
-  StabiliserParameters physical = fit.parameters;
-  physical.residual_time_constants_s.clear();
-  physical.residual.resize(0, 0);
-  physical.nonlinear_features.clear();
-  physical.nonlinear_residual.resize(0, 0);
-  candidates.push_back({"physical", physical});
+  candidates.push_back({"physical", fit.parameters.physicalChain()});
   const bool has_linear = fit.parameters.residual.size() != 0;
   if (has_linear) candidates.push_back({"physical + linear residual", fit.parameters});
   // The chain with a better structure (one mechanism or one parameter more each): an integrator

@@ -580,12 +580,8 @@ StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
 }
 
 StabiliserParameters noLensMotion() {
-  StabiliserParameters p;
+  StabiliserParameters p = StabiliserParameters().physicalChain();
   p.gain.setZero();
-  p.residual_time_constants_s.clear();
-  p.residual.resize(0, 0);
-  p.nonlinear_features.clear();
-  p.nonlinear_residual.resize(0, 0);
   p.pan_detection_rate_rad_s = 0.0;
   return p;
 }
@@ -799,11 +795,7 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
                                              const StabiliserFitOptions& options) {
   const std::string problem = options.validate();
   if (!problem.empty()) throw std::invalid_argument("refitStabiliserStructure: " + problem);
-  StabiliserParameters start = fitted;
-  start.residual_time_constants_s.clear();
-  start.residual.resize(0, 0);
-  start.nonlinear_features.clear();
-  start.nonlinear_residual.resize(0, 0);
+  StabiliserParameters start = fitted.physicalChain();
   start.anti_windup = structure.anti_windup;
   start.soft_stroke = structure.soft_stroke;
   start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;

@@ -70,6 +70,15 @@ int nonlinearFeatureCount(const std::string& feature_set) {
          (hasRateBankFeatures(feature_set) ? 2 * kRateBankSize : 0);
 }
 
+StabiliserParameters StabiliserParameters::physicalChain() const {
+  StabiliserParameters chain = *this;
+  chain.residual_time_constants_s.clear();
+  chain.residual.resize(0, 0);
+  chain.nonlinear_features.clear();
+  chain.nonlinear_residual.resize(0, 0);
+  return chain;
+}
+
 std::string StabiliserParameters::validate() const {
   std::ostringstream why;
   auto positive = [](double x) { return std::isfinite(x) && x > 0.0; };

@@ -272,6 +272,12 @@ bool OnlineStabiliserLearner::withinBudget(double expected_cpu_s) {
   return fit_waiting_cpu_s_ == 0.0 && credit_s_ >= expected_cpu_s;
 }
 
+std::size_t OnlineStabiliserLearner::bufferedLensMotions() const {
+  std::size_t motions = 0;
+  for (const auto& w : windows_) motions += w->recording.observations.size();
+  return motions;
+}
+
 double OnlineStabiliserLearner::expectedFitCpuS(std::size_t lens_motions) const {
   const double per_motion_s =
       fit_cpu_per_motion_s_.empty()
@@ -285,9 +291,7 @@ bool OnlineStabiliserLearner::waitForBudget(std::unique_lock<std::mutex>& lock) 
   for (;;) {
     if (stopping_) return false;
     if (!fit_requested_) break;  // learning switched off meanwhile
-    std::size_t motions = 0;
-    for (const auto& w : windows_) motions += w->recording.observations.size();
-    fit_waiting_cpu_s_ = expectedFitCpuS(motions);
+    fit_waiting_cpu_s_ = expectedFitCpuS(bufferedLensMotions());
     accrueCredit();
     if (credit_s_ >= fit_waiting_cpu_s_) break;
     if (!delayed) ++status_.fits_delayed_by_budget;
@@ -543,8 +547,7 @@ void OnlineStabiliserLearner::fitLoop() {
         // swap that did worse should not wait for the fit's credit to be taken back.
         confirm_requested_ = false;
         confirming_ = true;
-        replaced = std::move(replaced_);
-        replaced_.reset();
+        replaced = std::move(replaced_);  // leaves replaced_ empty: the probation ends here
         for (const auto& w : windows_)
           if (w->start_s >= probation_after_s_) windows.push_back(w);
       }
@@ -566,7 +569,7 @@ void OnlineStabiliserLearner::fitLoop() {
       new_seconds_ = 0.0;
       status_.state = "fitting";
       windows = windows_;
-      for (const auto& w : windows) motions += w->recording.observations.size();
+      motions = bufferedLensMotions();
       // The expected cost is taken from the credit now, so that the tracking meanwhile spends only
       // what is left; the difference to the measured cost is settled when the fit ends.
       reserved_s = expectedFitCpuS(motions);
@@ -627,14 +630,10 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     replacement->held_out_rms_without_px = choice.scores[choice.chosen].rms_without_model_px;
     replacement->reason = choice.reason;
   }
-  const std::string save_problem = replacement ? saveModel(*replacement, training) : std::string();
+  if (replacement) saveModel(*replacement, training);
   std::lock_guard<std::mutex> lock(mutex_);
   ++status_.fits;
   status_.last_choice = choice.reason;
-  if (!save_problem.empty()) {
-    ++status_.saves_failed;
-    status_.last_problem = "saving the model: " + save_problem;
-  }
   if (replacement) {
     // On probation: confirmed or undone on the first held_out_s of windows after the ones it was
     // decided on (confirmSwap).
@@ -646,9 +645,9 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
   }
 }
 
-std::string OnlineStabiliserLearner::saveModel(const LearnedStabiliser& model,
-                                               const std::vector<StabiliserFitRecording>& training) const {
-  if (options_.model_path.empty()) return "";
+void OnlineStabiliserLearner::saveModel(const LearnedStabiliser& model,
+                                        const std::vector<StabiliserFitRecording>& training) {
+  if (options_.model_path.empty()) return;
   try {
     StabiliserModelFile file;
     file.name = options_.model_file_name + ": " + model.name;
@@ -663,9 +662,10 @@ std::string OnlineStabiliserLearner::saveModel(const LearnedStabiliser& model,
     file.training.held_out_rms_without_model_px = model.held_out_rms_without_px;
     file.save(options_.model_path);  // atomic: written beside it, then renamed
   } catch (const std::exception& e) {
-    return e.what();
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.saves_failed;
+    status_.last_problem = std::string("saving the model: ") + e.what();
   }
-  return "";
 }
 
 void OnlineStabiliserLearner::confirmSwap(const std::shared_ptr<const LearnedStabiliser>& replaced,
@@ -684,15 +684,10 @@ void OnlineStabiliserLearner::confirmSwap(const std::shared_ptr<const LearnedSta
     restored->held_out_rms_without_px = choice.scores[1].rms_without_model_px;
     restored->reason = "the swap to " + current->name + " undone: " + choice.reason;
   }
-  const std::string save_problem = restored ? saveModel(*restored, {}) : std::string();
+  if (restored) saveModel(*restored, {});
   std::lock_guard<std::mutex> lock(mutex_);
   status_.last_choice = "confirming the last swap: " + choice.reason;
-  if (!save_problem.empty()) {
-    ++status_.saves_failed;
-    status_.last_problem = "saving the model: " + save_problem;
-  }
-  // Only if no other swap came meanwhile (the fit thread is the only one that swaps, so none did).
-  if (restored && model_ == current) {
+  if (restored) {  // the fit thread is the only one that swaps: model_ is still `current`
     model_ = restored;
     ++status_.swaps;
     ++status_.swaps_undone;

@@ -80,6 +80,9 @@ struct StabiliserParameters {
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
+  // The chain alone: these parameters without the linear residual bank and the learned residual
+  // (the "physical" candidate, and the start of a structural refit).
+  StabiliserParameters physicalChain() const;
 };
 
 // The known feature sets of the learned residual (0 for an unknown name and for ""):

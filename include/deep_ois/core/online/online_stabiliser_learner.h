@@ -191,9 +191,9 @@ class OnlineStabiliserLearner {
   // restores the replaced one where it is clearly better (chooseStabiliserModel's margins).
   void confirmSwap(const std::shared_ptr<const LearnedStabiliser>& replaced,
                    const std::vector<std::shared_ptr<const Window>>& fresh);
-  // Writes `model` to options_.model_path (atomic); returns the problem, empty when written or
-  // when no path is set.
-  std::string saveModel(const LearnedStabiliser& model, const std::vector<StabiliserFitRecording>& training) const;
+  // Writes `model` to options_.model_path (atomic; nothing without a path); a failure is counted
+  // and said in the status.
+  void saveModel(const LearnedStabiliser& model, const std::vector<StabiliserFitRecording>& training);
   // Under mutex_ (held by `lock`): blocks until the credit covers the requested fit's expected cost,
   // the request is withdrawn (learning off) or the learner stops; false when stopping.
   bool waitForBudget(std::unique_lock<std::mutex>& lock);
@@ -202,6 +202,7 @@ class OnlineStabiliserLearner {
   bool withinBudget(double expected_cpu_s);
   void accrueCredit();                                // under mutex_
   double expectedFitCpuS(std::size_t lens_motions) const;  // under mutex_
+  std::size_t bufferedLensMotions() const;                  // under mutex_: in windows_
   double clockNow() const;
   // Charges `cpu_s` spent, giving back `reserved_s` set aside for it when it started.
   void charge(double cpu_s, double reserved_s = 0.0);
