@@ -1,13 +1,16 @@
 // Per-camera training in one command: recordings of an OIS camera (rosbags) in, a learned
-// stabiliser model (core/ois/stabiliser_model.h) and a report out.
-//   1. Ground truth per recording: the gyro-anchored lens motion from the images (or the
-//      simulator's truth with --target truth), cached beside the model so a re-run resumes.
-//   2. The fit (core/ois/stabiliser_fit.h), with progress.
-//   3. Held-out recordings scored: lens-motion residual without and with the model.
-//   4. A calibration check: the images' track residual with the gyro's rotations tells whether
-//      the camera-IMU calibration (time offset, readout, rotation) fits the recordings; for a lens
-//      log, the fit's timing check tells whether its clock fits the gyro's (--fit-time-offset
-//      moves it, as lens_log_fit does).
+// stabiliser model (core/ois/stabiliser_model.h) and a report out. main runs four steps:
+//   1. Ground truth per recording: the gyro-anchored lens motion from the images (or the camera's
+//      lens log with --target log, the simulator's truth with --target truth), cached beside the
+//      model so a re-run resumes; the images' track residual and a recorded readout tell whether
+//      the camera-IMU calibration fits the recordings.
+//   2. The fit (core/ois/stabiliser_fit.h), with progress; with --target log --fit-time-offset the
+//      lens log is moved onto the gyro's clock first, as lens_log_fit does
+//      (core/ois/lens_log_time_fit.h). Then the final rule (tools/support/stabiliser_training_choice.h):
+//      the best candidate, checked against no lens motion on data it was not fitted to.
+//   3. Held-out recordings scored, the model file and its plot written.
+//   4. The report: the model written and why, the candidates, the residuals, and the warnings
+//      that apply to the model written and the target in use.
 // The scores in the paper's metric come from `evaluate --stabiliser MODEL.yaml` on the held-out
 // bags; scripts/train_camera.sh runs both.
 #include <ros/package.h>
@@ -17,6 +20,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <sstream>

@@ -37,8 +37,8 @@ std::string lensShiftTimeOffsetAdvice(double config_offset_s, double moved_s) {
       << config_offset_s << " s";
   out.setf(std::ios::fixed);
   out.precision(1);
-  out << std::showpos << " " << 1e3 * moved_s << std::noshowpos
-      << " ms, the lens log's move; camera time = logged stamp + lens_shift_time_offset)";
+  out << ", plus the " << std::showpos << 1e3 * moved_s << std::noshowpos
+      << " ms the lens log was moved; camera time = logged stamp + lens_shift_time_offset)";
   return out.str();
 }
 

@@ -39,8 +39,8 @@ LensLogTimeFit fitStabiliserAndLensLogTime(
 std::vector<StabiliserFitRecording> withLensLogMoved(const std::vector<StabiliserFitRecording>& recordings,
                                                      double moved_s);
 
-// What to set, for a report: "lens_shift_time_offset: 0.0026 (the gyro config's 0 + the +2.6 ms
-// the lens log was moved; camera time = logged stamp + lens_shift_time_offset)".
+// What to set, for a report: "lens_shift_time_offset: 0.0026 (the gyro config's 0 s, plus the
+// +2.6 ms the lens log was moved; camera time = logged stamp + lens_shift_time_offset)".
 std::string lensShiftTimeOffsetAdvice(double config_offset_s, double moved_s);
 
 }  // namespace deep_ois
