@@ -159,7 +159,8 @@ TEST(StabiliserTrainingChoice, AFitThatBeatsNoLensMotionIsKeptAndMarked) {
   physical.held_out = physical.training;
   physical.held_out.rms_px = 0.25;
   choice.selection.candidates = {physical};
-  choice.selection.reason = "kept 'physical': held-out lens-motion RMS 0.25 px";
+  choice.selection.figures = "held-out lens-motion RMS 0.25 px";
+  choice.selection.reason = "kept 'physical': " + choice.selection.figures;
   choice.lens_check.refused = false;
   choice.lens_check.scored_on = "the held-out recordings";
   choice.lens_check.fit_rms_px = 0.25;

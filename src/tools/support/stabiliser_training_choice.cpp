@@ -59,8 +59,10 @@ std::string keptModelReason(const StabiliserTrainingChoice& choice) {
   const StabiliserSelection& selection = choice.selection;
   const std::string name = selection.candidates.at(choice.candidate).name;
   const std::string picked =
-      choice.forced ? "'" + name + "', as --candidate asked (the rule's pick: " + selection.reason + ")"
-                    : "'" + name + "' (" + selection.reason + ")";
+      choice.forced
+          ? "'" + name + "', as --candidate asked (the rule would pick '" +
+                selection.candidates.at(selection.kept).name + "': " + selection.figures + ")"
+          : "'" + name + "' (" + selection.figures + ")";
   const NoLensMotionCheck& check = choice.lens_check;
   const std::string figures =
       std::isfinite(check.fit_rms_px)
@@ -68,10 +70,13 @@ std::string keptModelReason(const StabiliserTrainingChoice& choice) {
                        check.no_lens_motion_rms_px)
           : std::string("no figure");
   if (choice.keptNoLensMotion()) {
+    const StabiliserChoiceOptions margins;
     return "kept 'no lens motion' (the plain gyro: a camera without OIS, with OIS off, or whose lens "
            "motion its data cannot show): the best candidate, " +
-           picked + ", does not predict the lens motion clearly better than no lens motion on " +
-           check.scored_on + " (" + figures + "; " + check.reason + ")";
+           picked + ", is refused: on " + check.scored_on +
+           ", the fit predicts the lens motion no better than no lens motion (" + figures +
+           printfText("; it must be %.0f %% and %.3f px better)", 100.0 * margins.min_relative_improvement,
+                      margins.min_improvement_px);
   }
   return "kept " + picked + "; it predicts the lens motion clearly better than no lens motion on " +
          check.scored_on + " (" + figures + ")";
