@@ -68,7 +68,7 @@ std::string keptModelReason(const StabiliserTrainingChoice& choice) {
       std::isfinite(check.fit_rms_px)
           ? printfText("%.4f px against %.4f px for no lens motion", check.fit_rms_px,
                        check.no_lens_motion_rms_px)
-          : std::string("no figure");
+          : check.reason;
   if (choice.keptNoLensMotion()) {
     const StabiliserChoiceOptions margins;
     return "kept 'no lens motion' (the plain gyro: a camera without OIS, with OIS off, or whose lens "
