@@ -106,6 +106,19 @@ class TinyRecording : public ::testing::Test {
   std::string bag_path_;
 };
 
+// Issue 31 #7: --recording's help describes every layout the converter accepts (it described the
+// cc9pro folder alone).
+TEST(ConvertRecordingHelp, RecordingDescribesEveryLayout) {
+  std::string help;
+  ASSERT_EQ(test::runCommand(std::string(DEEP_OIS_CONVERT_RECORDING_EXE) + " --help", help), 0);
+  const std::size_t at = help.find("--recording");
+  ASSERT_NE(at, std::string::npos) << help;
+  const std::string recording = help.substr(at, help.find("\n  --", at + 1) - at);
+  for (const char* part : {"gyro.txt", "framestamp.txt", "frames/", "lens_shift.txt", "video_meta.pb3", ".mp4",
+                           "frame_timestamps_", "gyro_log_", "ois_log_", "calib.txt"})
+    EXPECT_NE(recording.find(part), std::string::npos) << part << " not in: " << recording;
+}
+
 TEST_F(TinyRecording, WritesTheTopicsOfARobotRecording) {
   int progress_calls = 0;
   const PhoneRecordingBagStats stats =
