@@ -329,8 +329,9 @@ int main(int argc, char** argv) {
       // The fit's timing check, on this fold's training time only: where the lens motion fits
       // best against the gyro (a lens log leading it shows as a negative lag).
       if (std::isfinite(fit.review.best_lens_lag_ms))
-        std::printf("| | timing check (training time only): the lens motion fits best %.1f ms behind the gyro%s | | | | |\n",
-                    fit.review.best_lens_lag_ms,
+        std::printf("| | timing check (training time only): the lens motion fits best %.1f ms %s the gyro%s | | | | |\n",
+                    std::abs(fit.review.best_lens_lag_ms),
+                    fit.review.best_lens_lag_ms >= 0.0 ? "behind" : "ahead of",
                     lens_time_offset_s != 0.0 || fit_time_offset ? " (after the lens log was moved)" : "");
       const auto& kept = selection.candidates[kept_index].parameters;
       if (!plots.empty())

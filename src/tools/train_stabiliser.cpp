@@ -307,11 +307,12 @@ std::string writeFitPlot(const std::string& out_path, const FitStage& stage,
   plot_path += "_fit.png";
   const deep_ois::StabiliserFitResult& fit = stage.fit;
   const std::vector<double> kept(fit.rms_history.size(), choice.keptTrainingRmsPx());
-  const std::string fitted = choice.keptNoLensMotion() ? "fit (refused)" : "fit";
+  // Short labels: the legend sits inside the chart; the report names the kept candidate.
+  const std::string fitted = choice.keptNoLensMotion() ? "fit, refused" : "fit";
+  const std::string written = choice.keptNoLensMotion() ? "kept: no lens motion" : "kept model";
   {
     const cv::Mat plot = deep_ois::drawLinePlot(
-        {{fitted + ": training lens motions", fit.rms_history, cv::Scalar(200, 80, 0)},
-         {"kept: " + choice.keptName() + " (training)", kept, cv::Scalar(0, 0, 200)}},
+        {{fitted, fit.rms_history, cv::Scalar(200, 80, 0)}, {written, kept, cv::Scalar(0, 0, 200)}},
         "train_stabiliser: fit of " + fs::path(out_path).filename().string(),
         "Levenberg-Marquardt step", "RMS lens-motion residual [px]", true);
     if (!cv::imwrite(plot_path, plot))
@@ -330,9 +331,14 @@ void printReport(const Arguments& args, const deep_ois::StabiliserModelFile& mod
   std::printf("Stabiliser model %s (%s); fit curve %s\n\n", args.out_path.c_str(), model.name.c_str(),
               plot_path.c_str());
   std::printf("%s\n\n", deep_ois::keptModelReason(choice).c_str());
-  std::printf("%s\n", deep_ois::stabiliserParameterTable(p, stage.fit.review).c_str());
-  std::printf("Nonlinear residual (learned on the chain's state): %s\n\n",
-              p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
+  if (choice.keptNoLensMotion()) {
+    // The chain's other fields mean nothing at gain 0 (and the fit's bounds are not this model's).
+    std::printf("Parameters: gain 0, the lens does not move (the compensation is the plain gyro).\n\n");
+  } else {
+    std::printf("%s\n", deep_ois::stabiliserParameterTable(p, stage.fit.review).c_str());
+    std::printf("Nonlinear residual (learned on the chain's state): %s\n\n",
+                p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
+  }
   std::printf("Candidates, lens-motion RMS residual (pixels):\n\n%s\n", deep_ois::candidateTable(choice).c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
   std::printf("%s", deep_ois::lensMotionTable(rows).c_str());
@@ -446,10 +452,12 @@ int main(int argc, char** argv) {
 
   // 4. The report.
   const deep_ois::StabiliserFitResult& fit = stage.fit;
+  // The kept model's physical chain (without its residuals) on the training recordings too.
+  const deep_ois::StabiliserScore physical_training =
+      deep_ois::scoreStabiliser(kept.physicalChain(), training.recordings, args.fit_options);
   std::vector<deep_ois::LensMotionScoreRow> rows = {
       {"training", training.recordings.size(), fit.observations_used, fit.rms_without_model_px,
-       choice.keptNoLensMotion() ? fit.rms_without_model_px : fit.rms_physical_px,
-       choice.keptTrainingRmsPx()}};
+       physical_training.rms_px, choice.keptTrainingRmsPx()}};
   if (!held_out.recordings.empty()) {
     rows.push_back({"held out", held_out.recordings.size(), score.observations, score.rms_without_model_px,
                     physical_score.rms_px, score.rms_px});

@@ -14,8 +14,8 @@ std::vector<std::string> conversionSummary(const std::string& bag_path, const Ph
              std::to_string(stats.last_frame_index) + ", " +
              (stats.skipped_frame_indices > 0 ? countOf(stats.skipped_frame_indices, "index", "indices") + " missing"
                                               : std::string("none missing")) +
-             ") " + std::to_string(stats.width_px) + "x" + std::to_string(stats.height_px) + " " + stats.encoding +
-             ", " + countOf(stats.imu_messages, "IMU message", "IMU messages") + ", " +
+             ") " + std::to_string(stats.width_px) + "x" + std::to_string(stats.height_px) +
+             (stats.images ? " " + stats.encoding : std::string()) + ", " + countOf(stats.imu_messages, "IMU message", "IMU messages") + ", " +
              countOf(stats.lens_shift_messages, "lens-shift sample", "lens-shift samples");
   lines.push_back(written);
   const double span_s = (stats.last_frame_stamp - stats.first_frame_stamp).toSec();

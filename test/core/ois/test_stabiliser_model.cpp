@@ -388,7 +388,6 @@ TEST(LensLogTimeFit, MovesALateLensLogOntoTheGyroAndSaysTheOffsetToSet) {
   EXPECT_NEAR(timed.lag_before_ms, 8.0, 1.0);
   EXPECT_NEAR(timed.moved_s, -0.008, 0.001);
   EXPECT_TRUE(timed.fit.review.timing.empty()) << timed.fit.review.timing.front();
-  EXPECT_LT(timed.fit.rms_px, as_logged.rms_px);
   const std::string set = lensShiftTimeOffsetAdvice(0.001, timed.moved_s);
   EXPECT_EQ(set.rfind("lens_shift_time_offset: -0.00", 0), 0u) << set;
   EXPECT_NE(set.find("camera time = logged stamp + lens_shift_time_offset"), std::string::npos) << set;
