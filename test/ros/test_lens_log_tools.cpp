@@ -3,7 +3,8 @@
 //  - train_stabiliser --target log names lens_shift_time_offset (sign and value) where the log's
 //    clock does not fit the gyro, not calibrate (which needs images the log has none of), and
 //    --fit-time-offset moves the log as lens_log_fit does, with a better held-out residual;
-//  - predict_lens on the converted bag uses the lens log it has without being told.
+//  - predict_lens on the converted bag uses the lens log it has without being told (and the
+//    simulator's truth on a simulated bag, always run).
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -104,6 +105,23 @@ TEST_F(Pixel4LensLog, TrainStabiliserNamesAndFitsTheLensLogsClock) {
       << predicted;
   EXPECT_NE(predicted.find("comparing with the bag's lens-shift log (--target log)"), std::string::npos) << predicted;
   EXPECT_TRUE(fs::exists(dir_ + "/predicted_motion.csv")) << predicted;
+}
+
+// A simulated recording (the committed sample bag) has the simulator's truth: predict_lens takes
+// it without being told.
+TEST(PredictLens, TakesTheSimulatorTruthOfASimulatedBag) {
+  const std::string prefix = ::testing::TempDir() + "/deep_ois_predict_lens_sample";
+  std::string output;
+  EXPECT_EQ(test::runCommand(std::string(DEEP_OIS_PREDICT_LENS_EXE) + " --bag " DEEP_OIS_SOURCE_DIR
+                                 "/bags/sample.bag --model " DEEP_OIS_SOURCE_DIR
+                                 "/models/stabiliser_generic.yaml --gyro-config " DEEP_OIS_SOURCE_DIR
+                                 "/config/gyro_flow.yaml --out " +
+                                 prefix + " 2>&1",
+                             output),
+            0)
+      << output;
+  EXPECT_NE(output.find("comparing with the bag's simulator truth (--target truth)"), std::string::npos) << output;
+  for (const char* suffix : {"_position.csv", "_motion.csv", "_motion.png"}) fs::remove(prefix + suffix);
 }
 
 }  // namespace
