@@ -2,7 +2,8 @@
 #   --help               -> exit 0 and the usage printed on stdout;
 #   --epochs 10x         -> a non-zero exit and a message naming --epochs (an unknown flag for most
 #                           tools, a malformed number for train);
-#   a numeric flag of the tool with a malformed value -> exit 2 and a message naming that flag.
+#   a numeric flag of the tool with a malformed value -> exit 2 and a message naming that flag;
+#   with SOURCE_DIR, every docs/NAME.md and README "Section" the help names exists.
 # and flags that cannot work together (evaluate --camera non-ois --stabiliser) -> exit 2 naming them.
 # Usage: cmake -DTOOLS=/path/tool1;/path/tool2;... [-DSOURCE_DIR=<package>] -P check_tools_command_line.cmake
 cmake_minimum_required(VERSION 3.16)
@@ -49,6 +50,24 @@ foreach(tool_path ${TOOLS})
     string(APPEND failures "${tool} --help: exit ${status}, stderr: ${err}\n")
   elseif(NOT out MATCHES "Usage: ${tool}" OR NOT out MATCHES "--help")
     string(APPEND failures "${tool} --help: no usage on stdout: ${out}\n")
+  elseif(SOURCE_DIR)
+    # What the help points to exists: each docs/NAME.md, and each README "Section" as a heading.
+    string(REGEX MATCHALL "docs/[A-Za-z0-9_/]+\\.md" documents "${out}")
+    foreach(document ${documents})
+      if(NOT EXISTS "${SOURCE_DIR}/${document}")
+        string(APPEND failures "${tool} --help names ${document}, which does not exist\n")
+      endif()
+    endforeach()
+    string(REGEX MATCHALL "README \"[^\"]+\"" sections "${out}")
+    if(sections)
+      file(READ "${SOURCE_DIR}/README.md" readme)
+    endif()
+    foreach(section ${sections})
+      string(REGEX REPLACE "README \"([^\"]+)\"" "\\1" section "${section}")
+      if(NOT readme MATCHES "\n#+ ${section}\n")
+        string(APPEND failures "${tool} --help names the README section \"${section}\", which the README does not have\n")
+      endif()
+    endforeach()
   endif()
 
   execute_process(COMMAND "${tool_path}" --epochs 10x RESULT_VARIABLE status OUTPUT_VARIABLE out

@@ -8,9 +8,11 @@
 // the importers are in deep_ois/ros/bag/phone_logger_import.h.
 #include <rosbag/bag.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -22,6 +24,9 @@
 #include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/progress_bar.h"
+#include "deep_ois/tools/support/recording_conversion_report.h"
+
+namespace {
 
 constexpr char kDescription[] =
     "Converts a phone recording into the rosbag a robot would have recorded (image, camera_info, "
@@ -30,7 +35,28 @@ constexpr char kDescription[] =
     "the phone formats it also writes the gyro flow parameters the metadata gives (readout, mount, "
     "lens-log convention) beside the bag.";
 
+// What --recording DIR may hold, one layout per --format.
+constexpr char kRecordingHelp[] =
+    "the recording's folder, in one of three layouts (--format; auto: told by its files): "
+    "'folder', the cc9pro layout: gyro.txt (rows wx,wy,wz,t in rad/s and s), framestamp.txt (line "
+    "i = stamp of frame i, s), frames/ (optional: images whose name ends in the frame index, e.g. "
+    "RE_frame-99.jpg; without it camera_info only) and lens_shift.txt (optional lens log), with "
+    "--camera-info; 'videoimucapture', the VideoIMUCapture Android app's: a video (.mp4, .mkv or "
+    ".mov; HEVC or H.264) and video_meta.pb3; 'dvs', Google's DVS logs (no video): "
+    "frame_timestamps_*.txt, gyro_log_*.txt, ois_log_*.txt and calib.txt (optional)";
+
 namespace fs = std::filesystem;
+
+struct Arguments {
+  deep_ois::PhoneRecordingFiles files;
+  deep_ois::PhoneRecordingBagOptions options;
+  std::string recording, gyro, frame_stamps, images, out, imu_to_camera, compression = "lz4";
+  std::string format = "auto", video, metadata, gyro_config_out, image_size = "1920x1080";
+  bool quiet = false, without_images = false;
+  deep_ois::VideoImportOptions video_options;
+  deep_ois::DvsImportOptions dvs_options;
+  int frame_shift = 0;
+};
 
 // The one file in `directory` whose name ends in one of `suffixes` ("" when none); throws when
 // several do.
@@ -61,33 +87,20 @@ std::string detectFormat(const std::string& directory) {
   return "folder";
 }
 
-int main(int argc, char** argv) {
-  deep_ois::PhoneRecordingFiles files;
-  deep_ois::PhoneRecordingBagOptions options;
-  std::string recording, gyro, frame_stamps, images, out, imu_to_camera, compression = "lz4";
-  std::string format = "auto", video, metadata, gyro_config_out, image_size = "1920x1080";
-  bool quiet = false, without_images = false;
-  deep_ois::VideoImportOptions video_options;
-  deep_ois::DvsImportOptions dvs_options;
-  int frame_shift = 0;
-  deep_ois::ToolCommandLine command_line("convert_recording", kDescription,
-                                         "Exit status: 0 written, 1 failed, 2 usage.");
+void declareFlags(deep_ois::ToolCommandLine& command_line, Arguments* args) {
   CLI::App& app = command_line.app();
-  app.add_option(
-         "--recording", recording,
-         "folder in the cc9pro layout: gyro.txt (rows wx,wy,wz,t in rad/s and s), "
-         "framestamp.txt (line i = stamp of frame i, s), frames/ (images whose name ends in "
-         "the frame index, e.g. RE_frame-99.jpg)")
+  deep_ois::PhoneRecordingBagOptions& options = args->options;
+  app.add_option("--recording", args->recording, kRecordingHelp)
       ->check(deep_ois::existingDirectory())
       ->type_name("DIR");
-  app.add_option("--gyro", gyro,
+  app.add_option("--gyro", args->gyro,
                  "override the gyro CSV of the layout (all three are required without --recording)")
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
-  app.add_option("--frame-stamps", frame_stamps, "override the frame stamp list of the layout")
+  app.add_option("--frame-stamps", args->frame_stamps, "override the frame stamp list of the layout")
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
-  app.add_option("--lens-shift", files.lens_shift_csv,
+  app.add_option("--lens-shift", args->files.lens_shift_csv,
                  "the camera's lens-shift log, rows t,x,y[,cxx,cxy,cyy] (s on the frames' clock, "
                  "shift as logged; docs/lens_shift_logs.md); default: lens_shift.txt of the layout "
                  "when present")
@@ -96,28 +109,28 @@ int main(int argc, char** argv) {
   app.add_option("--lens-shift-topic", options.lens_shift_topic, "lens-shift log topic (deep_ois/LensShiftSample)")
       ->capture_default_str()
       ->type_name("TOPIC");
-  app.add_option("--images", images, "override the image folder of the layout")
+  app.add_option("--images", args->images, "override the image folder of the layout")
       ->check(deep_ois::existingDirectory())
       ->type_name("DIR");
-  app.add_option("--camera-info", files.camera_info,
+  app.add_option("--camera-info", args->files.camera_info,
                  "ROS camera calibration (YAML/INI as written by camera_calibration), e.g. "
                  "config/cameras/cc9pro.yaml")
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
-  app.add_option("--out", out, "output bag")->required()->type_name("FILE.bag");
-  app.add_option("--format", format,
+  app.add_option("--out", args->out, "output bag")->required()->type_name("FILE.bag");
+  app.add_option("--format", args->format,
                  "what --recording holds: 'folder' (the cc9pro layout; needs --camera-info), "
                  "'videoimucapture' (a video + video_meta.pb3), 'dvs' (Google's DVS text logs) or "
                  "'auto' (from the files in it)")
       ->check(deep_ois::oneOf({"auto", "folder", "videoimucapture", "dvs"}))
       ->capture_default_str();
-  app.add_option("--video", video, "VideoIMUCapture: the video (HEVC/H.264); default: the one in --recording")
+  app.add_option("--video", args->video, "VideoIMUCapture: the video (HEVC/H.264); default: the one in --recording")
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
-  app.add_option("--metadata", metadata, "VideoIMUCapture: video_meta.pb3; default: the one in --recording")
+  app.add_option("--metadata", args->metadata, "VideoIMUCapture: video_meta.pb3; default: the one in --recording")
       ->check(deep_ois::existingFile())
       ->type_name("FILE");
-  app.add_flag("--without-images", without_images,
+  app.add_flag("--without-images", args->without_images,
                "write no images: camera_info per frame stamp, gyro, lens log (for train_stabiliser "
                "--target log). The folder layout without frames/ (or without --images) is converted so "
                "too");
@@ -130,29 +143,29 @@ int main(int argc, char** argv) {
   command_line.addNumber("--to", options.span_to_s,
                          "keep the frames before this many seconds after the first frame")
       ->type_name("SECONDS");
-  app.add_option("--gyro-config-out", gyro_config_out,
+  app.add_option("--gyro-config-out", args->gyro_config_out,
                  "videoimucapture/dvs: where to write the gyro flow parameters the metadata gives "
                  "(default: OUT with .gyro_flow.yaml in place of .bag)")
       ->type_name("FILE.yaml");
-  command_line.addNumber("--image-scale", video_options.image_scale,
+  command_line.addNumber("--image-scale", args->video_options.image_scale,
                          "videoimucapture: scale the frames (and intrinsics) by this, 0 < s <= 1")
       ->capture_default_str();
-  app.add_flag("--grey", video_options.grey, "videoimucapture: write mono8 frames (calibrate reads grey)");
-  command_line.addNumber("--max-frames", video_options.max_frames,
+  app.add_flag("--grey", args->video_options.grey, "videoimucapture: write mono8 frames (calibrate reads grey)");
+  command_line.addNumber("--max-frames", args->video_options.max_frames,
                          "videoimucapture: the first N video frames only (0: all)")
       ->capture_default_str();
-  command_line.addNumber("--frame-shift", frame_shift,
+  command_line.addNumber("--frame-shift", args->frame_shift,
                          "videoimucapture: video frame j is metadata row j - N, in place of a pairing the "
                          "gyro check does not confirm (the found pairing and its confidence are printed)");
-  app.add_option("--image-size", image_size,
+  app.add_option("--image-size", args->image_size,
                  "dvs: the image size the camera_info describes (the logs have no video)")
       ->capture_default_str()
       ->type_name("WxH");
-  command_line.addNumber("--active-array-width", dvs_options.active_array_width_px,
+  command_line.addNumber("--active-array-width", args->dvs_options.active_array_width_px,
                          "dvs: the sensor's active-array width, px (the OIS log's unit; Pixel 4: 4032)")
       ->capture_default_str();
 
-  app.add_option("--imu-to-camera", imu_to_camera,
+  app.add_option("--imu-to-camera", args->imu_to_camera,
                  "R_cam_imu, 9 comma-separated row-major values (default: folder layout the cc9pro's "
                  "0,-1,0,-1,0,0,0,0,-1; videoimucapture the Android back camera's for its "
                  "SENSOR_ORIENTATION; dvs -1,0,0,0,1,0,0,0,-1)")
@@ -190,128 +203,147 @@ int main(int argc, char** argv) {
       .addNumber("--imu-margin", options.imu_margin_s,
                  "gyro kept before the first and after the last frame, seconds")
       ->type_name("SECONDS");
-  app.add_option("--compression", compression, "bag compression")
+  app.add_option("--compression", args->compression, "bag compression")
       ->check(deep_ois::oneOf({"lz4", "bz2", "none"}))
       ->capture_default_str()
       ->type_name("lz4|bz2|none");
-  app.add_flag("--quiet", quiet, "no progress bar");
-  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
-  if (!imu_to_camera.empty()) {
-    const std::vector<double> r = deep_ois::splitCommaSeparatedNumbers(imu_to_camera);
+  app.add_flag("--quiet", args->quiet, "no progress bar");
+}
+
+// The flags as the importers and the writer take them, the format told and the files of its
+// layout checked; a status to exit with when the tool should not go on.
+std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
+  deep_ois::ToolCommandLine command_line("convert_recording", kDescription,
+                                         "Exit status: 0 written, 1 failed, 2 usage.");
+  declareFlags(command_line, args);
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return status;
+  deep_ois::PhoneRecordingBagOptions& options = args->options;
+  if (!args->imu_to_camera.empty()) {
+    const std::vector<double> r = deep_ois::splitCommaSeparatedNumbers(args->imu_to_camera);
     for (int k = 0; k < 9; ++k) options.imu_to_camera_rotation(k / 3, k % 3) = r[k];
   }
-  options.compression = compression == "lz4"   ? rosbag::compression::LZ4
-                        : compression == "bz2" ? rosbag::compression::BZ2
-                                               : rosbag::compression::Uncompressed;
-  if (frame_shift != 0 || app.count("--frame-shift") > 0) video_options.forced_shift = frame_shift;
-  video_options.without_images = without_images;
-  if (gyro_config_out.empty()) {
-    gyro_config_out = out.size() > 4 && out.compare(out.size() - 4, 4, ".bag") == 0 ? out.substr(0, out.size() - 4) : out;
-    gyro_config_out += ".gyro_flow.yaml";
+  options.compression = args->compression == "lz4"   ? rosbag::compression::LZ4
+                        : args->compression == "bz2" ? rosbag::compression::BZ2
+                                                     : rosbag::compression::Uncompressed;
+  if (args->frame_shift != 0 || command_line.app().count("--frame-shift") > 0)
+    args->video_options.forced_shift = args->frame_shift;
+  args->video_options.without_images = args->without_images;
+  if (args->gyro_config_out.empty()) {
+    const std::string& out = args->out;
+    args->gyro_config_out =
+        out.size() > 4 && out.compare(out.size() - 4, 4, ".bag") == 0 ? out.substr(0, out.size() - 4) : out;
+    args->gyro_config_out += ".gyro_flow.yaml";
   }
   try {
-    if (format == "auto") format = !video.empty() || !metadata.empty() ? "videoimucapture"
-                                   : recording.empty()                 ? "folder"
-                                                                       : detectFormat(recording);
+    if (args->format == "auto")
+      args->format = !args->video.empty() || !args->metadata.empty() ? "videoimucapture"
+                     : args->recording.empty()                        ? "folder"
+                                                                      : detectFormat(args->recording);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "convert_recording: %s\n", e.what());
     return 1;
   }
-  if (format == "folder") {
-    if (!recording.empty()) {
-      const deep_ois::PhoneRecordingFiles layout = deep_ois::cc9proLayout(recording);
+  deep_ois::PhoneRecordingFiles& files = args->files;
+  if (args->format == "folder") {
+    if (!args->recording.empty()) {
+      const deep_ois::PhoneRecordingFiles layout = deep_ois::cc9proLayout(args->recording);
       files.gyro_csv = layout.gyro_csv;
       files.frame_stamps = layout.frame_stamps;
       files.images_dir = layout.images_dir;
       if (files.lens_shift_csv.empty()) files.lens_shift_csv = layout.lens_shift_csv;
     }
-    if (!gyro.empty()) files.gyro_csv = gyro;
-    if (!frame_stamps.empty()) files.frame_stamps = frame_stamps;
-    if (!images.empty()) files.images_dir = images;
-    if (without_images) files.images_dir.clear();
-    if (files.gyro_csv.empty() || files.frame_stamps.empty()) {
+    if (!args->gyro.empty()) files.gyro_csv = args->gyro;
+    if (!args->frame_stamps.empty()) files.frame_stamps = args->frame_stamps;
+    if (!args->images.empty()) files.images_dir = args->images;
+    if (args->without_images) files.images_dir.clear();
+    if (files.gyro_csv.empty() || files.frame_stamps.empty())
       return command_line.usageError("give --recording DIR, or --gyro and --frame-stamps (and --images)");
-    }
     if (files.camera_info.empty()) return command_line.usageError("the folder layout needs --camera-info FILE");
-  } else if (format == "dvs") {
-    if (recording.empty()) return command_line.usageError("--format dvs needs --recording DIR (the log folder)");
-    const std::size_t x = image_size.find('x');
+  } else if (args->format == "dvs") {
+    if (args->recording.empty()) return command_line.usageError("--format dvs needs --recording DIR (the log folder)");
+    deep_ois::DvsImportOptions& dvs = args->dvs_options;
+    const std::size_t x = args->image_size.find('x');
     try {
-      if (x == std::string::npos) throw std::invalid_argument(image_size);
-      dvs_options.image_width_px = std::stoi(image_size.substr(0, x));
-      dvs_options.image_height_px = std::stoi(image_size.substr(x + 1));
+      if (x == std::string::npos) throw std::invalid_argument(args->image_size);
+      dvs.image_width_px = std::stoi(args->image_size.substr(0, x));
+      dvs.image_height_px = std::stoi(args->image_size.substr(x + 1));
     } catch (const std::exception&) {
-      return command_line.usageError("--image-size: expected WxH, e.g. 1920x1080, got '" + image_size + "'");
+      return command_line.usageError("--image-size: expected WxH, e.g. 1920x1080, got '" + args->image_size + "'");
     }
-    if (dvs_options.image_width_px <= 0 || dvs_options.image_height_px <= 0)
+    if (dvs.image_width_px <= 0 || dvs.image_height_px <= 0)
       return command_line.usageError("--image-size: width and height must be positive");
+  } else if (args->format == "videoimucapture") {
+    try {
+      if (!args->recording.empty()) {
+        if (args->metadata.empty()) args->metadata = findBySuffix(args->recording, {".pb3"});
+        if (args->video.empty()) args->video = findBySuffix(args->recording, {".mp4", ".MP4", ".mkv", ".mov"});
+      }
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "convert_recording: %s\n", e.what());
+      return 1;
+    }
+    if (args->video.empty() && args->metadata.empty())
+      return command_line.usageError("videoimucapture: give --recording DIR or --video and --metadata");
+    if (args->without_images) args->video.clear();
   }
+  return std::nullopt;
+}
 
-  try {
-    std::optional<deep_ois::ImportedRecording> imported;
-    if (format == "videoimucapture") {
-      if (!recording.empty()) {
-        if (metadata.empty()) metadata = findBySuffix(recording, {".pb3"});
-        if (video.empty()) video = findBySuffix(recording, {".mp4", ".MP4", ".mkv", ".mov"});
-      }
-      if (video.empty() && metadata.empty()) {
-        return command_line.usageError("videoimucapture: give --recording DIR or --video and --metadata");
-      }
-      if (without_images) video.clear();
-      video_options.progress_note = [&](const std::string& note) {
-        if (!quiet) std::fprintf(stderr, "convert_recording: %s\n", note.c_str());
-      };
-      imported = deep_ois::importVideoImuCapture(video, metadata, video_options);
-    } else if (format == "dvs") {
-      imported = deep_ois::importDvsLogs(recording, dvs_options);
-    }
-    if (imported) {
-      // The logger's mount unless the user gives one.
-      if (imu_to_camera.empty()) options.imu_to_camera_rotation = imported->imu_to_camera_rotation;
-      for (const std::string& note : imported->notes) std::printf("convert_recording: %s\n", note.c_str());
-      std::printf("convert_recording: IMU-to-camera rotation: %s\n",
-                  imu_to_camera.empty() ? imported->imu_to_camera_source.c_str() : "--imu-to-camera");
-    }
-    std::unique_ptr<deep_ois::ProgressBar> bar;
-    auto progress = [&](int done, int total) {
-      if (quiet) return;
-      if (!bar)
-        bar = std::make_unique<deep_ois::ProgressBar>(static_cast<std::size_t>(total), "frames");
-      bar->update(static_cast<std::size_t>(done));
+// A phone logger's recording read into memory (nothing for the folder layout, which the writer
+// reads itself), its notes and the mount it takes printed.
+std::optional<deep_ois::ImportedRecording> importRecording(Arguments& args) {
+  std::optional<deep_ois::ImportedRecording> imported;
+  if (args.format == "videoimucapture") {
+    args.video_options.progress_note = [&args](const std::string& note) {
+      if (!args.quiet) std::fprintf(stderr, "convert_recording: %s\n", note.c_str());
     };
-    std::string gyro_yaml;
-    if (imported) {
-      if (!imu_to_camera.empty()) imported->imu_to_camera_rotation = options.imu_to_camera_rotation;
-      gyro_yaml = deep_ois::importedGyroFlowYaml(*imported, out);
-    }
-    const deep_ois::PhoneRecordingBagStats stats =
-        imported ? deep_ois::writeRecordingBag(std::move(imported->content), out, options, progress)
-                 : deep_ois::writePhoneRecordingBag(files, out, options, progress);
-    if (stats.lens_shift_repeats_dropped > 0 || stats.lens_shift_steps_back > 0) {
-      std::printf(
-          "convert_recording: lens-shift log: %d repeated samples dropped (a copy of an earlier sample within 2 "
-          "ms: Android's per-frame OIS batches), %d steps back in file order, sorted\n",
-          stats.lens_shift_repeats_dropped, stats.lens_shift_steps_back);
-    }
-    if (imported) {
-      deep_ois::writeTextFile(gyro_config_out, gyro_yaml);
-      std::printf("convert_recording: gyro flow parameters (readout %.3f ms, mount, lens-log convention): %s\n",
-                  imported->readout_s * 1e3, gyro_config_out.c_str());
-    }
-    if (stats.frames_outside_span > 0)
-      std::printf("convert_recording: %d frames outside --from/--to left out\n", stats.frames_outside_span);
-    std::printf(
-        "convert_recording: %s: %d frames%s (indices %d..%d, %d missing) %dx%d %s, stamps %u.%09u .. "
-        "%u.%09u s, %d IMU messages, %d lens-shift samples, %.1f s%s\n",
-        out.c_str(), stats.frames, stats.images ? "" : " without images (camera_info only)", stats.first_frame_index, stats.last_frame_index,
-        stats.skipped_frame_indices, stats.width_px, stats.height_px, stats.encoding.c_str(),
-        stats.first_frame_stamp.sec, stats.first_frame_stamp.nsec, stats.last_frame_stamp.sec,
-        stats.last_frame_stamp.nsec, stats.imu_messages, stats.lens_shift_messages, bar ? bar->elapsedSeconds() : 0.0,
-        stats.dropped_uncovered_frames > 0
-            ? ("; dropped " + std::to_string(stats.dropped_uncovered_frames) +
-               " frames the gyro does not cover")
-                  .c_str()
-            : "");
+    imported = deep_ois::importVideoImuCapture(args.video, args.metadata, args.video_options);
+  } else if (args.format == "dvs") {
+    imported = deep_ois::importDvsLogs(args.recording, args.dvs_options);
+  }
+  if (!imported) return imported;
+  // The logger's mount unless the user gives one.
+  if (args.imu_to_camera.empty()) args.options.imu_to_camera_rotation = imported->imu_to_camera_rotation;
+  else imported->imu_to_camera_rotation = args.options.imu_to_camera_rotation;
+  for (const std::string& note : imported->notes) std::printf("convert_recording: %s\n", note.c_str());
+  std::printf("convert_recording: IMU-to-camera rotation: %s\n",
+              args.imu_to_camera.empty() ? imported->imu_to_camera_source.c_str() : "--imu-to-camera");
+  return imported;
+}
+
+// The bag (and, for a phone logger, the gyro flow parameters beside it).
+deep_ois::PhoneRecordingBagStats writeOutputs(const Arguments& args,
+                                              std::optional<deep_ois::ImportedRecording> imported) {
+  std::unique_ptr<deep_ois::ProgressBar> bar;
+  auto progress = [&](int done, int total) {
+    if (args.quiet) return;
+    if (!bar) bar = std::make_unique<deep_ois::ProgressBar>(static_cast<std::size_t>(total), "frames");
+    bar->update(static_cast<std::size_t>(done));
+  };
+  const std::string gyro_yaml = imported ? deep_ois::importedGyroFlowYaml(*imported, args.out) : "";
+  const deep_ois::PhoneRecordingBagStats stats =
+      imported ? deep_ois::writeRecordingBag(std::move(imported->content), args.out, args.options, progress)
+               : deep_ois::writePhoneRecordingBag(args.files, args.out, args.options, progress);
+  if (imported) {
+    deep_ois::writeTextFile(args.gyro_config_out, gyro_yaml);
+    std::printf("convert_recording: gyro flow parameters (readout %.3f ms, mount, lens-log convention): %s\n",
+                imported->readout_s * 1e3, args.gyro_config_out.c_str());
+  }
+  return stats;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Arguments args;
+  if (const std::optional<int> status = parseArguments(argc, argv, &args)) return *status;
+  try {
+    const auto started = std::chrono::steady_clock::now();
+    std::optional<deep_ois::ImportedRecording> imported = importRecording(args);
+    const deep_ois::PhoneRecordingBagStats stats = writeOutputs(args, std::move(imported));
+    const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    for (const std::string& line : deep_ois::conversionSummary(args.out, stats, wall_s))
+      std::printf("convert_recording: %s\n", line.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fflush(stdout);  // what was said before the error comes first

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/ois/lens_log_time_fit.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/recording/android_ois_log.h"
@@ -196,6 +197,7 @@ int main(int argc, char** argv) {
   deep_ois::AndroidOisLogOptions log_options;
   double split_s = 6.0, interval_s = 1.0 / 30.0, lens_time_offset_s = 0.0;
   deep_ois::StabiliserFitOptions fit_options;
+  fit_options.target = deep_ois::LensMotionTarget::kLensLog;  // the review blames the log's convention
   app.add_option("--log", folder, "the log folder")->required()->check(deep_ois::existingDirectory());
   command_line.addNumber("--split", split_s, "seconds from the start of the gyro log")
       ->check(deep_ois::greaterThan(0));
@@ -268,16 +270,30 @@ int main(int argc, char** argv) {
     auto train = recording(fold_log, train_from, train_to, "train");
     auto test = recording(fold_log, test_from, test_to, "held out");
     try {
-      deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser({train}, fit_options);
-      if (fit_time_offset && std::isfinite(fit.review.best_lens_lag_ms)) {
+      deep_ois::StabiliserFitResult fit;
+      if (fit_time_offset) {
         // The training time's own timing check moves the lens log onto the gyro (a lens that
         // fits best 2 ms ahead of the gyro gets 2 ms added), then everything is fitted again.
-        const double moved_s = -1e-3 * fit.review.best_lens_lag_ms;
-        for (LoggedLensSample& sample : fold_log.lens) sample.stamp_s += moved_s;
-        std::printf("| | lens log moved by %+.1f ms (this fold's training time's timing check) | | | | |\n",
-                    1e3 * moved_s);
-        train = recording(fold_log, train_from, train_to, "train");
-        test = recording(fold_log, test_from, test_to, "held out");
+        auto moved_log = [&](double moved_s) {
+          deep_ois::AndroidOisLog moved = log;
+          for (LoggedLensSample& sample : moved.lens) sample.stamp_s += moved_s;
+          return moved;
+        };
+        const deep_ois::LensLogTimeFit timed = deep_ois::fitStabiliserAndLensLogTime(
+            [&](double moved_s) {
+              return std::vector<deep_ois::StabiliserFitRecording>{
+                  recording(moved_log(moved_s), train_from, train_to, "train")};
+            },
+            fit_options);
+        fit = timed.fit;
+        if (timed.moved_s != 0.0) {
+          fold_log = moved_log(timed.moved_s);
+          std::printf("| | lens log moved by %+.1f ms (this fold's training time's timing check) | | | | |\n",
+                      1e3 * timed.moved_s);
+          train = recording(fold_log, train_from, train_to, "train");
+          test = recording(fold_log, test_from, test_to, "held out");
+        }
+      } else {
         fit = deep_ois::fitStabiliser({train}, fit_options);
       }
       // Every candidate fitted on the whole training time, scored on the held-out time (the table).
@@ -313,8 +329,9 @@ int main(int argc, char** argv) {
       // The fit's timing check, on this fold's training time only: where the lens motion fits
       // best against the gyro (a lens log leading it shows as a negative lag).
       if (std::isfinite(fit.review.best_lens_lag_ms))
-        std::printf("| | timing check (training time only): the lens motion fits best %.1f ms behind the gyro%s | | | | |\n",
-                    fit.review.best_lens_lag_ms,
+        std::printf("| | timing check (training time only): the lens motion fits best %.1f ms %s the gyro%s | | | | |\n",
+                    std::abs(fit.review.best_lens_lag_ms),
+                    fit.review.best_lens_lag_ms >= 0.0 ? "behind" : "ahead of",
                     lens_time_offset_s != 0.0 || fit_time_offset ? " (after the lens log was moved)" : "");
       const auto& kept = selection.candidates[kept_index].parameters;
       if (!plots.empty())

@@ -26,18 +26,22 @@ int main(int argc, char** argv) {
       "Writes a stabiliser model's predicted lens for a recording: PREFIX_position.csv (the "
       "predicted lens shift every 5 ms), PREFIX_motion.csv and PREFIX_motion.png (per frame pair "
       "and row patch the predicted lens motion beside the recording's: simulator truth, lens log "
-      "or the images' gyro-anchored estimate), and prints the motion's R^2 and RMS error.",
+      "or the images' gyro-anchored estimate, by default the first the bag has), and prints the "
+      "motion's R^2 and RMS error.",
       "Exit status: 0 written, 1 failed, 2 usage.");
   CLI::App& app = command_line.app();
-  std::string bag, model_path, gyro_config, prefix, target = "truth";
+  std::string bag, model_path, gyro_config, prefix, target = "auto";
   double warm_up_s = 1.0;
   app.add_option("--bag", bag, "the recording")->required()->check(deep_ois::existingFile());
   app.add_option("--model", model_path, "stabiliser model (YAML)")->required()->check(deep_ois::existingFile());
   app.add_option("--gyro-config", gyro_config, "gyro flow parameters of the camera (YAML)")
       ->required()->check(deep_ois::existingFile());
   app.add_option("--out", prefix, "output prefix")->required()->type_name("PREFIX");
-  app.add_option("--target", target, "the lens motion to compare with: truth, log or images")
-      ->check(deep_ois::oneOf({"truth", "log", "images"}))->capture_default_str();
+  app.add_option("--target", target,
+                 "the lens motion to compare with: truth (a simulated recording's), log (the "
+                 "camera's lens-shift log), images (the gyro-anchored estimate) or auto (the first "
+                 "of these three the bag has)")
+      ->check(deep_ois::oneOf({"auto", "truth", "log", "images"}))->capture_default_str();
   command_line.addNumber("--warm-up", warm_up_s, "seconds of gyro before the first compared pair")
       ->check(deep_ois::atLeast(0));
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
@@ -46,11 +50,14 @@ int main(int argc, char** argv) {
     const deep_ois::StabiliserModelFile model = deep_ois::StabiliserModelFile::load(model_path);
     const deep_ois::GyroFlowParameters gyro =
         deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
-    const deep_ois::StabiliserRecordingData data = deep_ois::readStabiliserRecording(
-        bag, gyro,
-        target == "truth" ? deep_ois::LensMotionTarget::kSimulatorTruth
-        : target == "log" ? deep_ois::LensMotionTarget::kLensLog
-                          : deep_ois::LensMotionTarget::kImages);
+    if (target == "auto") {
+      target = deep_ois::lensMotionTargetName(deep_ois::lensMotionTargetOf(bag));
+      std::fprintf(stderr, "predict_lens: comparing with the bag's %s (--target %s)\n",
+                   target == "truth" ? "simulator truth" : target == "log" ? "lens-shift log" : "images",
+                   target.c_str());
+    }
+    const deep_ois::StabiliserRecordingData data =
+        deep_ois::readStabiliserRecording(bag, gyro, deep_ois::lensMotionTargetNamed(target));
     const deep_ois::StabiliserFitRecording& recording = data.recording;
     if (model.camera.width > 0) {
       const std::string difference = model.camera.differencesTo(data.camera);

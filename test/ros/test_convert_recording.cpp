@@ -106,6 +106,19 @@ class TinyRecording : public ::testing::Test {
   std::string bag_path_;
 };
 
+// Issue 31 #7: --recording's help describes every layout the converter accepts (it described the
+// cc9pro folder alone).
+TEST(ConvertRecordingHelp, RecordingDescribesEveryLayout) {
+  std::string help;
+  ASSERT_EQ(test::runCommand(std::string(DEEP_OIS_CONVERT_RECORDING_EXE) + " --help", help), 0);
+  const std::size_t at = help.find("--recording");
+  ASSERT_NE(at, std::string::npos) << help;
+  const std::string recording = help.substr(at, help.find("\n  --", at + 1) - at);
+  for (const char* part : {"gyro.txt", "framestamp.txt", "frames/", "lens_shift.txt", "video_meta.pb3", ".mp4",
+                           "frame_timestamps_", "gyro_log_", "ois_log_", "calib.txt"})
+    EXPECT_NE(recording.find(part), std::string::npos) << part << " not in: " << recording;
+}
+
 TEST_F(TinyRecording, WritesTheTopicsOfARobotRecording) {
   int progress_calls = 0;
   const PhoneRecordingBagStats stats =
@@ -341,7 +354,13 @@ TEST_F(TinyRecording, ToolTakesTheDropUncoveredFramesFlagItSuggests) {
   EXPECT_NE(output.find("--drop-uncovered-frames leaves them out"), std::string::npos) << output;
   EXPECT_EQ(test::runCommand(command + " --drop-uncovered-frames 2>&1", output), 0) << output;
   EXPECT_NE(output.find("3 frames"), std::string::npos) << output;
-  EXPECT_NE(output.find("dropped 1 frames the gyro does not cover"), std::string::npos) << output;
+  // Issue 31 #8: counts agree with their nouns, and every time says what it is a time of.
+  EXPECT_NE(output.find("1 frame the gyro does not cover left out"), std::string::npos) << output;
+  EXPECT_EQ(output.find(" 1 frames"), std::string::npos) << output;
+  EXPECT_NE(output.find("frame stamps: first "), std::string::npos) << output;
+  EXPECT_NE(output.find(" s of recording between them"), std::string::npos) << output;
+  EXPECT_NE(output.find("converted in "), std::string::npos) << output;
+  EXPECT_NE(output.find(" s (wall time"), std::string::npos) << output;
   rosbag::Bag bag(bag_path_, rosbag::bagmode::Read);
   EXPECT_EQ(rosbag::View(bag, rosbag::TopicQuery("/camera/image_raw")).size(), 3u);
 }

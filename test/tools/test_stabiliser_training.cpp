@@ -3,11 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
+#include "deep_ois/tools/support/recording_conversion_report.h"
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
+#include "deep_ois/tools/support/stabiliser_training_choice.h"
 #include "deep_ois/tools/support/stabiliser_training_report.h"
 
 namespace deep_ois {
@@ -86,6 +89,122 @@ TEST(StabiliserTrainingReport, ARecordedReadoutOtherThanTheConfigsIsNamed) {
   EXPECT_NE(mismatch.find("set readout_time: 0.012"), std::string::npos) << mismatch;
   data.recorded_readout_time_s = StabiliserRecordingData::kNotRecorded;
   EXPECT_EQ(readoutMismatch(data, 0.022), "");
+}
+
+// A camera whose lens does not move (OIS off): a gyro that shakes, and lens motions that are the
+// measurement's noise alone.
+StabiliserFitRecording stillLens(unsigned seed, double duration_s) {
+  StabiliserFitRecording recording;
+  recording.name = "still lens " + std::to_string(seed);
+  recording.focal_px = 500.0;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> rate(0.0, 0.6), noise(0.0, 0.1);
+  Eigen::Vector3d w = Eigen::Vector3d::Zero();
+  for (double t = 0.0; t < duration_s; t += 0.005) {
+    w = 0.95 * w + 0.05 * Eigen::Vector3d(rate(rng), rate(rng), 0.3 * rate(rng)) * 4.0;
+    recording.rates.push_back({t, w});
+  }
+  for (double stamp = 0.0; stamp + 1.0 / 30.0 < duration_s - 0.1; stamp += 1.0 / 30.0) {
+    for (int i = 0; i < 6; ++i) {
+      LensMotionObservation o;
+      o.readout_fraction = (i + 0.5) / 6.0;
+      o.t_a_s = stamp + 0.02 * o.readout_fraction;
+      o.t_b_s = o.t_a_s + 1.0 / 30.0;
+      o.motion_px = Eigen::Vector2d(noise(rng), noise(rng));
+      recording.observations.push_back(o);
+    }
+  }
+  return recording;
+}
+
+// Issue 31 #4: on a recording without lens motion the candidates' pick is refused against no lens
+// motion. The report names what is written (no lens motion) and the figures that decided it, not
+// the refused pick as "kept"; no cell says "nan" (there is no held-out recording).
+TEST(StabiliserTrainingChoice, ARecordingWithoutLensMotionReportsNoLensMotionAsKept) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.try_circular_stroke = false;
+  options.iterations = 5;
+  const std::vector<StabiliserFitRecording> training = {stillLens(7, 5.0)};
+  const StabiliserFitResult fit = fitStabiliser(training, options);
+  const StabiliserTrainingChoice choice = chooseTrainedStabiliser(fit, training, {}, options);
+  ASSERT_TRUE(choice.keptNoLensMotion()) << choice.lens_check.reason;
+  EXPECT_EQ(choice.keptName(), "no lens motion");
+  EXPECT_TRUE(isNoLensMotion(choice.keptParameters()));
+  const std::string reason = keptModelReason(choice);
+  EXPECT_EQ(reason.rfind("kept 'no lens motion'", 0), 0u) << reason;
+  // Said once, and of the model written only.
+  EXPECT_EQ(reason.find("kept '", 1), std::string::npos) << reason;
+  EXPECT_NE(reason.find("px against"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("the last quarter of each training recording"), std::string::npos) << reason;
+  const std::string table = candidateTable(choice);
+  EXPECT_EQ(table.find("nan"), std::string::npos) << table;
+  EXPECT_NE(table.find("n/a"), std::string::npos) << table;
+  EXPECT_NE(table.find("held out: n/a, no --held-out recordings"), std::string::npos) << table;
+  EXPECT_NE(table.find(" | kept |\n"), std::string::npos) << table;
+  EXPECT_NE(table.find("| no lens motion | "), std::string::npos) << table;
+  EXPECT_NE(table.find("refused against no lens motion"), std::string::npos) << table;
+  // The kept model's training figure is the lens motion itself (what no lens motion leaves).
+  EXPECT_DOUBLE_EQ(choice.keptTrainingRmsPx(), choice.selection.candidates[choice.candidate].training.rms_without_model_px);
+}
+
+// A fit that predicts the held-out lens motion is kept, and the table marks it.
+TEST(StabiliserTrainingChoice, AFitThatBeatsNoLensMotionIsKeptAndMarked) {
+  StabiliserTrainingChoice choice;
+  StabiliserCandidate physical;
+  physical.name = "physical";
+  physical.training.rms_px = 0.2;
+  physical.training.rms_without_model_px = 2.0;
+  physical.training.observations = 600;
+  physical.held_out = physical.training;
+  physical.held_out.rms_px = 0.25;
+  choice.selection.candidates = {physical};
+  choice.selection.figures = "held-out lens-motion RMS 0.25 px";
+  choice.selection.reason = "kept 'physical': " + choice.selection.figures;
+  choice.lens_check.refused = false;
+  choice.lens_check.scored_on = "the held-out recordings";
+  choice.lens_check.fit_rms_px = 0.25;
+  choice.lens_check.no_lens_motion_rms_px = 2.0;
+  const std::string reason = keptModelReason(choice);
+  EXPECT_EQ(reason.rfind("kept 'physical'", 0), 0u) << reason;
+  EXPECT_NE(reason.find("0.2500 px against 2.0000 px for no lens motion"), std::string::npos) << reason;
+  const std::string table = candidateTable(choice);
+  EXPECT_NE(table.find("| physical | 0.2000 | 0.2500 | kept |"), std::string::npos) << table;
+  EXPECT_NE(table.find("| no lens motion | 2.0000 | 2.0000 |  |"), std::string::npos) << table;
+  EXPECT_EQ(table.find("n/a"), std::string::npos) << table;
+}
+
+// Issue 31 #8: convert_recording's summary labels every figure and agrees counts with nouns.
+TEST(RecordingConversionReport, LabelsEveryTimeAndCountsInTheRightNumber) {
+  PhoneRecordingBagStats stats;
+  stats.frames = 632;
+  stats.first_frame_index = 1;
+  stats.last_frame_index = 632;
+  stats.width_px = 640;
+  stats.height_px = 480;
+  stats.encoding = "mono8";
+  stats.imu_messages = 2238;
+  stats.dropped_uncovered_frames = 1;
+  stats.lens_shift_repeats_dropped = 1;
+  stats.lens_shift_steps_back = 2;
+  stats.first_frame_stamp = ros::Time(100, 0);
+  stats.last_frame_stamp = ros::Time(121, 100000000);
+  const std::vector<std::string> lines = conversionSummary("vic.bag", stats, 23.4);
+  std::string all;
+  for (const std::string& line : lines) all += line + "\n";
+  EXPECT_NE(all.find("vic.bag: 632 frames (indices 1..632, none missing) 640x480 mono8, 2238 IMU messages, "
+                     "0 lens-shift samples\n"),
+            std::string::npos)
+      << all;
+  EXPECT_NE(all.find("frame stamps: first 100.000000000 s, last 121.100000000 s (the bag's clock), 21.1 s of "
+                     "recording between them\n"),
+            std::string::npos)
+      << all;
+  EXPECT_NE(all.find("1 frame the gyro does not cover left out"), std::string::npos) << all;
+  EXPECT_NE(all.find("1 repeated sample dropped"), std::string::npos) << all;
+  EXPECT_NE(all.find("2 steps back"), std::string::npos) << all;
+  EXPECT_NE(all.find("converted in 23.4 s (wall time: reading, pairing and writing)"), std::string::npos) << all;
+  EXPECT_EQ(all.find(" 1 frames"), std::string::npos) << all;
 }
 
 class StabiliserTrainingCache : public ::testing::Test {

@@ -154,8 +154,7 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
   selection.kept = kept;
   std::ostringstream why;
   why.precision(4);
-  why << "kept '" << selection.candidates[kept].name << "': "
-      << (by_held_out ? "held-out" : "training (no held-out recordings, so no test of "
+  why << (by_held_out ? "held-out" : "training (no held-out recordings, so no test of "
                                      "generalisation)")
       << " lens-motion RMS " << key(selection.candidates[kept]) << " px";
   if (kept != best) {
@@ -165,7 +164,8 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
   } else if (selection.candidates.size() > 1) {
     why << ", the lowest of " << selection.candidates.size() << " candidates";
   }
-  selection.reason = why.str();
+  selection.figures = why.str();
+  selection.reason = "kept '" + selection.candidates[kept].name + "': " + selection.figures;
   return selection;
 }
 

@@ -373,6 +373,9 @@ std::vector<StabiliserFitRecording> movedInTime(
   return moved;
 }
 
+// The timing check scans +-this, milliseconds (a grid of 2 ms steps, refined between them).
+constexpr double kTimingScanMs = 20.0;
+
 // The timing check of the review: see StabiliserFitReview::best_lens_lag_ms.
 void checkTiming(const StabiliserParameters& physical,
                  const std::vector<StabiliserFitRecording>& recordings,
@@ -405,7 +408,7 @@ void checkTiming(const StabiliserParameters& physical,
     return at;
   };
   constexpr double kStepS = 0.002;
-  constexpr int kHalfCount = 10;  // +-20 ms
+  constexpr int kHalfCount = 10;  // +-20 ms: kTimingScanMs
   double shift = scan([&](double s) { return cost(s, 0.0); }, kStepS, kHalfCount);
   const double readout_change = scan([&](double r) { return cost(shift, r); }, kStepS, kHalfCount);
   shift = scan([&](double s) { return cost(s, readout_change); }, kStepS, kHalfCount);
@@ -438,14 +441,26 @@ void checkTiming(const StabiliserParameters& physical,
   }
   const double lag_ms = review->best_lens_lag_ms;
   if (lag_ms < -kMostLeadMs || lag_ms > kMostLagMs) {
-    line << "time_offset: the lens motion fits best " << std::abs(lag_ms) << " ms "
-         << (lag_ms > 0.0 ? "behind" : "ahead of")
+    const bool log = options.target == LensMotionTarget::kLensLog;
+    line << (log ? "lens_shift_time_offset" : "time_offset") << ": the lens motion fits best "
+         << std::abs(lag_ms) << " ms " << (lag_ms > 0.0 ? "behind" : "ahead of")
          << " the gyro at the times the gyro config gives ("
          << (lag_ms > 0.0 ? "a module's own sensor lag is 0-3 ms"
                           : "a stabiliser never moves before its gyro")
-         << "): the camera-IMU time offset (or the readout) looks wrong by about "
-         << std::abs(lag_ms) << " ms" << (lag_ms > 0.0 ? " less the module's own lag" : "")
-         << "; run calibrate on the recordings";
+         << "): ";
+    if (log) {
+      // A lens log has no images to calibrate against: its own clock is what moves.
+      line << "the lens log's clock looks off by about " << std::abs(lag_ms) << " ms"
+           << (lag_ms > 0.0 ? " less the module's own lag" : "")
+           << "; add " << std::showpos << std::setprecision(4) << -1e-3 * lag_ms
+           << std::noshowpos << std::setprecision(1)
+           << " s to lens_shift_time_offset in the gyro config (camera time = logged stamp + "
+              "lens_shift_time_offset), or let train_stabiliser --fit-time-offset apply it";
+    } else {
+      line << "the camera-IMU time offset (or the readout) looks wrong by about "
+           << std::abs(lag_ms) << " ms" << (lag_ms > 0.0 ? " less the module's own lag" : "")
+           << "; run calibrate on the recordings";
+    }
     review->timing.push_back(line.str());
   }
 }
@@ -470,13 +485,70 @@ std::string StabiliserFitOptions::validate() const {
   return why.str();
 }
 
+LensMotionTarget lensMotionTargetNamed(const std::string& name) {
+  if (name == "images") return LensMotionTarget::kImages;
+  if (name == "log") return LensMotionTarget::kLensLog;
+  if (name == "truth") return LensMotionTarget::kSimulatorTruth;
+  throw std::invalid_argument("lens motion target '" + name + "': expected images, log or truth");
+}
+
+const char* lensMotionTargetName(LensMotionTarget target) {
+  switch (target) {
+    case LensMotionTarget::kImages:
+      return "images";
+    case LensMotionTarget::kLensLog:
+      return "log";
+    case LensMotionTarget::kSimulatorTruth:
+      return "truth";
+  }
+  return "images";
+}
+
+std::string timingCheckSummary(const StabiliserFitReview& review) {
+  if (!std::isfinite(review.best_lens_lag_ms)) return "timing check: not run";
+  // A best value on the end of the scan is no optimum: the cost kept falling beyond it.
+  auto value = [](double ms) {
+    std::ostringstream out;
+    out.setf(std::ios::fixed);
+    out.precision(1);
+    out << ms << " ms";
+    if (std::abs(ms) >= kTimingScanMs - 1e-6)
+      out << " (the end of the +-" << kTimingScanMs << " ms scanned: no optimum inside it)";
+    return out.str();
+  };
+  const double lag = review.best_lens_lag_ms;
+  std::string line = "timing check: the lens motion fits best " + value(std::abs(lag)) + " " +
+                     (lag >= 0.0 ? "behind" : "ahead of") + " the gyro, with the readout changed by " +
+                     value(review.best_readout_change_ms);
+  return line;
+}
+
 bool StabiliserFitReview::onBound(const std::string& parameter) const {
   return std::find(on_bound_parameters.begin(), on_bound_parameters.end(), parameter) !=
          on_bound_parameters.end();
 }
 
-StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
+StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotionTarget target) {
   StabiliserFitReview review;
+  // What can put the lens motions on the wrong scale or time, for their source: the images carry
+  // the camera-IMU calibration's errors, a lens log its convention and clock, the simulator's truth
+  // neither (only the camera_info's focal length can disagree with it).
+  const char* scale_causes =
+      target == LensMotionTarget::kLensLog
+          ? "the lens motions are likely on the wrong scale (a lens log in other units than the "
+            "image's pixels: set lens_shift_scale in the gyro config, e.g. image width / active "
+            "array width) or the focal length (camera_info) is wrong"
+      : target == LensMotionTarget::kImages
+          ? "the images' lens motions likely hold calibration errors the lens absorbed (a wrong "
+            "time_offset, readout_time or IMU -> camera rotation: run calibrate on the recordings) "
+            "or the focal length (camera_info) is wrong"
+          : "the focal length (camera_info) likely differs from the simulated camera's";
+  const char* early_frames =
+      target == LensMotionTarget::kLensLog
+          ? "a module without sensor lag, or a lens log whose clock leads the gyro: see "
+            "lens_shift_time_offset (camera time = logged stamp + it)"
+          : "a module without sensor lag, or frames placed too early in IMU time by a time offset "
+            "or readout error; if unsure, run calibrate";
   auto check = [&](const char* parameter, const char* what, double value, Bounds bounds,
                    const char* unit) {
     const double tolerance = 1e-6 * std::max(1.0, std::abs(bounds.upper));
@@ -487,9 +559,7 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
          << (lower ? "lower" : "upper") << " bound: the data wanted " << (lower ? "less" : "more");
     // No stabiliser moves before its gyro: frames placed too early in IMU time look like that.
     if (lower && std::string(parameter) == "sensor_lag_s")
-      line << " (the lens moves with its gyro, no later: a module without sensor lag, or frames "
-              "placed too early in IMU time by a time offset or readout error; if unsure, run "
-              "calibrate)";
+      line << " (the lens moves with its gyro, no later: " << early_frames << ")";
     review.on_bound.push_back(line.str());
     review.on_bound_parameters.push_back(parameter);
   };
@@ -517,26 +587,24 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p) {
   gain << "gain [" << p.gain(0, 0) << " " << p.gain(0, 1) << "; " << p.gain(1, 0) << " "
        << p.gain(1, 1) << "] (it cancels " << 100.0 * singular(0) << " % of the rotation)";
   if (singular(0) > kMostGain) {
-    review.implausible.push_back(
-        gain.str() +
-        ": a stabiliser cancels about the rotation (gain near 1), not more; the lens "
-        "motions are likely on the wrong scale (a lens log in other units than the image's pixels: "
-        "set lens_shift_scale in the gyro config, e.g. image width / active array width) or the "
-        "focal length (camera_info) is wrong");
+    review.implausible.push_back(gain.str() +
+                                 ": a stabiliser cancels about the rotation (gain near 1), not "
+                                 "more; " +
+                                 scale_causes);
   } else if (singular(0) < kLeastGain) {
     review.implausible.push_back(
-        gain.str() +
-        ": the lens hardly follows the rotation; the OIS was likely off (then the "
-        "camera needs no lens model) or the lens motions are on the wrong scale "
-        "(lens_shift_scale)");
+        gain.str() + ": the lens hardly follows the rotation; the OIS was likely off (then the "
+        "camera needs no lens model)" +
+        (target == LensMotionTarget::kLensLog
+             ? std::string(" or the lens motions are on the wrong scale (lens_shift_scale)")
+             : std::string()));
   }
   const double stroke = std::max(p.stroke_x_deg, p.stroke_y_deg);
   if (stroke > kMostStrokeDeg) {
     std::ostringstream line;
     line.precision(3);
     line << "stroke " << p.stroke_x_deg << " x " << p.stroke_y_deg
-         << " deg: beyond what a module's lens travels (about 0.5-1.5 deg); the lens motions are "
-            "likely on the wrong scale (lens_shift_scale) or the focal length is wrong";
+         << " deg: beyond what a module's lens travels (about 0.5-1.5 deg); " << scale_causes;
     review.implausible.push_back(line.str());
   }
   return review;
@@ -775,17 +843,11 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     return r;
   }();
   result.rms_without_model_px = weightedRms(none_residuals.values, Eigen::VectorXd::Ones(none_residuals.values.size()));
-  result.review = reviewStabiliserFit(result.parameters);
+  result.review = reviewStabiliserFit(result.parameters, options.target);
   if (options.check_timing) {
     checkTiming(refined, recordings, physical_options, &result.review);
   }
-  if (std::isfinite(result.review.best_lens_lag_ms)) {
-    std::ostringstream line;
-    line << "timing check: the lens motion fits best " << result.review.best_lens_lag_ms
-         << " ms behind the gyro, with the readout changed by "
-         << result.review.best_readout_change_ms << " ms";
-    log(line.str());
-  }
+  if (std::isfinite(result.review.best_lens_lag_ms)) log(timingCheckSummary(result.review));
   return result;
 }
 
@@ -837,7 +899,7 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
        << refined.stroke_y_deg << " deg, cost " << refined_cost;
   result.log.push_back(line.str());
   keepWithLinearResidual(refined, recordings, options, &result);
-  result.review = reviewStabiliserFit(result.parameters);
+  result.review = reviewStabiliserFit(result.parameters, options.target);
   return result;
 }
 

@@ -119,6 +119,7 @@ NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted
       check.refused = true;
       check.reason = std::string("the fit on the first three quarters failed (") + e.what() +
                      "): nothing shows that the lens moves";
+      check.scored_on = where;
       return check;
     }
   }
@@ -126,6 +127,9 @@ NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted
       chooseStabiliserModel({{"fit", candidate}, {"no lens motion", noLensMotion()}}, 1, scored, options);
   check.refused = !choice.replaced_incumbent;
   check.reason = "on " + where + ": " + choice.reason;
+  check.scored_on = where;
+  check.fit_rms_px = choice.scores[0].rms_px;
+  check.no_lens_motion_rms_px = choice.scores[1].rms_px;
   return check;
 }
 

@@ -1,5 +1,8 @@
 #include "deep_ois/ros/bag/stabiliser_training_data.h"
 
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
 #include <map>
 #include <stdexcept>
 
@@ -14,6 +17,20 @@
 #include "deep_ois/ros/messages/conversions.h"
 
 namespace deep_ois {
+LensMotionTarget lensMotionTargetOf(const std::string& bag_path) {
+  const BagSequenceTopics topics;  // the topics readStabiliserRecording reads
+  try {
+    rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+    if (rosbag::View(bag, rosbag::TopicQuery(topics.frame_pair_truth)).size() > 0)
+      return LensMotionTarget::kSimulatorTruth;
+    if (rosbag::View(bag, rosbag::TopicQuery(topics.lens_shift_log)).size() > 0)
+      return LensMotionTarget::kLensLog;
+  } catch (const std::exception& e) {
+    throw std::runtime_error(bag_path + ": " + e.what());
+  }
+  return LensMotionTarget::kImages;
+}
+
 StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
                                                 const GyroFlowParameters& gyro,
                                                 LensMotionTarget target,
@@ -87,7 +104,9 @@ StabiliserRecordingData readStabiliserRecording(const std::string& bag_path,
     return data;
   }
   if (!images) {
-    if (bag.truths.empty()) fail("no simulator truth on /ground_truth/frame_pair");
+    if (bag.truths.empty())
+      fail("no simulator truth on /ground_truth/frame_pair (a simulated recording has it; for a real "
+           "one use its lens-shift log, --target log, or the images, --target images)");
     for (const FramePairTruth& truth : bag.truths) {
       if (!truth.ois_enabled) continue;
       ++data.frame_pairs;

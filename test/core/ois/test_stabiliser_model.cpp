@@ -17,6 +17,7 @@
 
 #include "deep_ois/core/camera/camera_description.h"
 #include "deep_ois/core/ois/camera_rate_cursor.h"
+#include "deep_ois/core/ois/lens_log_time_fit.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
@@ -198,7 +199,7 @@ TEST(StabiliserFit, ReviewNamesImplausibleValuesAndParametersOnABound) {
   p.stroke_x_deg = 9.8;
   p.sensor_lag_s = 0.0;
   p.actuator_damping = 0.05;
-  const StabiliserFitReview review = reviewStabiliserFit(p);
+  const StabiliserFitReview review = reviewStabiliserFit(p, LensMotionTarget::kLensLog);
   ASSERT_EQ(review.implausible.size(), 2u);
   EXPECT_NE(review.implausible[0].find("gain"), std::string::npos) << review.implausible[0];
   EXPECT_NE(review.implausible[0].find("lens_shift_scale"), std::string::npos);
@@ -211,6 +212,50 @@ TEST(StabiliserFit, ReviewNamesImplausibleValuesAndParametersOnABound) {
   const StabiliserFitReview plausible = reviewStabiliserFit(knownStabiliser());
   EXPECT_TRUE(plausible.implausible.empty());
   EXPECT_TRUE(plausible.on_bound.empty());
+}
+
+// Issue 31 #4: the review blames only what the lens motions' source can get wrong. Lens motions
+// from the images have no lens log, so no lens_shift_scale; the simulator's truth has neither a
+// log nor a calibration to run.
+TEST(StabiliserFit, ReviewBlamesOnlyWhatTheTargetCanGetWrong) {
+  StabiliserParameters p = knownStabiliser();
+  p.gain << 0.0, 6.6, -6.4, 0.0;
+  p.stroke_x_deg = 9.8;
+  p.sensor_lag_s = 0.0;
+  const StabiliserFitReview images = reviewStabiliserFit(p);  // the default target: the images
+  ASSERT_EQ(images.implausible.size(), 2u);
+  for (const std::string& line : images.implausible) {
+    EXPECT_EQ(line.find("lens_shift"), std::string::npos) << line;
+    EXPECT_EQ(line.find("lens log"), std::string::npos) << line;
+    EXPECT_NE(line.find("run calibrate"), std::string::npos) << line;
+  }
+  for (const std::string& line : reviewStabiliserFit(p, LensMotionTarget::kSimulatorTruth).implausible) {
+    EXPECT_EQ(line.find("lens_shift"), std::string::npos) << line;
+    EXPECT_EQ(line.find("calibrate"), std::string::npos) << line;
+  }
+  const StabiliserFitReview log = reviewStabiliserFit(p, LensMotionTarget::kLensLog);
+  EXPECT_NE(log.on_bound.front().find("lens_shift_time_offset"), std::string::npos) << log.on_bound.front();
+  EXPECT_EQ(images.on_bound.front().find("lens_shift_time_offset"), std::string::npos) << images.on_bound.front();
+  // A lens that hardly moves: OIS off, for every target; only a log can be on the wrong scale.
+  p.gain << 0.0, 0.01, -0.01, 0.0;
+  p.stroke_x_deg = 1.0;
+  const StabiliserFitReview still = reviewStabiliserFit(p);
+  ASSERT_FALSE(still.implausible.empty());
+  EXPECT_NE(still.implausible.front().find("OIS was likely off"), std::string::npos) << still.implausible.front();
+  EXPECT_EQ(still.implausible.front().find("lens_shift_scale"), std::string::npos) << still.implausible.front();
+}
+
+// The timing check's line says when its best value is the end of the range it scanned (the VIC
+// recording printed "readout changed by -20 ms", which is no finding).
+TEST(StabiliserFit, TimingSummarySaysWhenTheScanEndedOnItsEdge) {
+  StabiliserFitReview review;
+  EXPECT_EQ(timingCheckSummary(review), "timing check: not run");
+  review.best_lens_lag_ms = -2.6;
+  review.best_readout_change_ms = -20.0;
+  const std::string line = timingCheckSummary(review);
+  EXPECT_NE(line.find("2.6 ms ahead of the gyro"), std::string::npos) << line;
+  EXPECT_NE(line.find("-20.0 ms (the end of the +-20.0 ms scanned: no optimum inside it)"), std::string::npos)
+      << line;
 }
 
 // The same from the fit itself: lens motions 6.6 times too large (the wrong scale) are fitted,
@@ -315,6 +360,37 @@ TEST(StabiliserFit, TimingCheckNamesATimeOffsetError) {
   for (const std::string& line : early.review.timing)
     EXPECT_EQ(line.rfind("readout_time:", 0), std::string::npos) << line;
   EXPECT_TRUE(early.review.onBound("sensor_lag_s"));
+}
+
+// Issue 31 #5: a lens log whose clock is late against the gyro. The timing check names
+// lens_shift_time_offset (not calibrate, which needs images) with the value to add, and the shared
+// timing fit (lens_log_fit and train_stabiliser --fit-time-offset) moves the log back onto the gyro.
+TEST(LensLogTimeFit, MovesALateLensLogOntoTheGyroAndSaysTheOffsetToSet) {
+  StabiliserFitOptions options;
+  options.pan_thresholds_rad_s = {0.0};
+  options.try_circular_stroke = false;
+  options.iterations = 10;
+  options.readout_time_s = 0.012;
+  options.target = LensMotionTarget::kLensLog;
+  const StabiliserParameters truth = knownStabiliser();  // 2 ms sensor lag
+  // The log's stamps 6 ms late: the lens seems to lag its gyro by 8 ms.
+  const std::vector<StabiliserFitRecording> logged = {observeWithReadout(truth, 31, 0.012, 0.012, -0.006),
+                                                      observeWithReadout(truth, 32, 0.012, 0.012, -0.006)};
+  const StabiliserFitResult as_logged = fitStabiliser(logged, options);
+  ASSERT_EQ(as_logged.review.timing.size(), 1u);
+  const std::string& advice = as_logged.review.timing.front();
+  EXPECT_EQ(advice.rfind("lens_shift_time_offset:", 0), 0u) << advice;
+  EXPECT_NE(advice.find("add -0.00"), std::string::npos) << advice;
+  EXPECT_EQ(advice.find("run calibrate"), std::string::npos) << advice;
+
+  const LensLogTimeFit timed = fitStabiliserAndLensLogTime(
+      [&](double moved_s) { return withLensLogMoved(logged, moved_s); }, options);
+  EXPECT_NEAR(timed.lag_before_ms, 8.0, 1.0);
+  EXPECT_NEAR(timed.moved_s, -0.008, 0.001);
+  EXPECT_TRUE(timed.fit.review.timing.empty()) << timed.fit.review.timing.front();
+  const std::string set = lensShiftTimeOffsetAdvice(0.001, timed.moved_s);
+  EXPECT_EQ(set.rfind("lens_shift_time_offset: -0.00", 0), 0u) << set;
+  EXPECT_NE(set.find("camera time = logged stamp + lens_shift_time_offset"), std::string::npos) << set;
 }
 
 TEST(StabiliserFit, AFitThatDoesNotBeatNoLensMotionOnHeldOutRecordingsIsRefused) {

@@ -33,6 +33,15 @@ struct LensMotionObservation {
   double readout_fraction = 0.5;
 };
 
+// Where the observed lens motions come from: the images (gyro-anchored ground truth), the
+// camera's own lens-shift log, or the simulator's truth. A fit's review blames what can be wrong
+// with that source (the camera-IMU calibration for the images, the log's convention and clock for a
+// log) and nothing else.
+enum class LensMotionTarget { kImages, kLensLog, kSimulatorTruth };
+// The command-line names: "images", "log", "truth" (throws std::invalid_argument for others).
+LensMotionTarget lensMotionTargetNamed(const std::string& name);
+const char* lensMotionTargetName(LensMotionTarget target);
+
 // One recording: its gyro stream (camera frame, increasing stamps) and what was observed.
 struct StabiliserFitRecording {
   std::string name;  // for messages
@@ -59,6 +68,8 @@ struct StabiliserFitOptions {
   // The readout time the observations were placed with (the gyro config's), seconds: the timing
   // check names a readout that fits better in proportion to it; 0 = unknown.
   double readout_time_s = 0.0;
+  // What the observations are (the review's and the timing check's wording).
+  LensMotionTarget target = LensMotionTarget::kImages;
 
   std::string validate() const;
 };
@@ -87,9 +98,16 @@ struct StabiliserFitReview {
   bool onBound(const std::string& parameter) const;
 };
 
+// The timing check's finding in one line, for logs ("timing check: the lens motion fits best
+// 2.6 ms ahead of the gyro, with the readout changed by 0.3 ms"); a value on the end of the scanned
+// range says so (the cost kept falling: no optimum inside it). "timing check: not run" when NaN.
+std::string timingCheckSummary(const StabiliserFitReview& review);
+
 // Reviews fitted parameters: bounds of the fit reached (pan_release_corner_hz only with pan
-// detection on, the only case the fit moves it) and implausible values.
-StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& parameters);
+// detection on, the only case the fit moves it) and implausible values, each with the causes that
+// apply to lens motions from `target`.
+StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& parameters,
+                                        LensMotionTarget target = LensMotionTarget::kImages);
 
 struct StabiliserFitResult {
   StabiliserParameters parameters;

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,10 @@ namespace deep_ois {
 struct NoLensMotionCheck {
   bool refused = false;
   std::string reason;  // the scores and the verdict, one sentence
+  std::string scored_on;  // "the held-out recordings" or "the last quarter of each training recording ..."
+  // Held-out lens-motion RMS there, pixels (NaN when nothing was scored).
+  double fit_rms_px = std::numeric_limits<double>::quiet_NaN();
+  double no_lens_motion_rms_px = std::numeric_limits<double>::quiet_NaN();
 };
 NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted,
                                               const std::vector<StabiliserFitRecording>& training,

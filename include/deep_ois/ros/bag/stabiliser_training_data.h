@@ -20,7 +20,7 @@
 
 namespace deep_ois {
 
-enum class LensMotionTarget { kImages, kLensLog, kSimulatorTruth };
+// LensMotionTarget (core/ois/stabiliser_fit.h) says which of the three is read.
 
 struct StabiliserRecordingData {
   StabiliserFitRecording recording;
@@ -35,6 +35,11 @@ struct StabiliserRecordingData {
   static constexpr double kNotRecorded = -1.0;
   double recorded_readout_time_s = kNotRecorded;
 };
+
+// The lens motion `bag_path` can give, from its index alone (no message read): the simulator's
+// truth when it has it (a simulated recording), else the camera's lens-shift log, else the images.
+// Throws std::runtime_error naming the bag when it cannot be opened.
+LensMotionTarget lensMotionTargetOf(const std::string& bag_path);
 
 // Throws std::runtime_error naming the bag and the problem (unreadable, no camera_info, no IMU or
 // IMU -> camera transform when the parameters take it from tf, no simulator truth when asked).
