@@ -15,7 +15,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
+#include <numeric>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -31,7 +31,7 @@
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/dataset_hash.h"
-#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/csv_plot.h"
 #include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
 #include "deep_ois/tools/support/stabiliser_training_report.h"
@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
       "camera_info and the IMU -> camera transform): the lens motion per frame pair and row patch "
       "from the images with the gyro's rotations (gyro-anchored ground truth), then the "
       "stabiliser model fitted to it. Writes MODEL.yaml (parameters, camera, training data) and "
-      "MODEL_fit.png (the fit's loss curve), and "
+      "MODEL_fit.csv and MODEL_fit.png (the fit's loss curve), and "
       "keeps each recording's ground truth in a cache directory (a re-run resumes from it).",
       "Exit status: 0 done, 1 no usable recording or the fit failed, 2 usage, 3 done but some "
       "recordings could not be read, the calibration looks wrong or the fitted parameters are "
@@ -307,12 +307,17 @@ int main(int argc, char** argv) {
     plot_path.resize(plot_path.size() - 5);
   plot_path += "_fit.png";
   {
-    const cv::Mat plot = deep_ois::drawLinePlot(
-        {{"training lens motions", fit.rms_history, cv::Scalar(200, 80, 0)}},
-        "train_stabiliser: fit of " + fs::path(out_path).filename().string(),
-        "Levenberg-Marquardt step", "RMS lens-motion residual [px]", true);
-    if (!cv::imwrite(plot_path, plot))
-      std::fprintf(stderr, "train_stabiliser: cannot write %s\n", plot_path.c_str());
+    std::vector<double> steps(fit.rms_history.size());
+    std::iota(steps.begin(), steps.end(), 1.0);
+    deep_ois::CsvPlot plot{"train_stabiliser: fit of " + fs::path(out_path).filename().string(), "step",
+                           "accepted Levenberg-Marquardt step (all stages of the fit)",
+                           {"RMS lens-motion residual [px]"}, {{"rms_px", "training lens motions"}}};
+    plot.log_y = true;
+    const std::string csv_path = plot_path.substr(0, plot_path.size() - 4) + ".csv";
+    const deep_ois::PlotOutcome outcome =
+        deep_ois::writeAndPlotCsv(plot, {{"step", steps}, {"rms_px", fit.rms_history}}, csv_path, plot_path);
+    if (!outcome.written)
+      std::fprintf(stderr, "train_stabiliser: %s\n", deep_ois::describePlot(outcome, csv_path, plot_path).c_str());
   }
   const auto& p = fit.parameters;
   std::printf("Stabiliser model %s (%s); fit curve %s\n\n", out_path.c_str(), model.name.c_str(),
