@@ -214,7 +214,7 @@ def draw_bars(arguments, labels, values, plt):
     finite = [v for v in values if math.isfinite(v)]
     largest = max(finite) if finite else 1.0
     ax.barh(rows, [v if math.isfinite(v) else 0.0 for v in values], height=0.7,
-            color=[palette[i % len(palette)] for i in rows], zorder=2)
+            color=palette[0], zorder=2)
     for row, value in zip(rows, values):
         text = "%.3f" % value if math.isfinite(value) else "-"
         ax.text((value if math.isfinite(value) else 0.0) + 0.01 * largest, row, text,

@@ -238,16 +238,18 @@ int main(int argc, char** argv) {
     if (!yaml) throw std::runtime_error("cannot write " + stem + ".yaml");
     std::vector<double> epochs(record.train_loss.size());
     std::iota(epochs.begin(), epochs.end(), 1.0);
-    deep_ois::CsvPlot plot{"deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch",
-                           "epoch", "epoch", {"loss [px]"},
-                           {{"train_loss_px", "training loss"}, {"validation_loss_px", "validation loss"}}};
+    deep_ois::CsvPlot plot;
+    plot.title = "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch";
+    plot.x_column = plot.x_label = "epoch";
+    plot.y_labels = {"loss [px]"};
+    plot.curves = {{"train_loss_px", "training loss"}, {"validation_loss_px", "validation loss"}};
     plot.log_y = true;
-    const deep_ois::PlotOutcome outcome = deep_ois::writeAndPlotCsv(
+    const deep_ois::PlotOutcome plot_outcome = deep_ois::writeAndPlotCsv(
         plot, {{"epoch", epochs}, {"train_loss_px", record.train_loss}, {"validation_loss_px", record.validation_loss}},
         stem + "_loss.csv", stem + "_loss.png");
     std::printf("train: wrote %s, %s.yaml after %d epochs, %.0f s of training; %s\n", out.c_str(), stem.c_str(),
                 record.epochs, record.training_time_s,
-                deep_ois::describePlot(outcome, stem + "_loss.csv", stem + "_loss.png").c_str());
+                deep_ois::describePlot(plot_outcome, stem + "_loss.csv", stem + "_loss.png").c_str());
     if (!record.validation_epe_px.empty()) {
       std::printf("train: validation EPE %.4f px vs gyro input %.4f px (working grid %dx%d)\n",
                   record.validation_epe_px.back(), record.validation_gyro_epe_px.back(),

@@ -309,9 +309,12 @@ int main(int argc, char** argv) {
   {
     std::vector<double> steps(fit.rms_history.size());
     std::iota(steps.begin(), steps.end(), 1.0);
-    deep_ois::CsvPlot plot{"train_stabiliser: fit of " + fs::path(out_path).filename().string(), "step",
-                           "accepted Levenberg-Marquardt step (all stages of the fit)",
-                           {"RMS lens-motion residual [px]"}, {{"rms_px", "training lens motions"}}};
+    deep_ois::CsvPlot plot;
+    plot.title = "train_stabiliser: fit of " + fs::path(out_path).filename().string();
+    plot.x_column = "step";
+    plot.x_label = "accepted Levenberg-Marquardt step (all stages of the fit)";
+    plot.y_labels = {"RMS lens-motion residual [px]"};
+    plot.curves = {{"rms_px", "training lens motions"}};
     plot.log_y = true;
     const std::string csv_path = plot_path.substr(0, plot_path.size() - 4) + ".csv";
     const deep_ois::PlotOutcome outcome =
