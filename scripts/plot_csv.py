@@ -143,17 +143,22 @@ def style(role, colour):
     if role == "logged":
         return {"color": "0.15", "linewidth": 2.4, "alpha": 0.55, "zorder": 2}
     if role == "predicted":
-        return {"color": colour, "linewidth": 1.1, "zorder": 3}
+        return {"color": colour, "linewidth": 1.2, "zorder": 3}
     return {"color": colour, "linewidth": 1.6, "zorder": 3}
 
 
 def label_log_axis(ax, values):
-    """Log ticks written as plain numbers (0.05, not 5x10^-2), denser when the range is short."""
+    """A log y axis with ticks written as plain numbers (0.05, not 5x10^-2), denser when the range
+    is short; a range within a factor of 3 stays linear (a log axis would show no tick)."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
     positive = [v for v in values if math.isfinite(v) and v > 0]
     if not positive:
         return
     decades = math.log10(max(positive) / min(positive))
+    if decades < math.log10(3.0):
+        ax.ticklabel_format(axis="y", style="plain", useOffset=False)
+        return
+    ax.set_yscale("log")
     subs = (1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0) if decades < 1.5 else \
         (1.0, 2.0, 5.0) if decades < 3 else (1.0,)
     ax.yaxis.set_major_locator(LogLocator(base=10.0, subs=subs))
@@ -172,9 +177,11 @@ def draw(arguments, columns, plt):
         drawn = [s for s in arguments.series if s["panel"] == panel]
         # Logged curves first: the predicted ones are drawn over them, thinner.
         drawn.sort(key=lambda s: 0 if s["role"] == "logged" else 1)
+        # A model's output in red over the grey measurement (the strongest contrast), other
+        # curves in the default cycle.
         colour_index = 0
         for s in drawn:
-            colour = palette[colour_index % len(palette)]
+            colour = "tab:red" if s["role"] == "predicted" else palette[colour_index % len(palette)]
             if s["role"] != "logged":
                 colour_index += 1
             y = columns[s["column"]]
@@ -187,9 +194,8 @@ def draw(arguments, columns, plt):
                 kwargs["markersize"] = 4
             ax.plot([p[0] for p in points], [p[1] for p in points], label=s["label"], **kwargs)
         for value in arguments.hline:
-            ax.axhline(value, color="0.6", linewidth=0.8, linestyle="--", zorder=1)
+            ax.axhline(value, color="0.4", linewidth=1.0, linestyle="--", zorder=1)
         if arguments.log_y:
-            ax.set_yscale("log")
             label_log_axis(ax, [p for s in drawn for p in columns[s["column"]]])
         ax.grid(True, which="major", color="0.88", linewidth=0.8)
         ax.minorticks_on()
