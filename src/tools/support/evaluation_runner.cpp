@@ -177,6 +177,40 @@ void EvaluationRunner::addMethods(std::vector<AlignmentMethod> methods) {
 
 namespace {
 
+// What every method sees of a pair: its frames, the gyro flow nodelet's homographies and grid
+// flow, the lens log's homographies (when the recording has a log), the annotated points.
+FramePairContext pairContext(const Recording& recording, const PairToScore& pair, const BagFrame& a,
+                             const BagFrame& b, const RollingShutterHomographies& gyro, double stamp_a_s,
+                             double stamp_b_s) {
+  const CameraModel& camera = *recording.sequence.camera;
+  FramePairContext context;
+  context.recording_id = recording.index;
+  context.stamp_a_ns = pair.stamp_a_ns;
+  context.stamp_b_ns = pair.stamp_b_ns;
+  context.category = pair.category;
+  context.scope = pair.scope;
+  context.camera = &camera;
+  context.rgb_a = a.rgb;
+  context.rgb_b = b.rgb;
+  context.gray_a = a.gray;
+  context.gray_b = b.gray;
+  context.gyro_homographies = gyro.homographies;
+  context.gyro_rotations = gyro.rotations;
+  context.imu = &recording.imu;
+  context.rolling_shutter = &recording.rolling_shutter;
+  context.stamp_a_s = stamp_a_s;
+  context.stamp_b_s = stamp_b_s;
+  if (recording.lens_log) {
+    std::optional<std::vector<Eigen::Matrix3d>> lens = lensLogHomographies(
+        camera.K(), gyro.rotations, *recording.lens_log, recording.rolling_shutter, stamp_a_s, stamp_b_s);
+    if (lens) context.lens_log_homographies = std::move(*lens);
+  }
+  recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
+  context.points_a_px = pair.points_a_px;
+  context.points_b_px = pair.points_b_px;
+  return context;
+}
+
 // One run of the evaluator over every bag: the state its steps share. The steps, in order: count
 // the pairs (for the progress bar); per recording, read ahead on another thread, describe its
 // camera, list its pairs (from the simulator's truth or the annotation file), choose the ghost
@@ -200,7 +234,7 @@ class EvaluationRun {
   bool annotatedPointsInside(const AnnotatedPair& pair, const Recording& recording);
   void chooseGhostPairs(std::vector<PairToScore>& pairs);
   void scoreRecording(Recording& recording, RecordingOutcome& result);
-  void scorePair(Recording& recording, std::size_t p, const PairToScore& pair, RecordingOutcome& result);
+  void scorePair(const Recording& recording, std::size_t p, const PairToScore& pair, RecordingOutcome& result);
   void scoreMethod(AlignmentMethod& method, const FramePairContext& context, const PairToScore& pair,
                    double identity_px, GhostSample* ghost);
   void reportUnmatchedAnnotations();
@@ -385,7 +419,7 @@ void EvaluationRun::scoreRecording(Recording& recording, RecordingOutcome& resul
 
 // The pair's inputs as the nodelets would have them (the gyro flow nodelet's homographies and
 // grid flow, the lens log's homographies), then every method whose scope holds the pair.
-void EvaluationRun::scorePair(Recording& recording, std::size_t p, const PairToScore& pair,
+void EvaluationRun::scorePair(const Recording& recording, std::size_t p, const PairToScore& pair,
                               RecordingOutcome& result) {
   const BagSequence& sequence = recording.sequence;
   const CameraModel& camera = *sequence.camera;
@@ -413,33 +447,9 @@ void EvaluationRun::scorePair(Recording& recording, std::size_t p, const PairToS
     skip(std::string("gyro: ") + toString(gyro.status));
     return;
   }
-  FramePairContext context;
-  context.recording_id = recording.index;
-  context.stamp_a_ns = pair.stamp_a_ns;
-  context.stamp_b_ns = pair.stamp_b_ns;
-  context.category = pair.category;
-  context.scope = pair.scope;
-  context.camera = &camera;
-  const BagFrame& a = recording.frames[frame_a->second];
-  const BagFrame& b = recording.frames[frame_b->second];
-  context.rgb_a = a.rgb;
-  context.rgb_b = b.rgb;
-  context.gray_a = a.gray;
-  context.gray_b = b.gray;
-  context.gyro_homographies = gyro.homographies;
-  context.gyro_rotations = gyro.rotations;
-  context.imu = &recording.imu;
-  context.rolling_shutter = &recording.rolling_shutter;
-  context.stamp_a_s = stamp_a_s;
-  context.stamp_b_s = stamp_b_s;
-  if (recording.lens_log) {
-    std::optional<std::vector<Eigen::Matrix3d>> lens = lensLogHomographies(
-        camera.K(), gyro.rotations, *recording.lens_log, recording.rolling_shutter, stamp_a_s, stamp_b_s);
-    if (lens) context.lens_log_homographies = std::move(*lens);
-  }
-  recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
-  context.points_a_px = pair.points_a_px;
-  context.points_b_px = pair.points_b_px;
+  const FramePairContext context =
+      pairContext(recording, pair, recording.frames[frame_a->second], recording.frames[frame_b->second], gyro,
+                  stamp_a_s, stamp_b_s);
   const double identity_px =
       geometryDistance(pair.points_a_px, pair.points_b_px, {Eigen::Matrix3d::Identity()}, camera.height());
 
