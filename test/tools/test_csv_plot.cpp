@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -45,8 +46,17 @@ class CsvPlotTest : public ::testing::Test {
     plot_.width_px = 640;
     plot_.height_px = 360;
   }
-  void TearDown() override { unsetenv("PYTHONPATH"); }
+  // The environment's PYTHONPATH (ROS sets one) comes back after a test that replaced it.
+  void TearDown() override {
+    if (python_path_) {
+      setenv("PYTHONPATH", python_path_->c_str(), 1);
+    } else {
+      unsetenv("PYTHONPATH");
+    }
+  }
 
+  std::optional<std::string> python_path_ =
+      std::getenv("PYTHONPATH") ? std::optional<std::string>(std::getenv("PYTHONPATH")) : std::nullopt;
   std::string dir_;
   CsvPlot plot_;
 };
