@@ -32,6 +32,8 @@ packages=(
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
   # the tools: flag parsing, the evaluation JSON, the data-set SHA-256
   libcli11-dev nlohmann-json3-dev libssl-dev
+  # the tools' PNG charts: scripts/plot_csv.py draws the CSVs they write
+  python3-matplotlib
   # convert_recording's video input: OpenCV's FFmpeg backend (HEVC, H.264)
   libopencv-videoio-dev
   # the compensation network (CPU libtorch 1.13)

@@ -28,6 +28,11 @@ fi
   echo "Run a tool with \`rosrun deep_ois TOOL\` (or from \`_build/main/devel/lib/deep_ois/\`)."
   echo "\`train\` and \`benchmark_compensation\` exist only in builds with libtorch."
   echo
+  echo "Charts: a tool that draws a PNG (train, train_stabiliser, lens_log_fit, predict_lens, evaluate,"
+  echo "benchmark_online_learning) writes its data as CSV first, time in seconds, then draws the PNG with"
+  echo "\`scripts/plot_csv.py\` (Debian's \`python3-matplotlib\`, under \`/usr/bin/python3\`). Without"
+  echo "matplotlib it says so and keeps the CSV; \`scripts/plot_csv.py --help\` redraws one by hand."
+  echo
   echo "This page is generated from the tools' \`--help\` by \`scripts/make_command_line_docs.sh\`."
   for tool in "${tools[@]}"; do
     echo

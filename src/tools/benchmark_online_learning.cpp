@@ -18,8 +18,6 @@
 // the replay's own speed.
 #include <ros/package.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -40,7 +38,7 @@
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/evaluation_runner.h"
-#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/csv_plot.h"
 
 namespace {
 
@@ -229,7 +227,7 @@ int main(int argc, char** argv) {
   app.add_option("--gyro-config", gyro_config, "gyro flow parameters of the camera (YAML)")
       ->capture_default_str()
       ->check(deep_ois::existingFile());
-  app.add_option("--plot", plot_path, "the learning curve as a PNG")->type_name("FILE.png");
+  app.add_option("--plot", plot_path, "the learning curve as a PNG, its data beside it as FILE.csv")->type_name("FILE.png");
   app.add_option("--final-model", final_model_path, "writes the model in use at the end here")->type_name("FILE.yaml");
   command_line.addNumber("--window", window_s, "seconds of replay per row of the curve")->check(deep_ois::atLeast(1.0));
   command_line.addNumber("--cpu-share", cpu_share, "the learner's CPU budget, share of one core in replay time");
@@ -311,6 +309,7 @@ int main(int argc, char** argv) {
                 bags.size(), gap_s);
   std::printf("\n");
   std::vector<double> gap_online, gap_fixed, ratio_online, ratio_fixed;
+  std::vector<double> window_end_s;  // the curve's x: the end of each window printed, s of replay
   if (!no_ois) {
     std::printf("| window [s] | pairs | OIS gyro | twin | fixed model | learning | gap closed: fixed | learning |\n");
     std::printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
@@ -324,6 +323,7 @@ int main(int argc, char** argv) {
     if (o.pairs < static_cast<std::size_t>(5.0 * window_s)) continue;
     const std::string span = std::to_string(static_cast<int>(w * window_s)) + "-" +
                              std::to_string(static_cast<int>((w + 1) * window_s));
+    window_end_s.push_back((w + 1) * window_s);
     if (!no_ois) {
       const WindowMeans t = at(twin_gyro, w);
       auto gap = [&](double g_px, double t_px, double m_px) {
@@ -379,23 +379,34 @@ int main(int argc, char** argv) {
               path->output_ms.empty() ? std::nan("") : *std::max_element(path->output_ms.begin(), path->output_ms.end()),
               path->output_ms.size(), no_learning ? "off (checks only)" : "on");
   if (!plot_path.empty()) {
-    const std::string x_label = "window of " + std::to_string(static_cast<int>(window_s)) + " s";
-    std::vector<deep_ois::PlotSeries> series;
-    std::string title, y_label;
+    // The table's rows as CSV beside the PNG (PATH.png -> PATH.csv), then the curve from it.
+    std::string csv_path = plot_path;
+    if (csv_path.size() > 4 && csv_path.substr(csv_path.size() - 4) == ".png") csv_path.resize(csv_path.size() - 4);
+    csv_path += ".csv";
+    deep_ois::CsvPlot plot;
+    plot.x_column = "window_end_s";
+    plot.x_label = "replay time at the end of the window of " + std::to_string(static_cast<int>(window_s)) + " s [s]";
+    plot.curves = {{"learning_pct", "learning online"}, {"fixed_pct", "fixed starting model"}};
+    plot.reference_lines = {0.0};
     if (no_ois) {
-      series.push_back({"learning online", ratio_online, cv::Scalar(200, 80, 0)});
-      series.push_back({"fixed starting model", ratio_fixed, cv::Scalar(0, 0, 200)});
-      title = "benchmark_online_learning (camera without OIS)";
-      y_label = "worse than the plain gyro [%], capped";
+      plot.title = "benchmark_online_learning (camera without OIS): compensation against the plain gyro";
+      plot.y_labels = {"worse than the plain gyro [%], capped"};
     } else {
-      series.push_back({"learning online", gap_online, cv::Scalar(200, 80, 0)});
-      series.push_back({"fixed starting model", gap_fixed, cv::Scalar(0, 0, 200)});
-      title = "benchmark_online_learning: gap closed";
-      y_label = "gap closed to the non-OIS twin [%], capped";
+      plot.title = "benchmark_online_learning: gap to the non-OIS twin closed";
+      plot.y_labels = {"gap closed to the non-OIS twin [%], capped"};
+      plot.reference_lines.push_back(100.0);
     }
-    const cv::Mat plot = deep_ois::drawLinePlot(series, title, x_label, y_label);
-    if (!cv::imwrite(plot_path, plot)) std::fprintf(stderr, "benchmark_online_learning: cannot write %s\n", plot_path.c_str());
-    else std::printf("learning curve: %s\n", plot_path.c_str());
+    try {
+      deep_ois::writeCsvColumns(csv_path, {{"window_end_s", window_end_s},
+                                           {"learning_pct", no_ois ? ratio_online : gap_online},
+                                           {"fixed_pct", no_ois ? ratio_fixed : gap_fixed}});
+      const deep_ois::PlotOutcome outcome = deep_ois::plotCsv(plot, csv_path, plot_path);
+      std::printf("learning curve: %s\n", (outcome.written ? plot_path : csv_path).c_str());
+      if (!outcome.written)
+        std::fprintf(stderr, "benchmark_online_learning: %s\n", deep_ois::describePlot(outcome, csv_path, plot_path).c_str());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "benchmark_online_learning: %s\n", e.what());
+    }
   }
   path->learner.reset();  // its threads end before the clock they read
   return 0;

@@ -23,6 +23,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -41,17 +42,51 @@
 #include "deep_ois/tools/support/recorded_flows.h"
 #include "deep_ois/tools/support/stabiliser_oracle_row.h"
 
-#ifdef DEEP_OIS_WITH_TORCH
 namespace {
 
+// Every flag's value, and the options whose presence matters after parsing.
+struct EvaluateFlags {
+  deep_ois::EvaluationOptions options;
+  deep_ois::StandardMethodOptions standard;
+  std::string gyro_config, out_dir, annotations, camera, recorded, model_path, live_model;
+  std::string shipped_stabiliser;  // the package's models/stabiliser_generic.yaml
+  std::vector<std::string> stabiliser_paths, oracle_designs;
+  std::string oracle_base;
+  double oracle_start_s = std::numeric_limits<double>::quiet_NaN();
+  int torch_threads = 1;
+  bool no_image_baselines = false, no_ground_truth = false, no_model = false, no_progress = false;
+  bool no_stabiliser = false;
+  CLI::Option* model_option = nullptr;
+  CLI::Option* stabiliser_option = nullptr;
+  CLI::Option* oracle_option = nullptr;
+  // Set by resolveFlags: the model the live compensation ran is a stabiliser model (not a
+  // network), and its offline row.
+  bool live_stabiliser = false;
+  std::string live_stabiliser_row;
+};
+
+// What the run leaves for the report: the rows' models and the recorded live flows, which the
+// rows reference, so they live as long as the runner.
+struct EvaluationRows {
+#ifdef DEEP_OIS_WITH_TORCH
+  std::unique_ptr<deep_ois::CompensationModel> model;
+#else
+  std::unique_ptr<int> model;  // built without libtorch: no model row
+#endif
+  std::string model_row;  // the network's row, empty without one
+  // Each model row with the camera it was trained for, compared with the recordings' after the run.
+  std::vector<std::pair<std::string, deep_ois::CameraDescription>> model_cameras;
+  // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
+  std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
+};
+
+#ifdef DEEP_OIS_WITH_TORCH
 // The model's row, named by its file so that a table says which model it scored (e.g.
 // "DeepOIS, fast.pt (preset fast)").
 std::string modelRowName(const std::string& model_path, const std::string& preset) {
   return "DeepOIS, " + std::filesystem::path(model_path).filename().string() + " (preset " +
          preset + ")";
 }
-
-}  // namespace
 #endif
 
 constexpr char kDescription[] =
@@ -69,34 +104,32 @@ constexpr char kFooter[] =
     "Exit status: 0; 1 unusable input; 2 bad flags; 3 a recording could not be scored (the table\n"
     "holds the others); 4 the recorded live flows disagree with the offline ones.";
 
-int main(int argc, char** argv) {
-  deep_ois::EvaluationOptions options;
-  deep_ois::StandardMethodOptions standard;
+void addFlags(deep_ois::ToolCommandLine& command_line, EvaluateFlags& flags) {
   // The nodelet's own parameter file, wherever the package is (source checkout or install).
   const std::string package = ros::package::getPath("deep_ois");
-  std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
-  std::string out_dir, annotations, camera, recorded;
-  std::string model_path = package.empty() ? "" : package + "/models/fast.pt";
-  int torch_threads = 1;
-  bool no_image_baselines = false, no_ground_truth = false, no_model = false, no_progress = false;
-  deep_ois::ToolCommandLine command_line("evaluate", kDescription, kFooter);
+  flags.gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
+  flags.model_path = package.empty() ? "" : package + "/models/fast.pt";
+  // The shipped default compensator: the generic learned stabiliser model.
+  flags.shipped_stabiliser = package.empty() ? "" : package + "/models/stabiliser_generic.yaml";
+  flags.oracle_base = package.empty() ? "" : package + "/config/simulator/RE.yaml";
+  deep_ois::EvaluationOptions& options = flags.options;
   CLI::App& app = command_line.app();
   app.add_option("--bags", options.bags,
                  "the recordings (simulator bags, or recordings with --annotations)")
       ->required()
       ->type_name("FILE.bag");
-  app.add_option("--out", out_dir, "write the table, the pairs, plots and ghost images here")
+  app.add_option("--out", flags.out_dir, "write the table, the pairs, plots and ghost images here")
       ->type_name("DIR");
   app.add_option(
-         "--gyro-config", gyro_config,
+         "--gyro-config", flags.gyro_config,
          "the gyro flow nodelet's parameters (default: the package's config/gyro_flow.yaml)")
       ->check(deep_ois::existingFile())
       ->type_name("FILE.yaml");
-  app.add_option("--annotations", annotations,
+  app.add_option("--annotations", flags.annotations,
                  "point correspondences of recordings without simulator truth")
       ->check(deep_ois::existingFile())
       ->type_name("FILE.csv");
-  app.add_option("--camera", camera, "which gyro row the --annotations recordings belong to")
+  app.add_option("--camera", flags.camera, "which gyro row the --annotations recordings belong to")
       ->check(deep_ois::oneOf({"ois", "non-ois"}))
       ->type_name("ois|non-ois");
   command_line
@@ -109,33 +142,27 @@ int main(int argc, char** argv) {
       ->check(deep_ois::atLeast(0));
   command_line.addNumber("--max-pairs", options.max_pairs_per_bag,
                          "score only the first pairs of each bag (0: all)");
-  app.add_flag("--no-image-baselines", no_image_baselines, "leave out the SIFT / ORB / AKAZE rows");
-  app.add_flag("--no-ground-truth", no_ground_truth,
+  app.add_flag("--no-image-baselines", flags.no_image_baselines, "leave out the SIFT / ORB / AKAZE rows");
+  app.add_flag("--no-ground-truth", flags.no_ground_truth,
                "leave out the global F and Fundamental Mixtures rows");
-  app.add_flag("--no-progress", no_progress, "no progress bar");
-  CLI::Option* model_option =
-      app.add_option("--model", model_path,
+  app.add_flag("--no-progress", flags.no_progress, "no progress bar");
+  flags.model_option =
+      app.add_option("--model", flags.model_path,
                      "the model row's network (default: the package's models/fast.pt)")
           ->check(deep_ois::existingFile())
           ->type_name("FILE.pt");
-  app.add_flag("--no-model", no_model, "leave out the model row")->excludes(model_option);
-  // The shipped default compensator: the generic learned stabiliser model.
-  const std::string shipped_stabiliser =
-      package.empty() ? "" : package + "/models/stabiliser_generic.yaml";
-  std::vector<std::string> stabiliser_paths;
-  CLI::Option* stabiliser_option =
-      app.add_option("--stabiliser", stabiliser_paths,
+  app.add_flag("--no-model", flags.no_model, "leave out the model row")->excludes(flags.model_option);
+  flags.stabiliser_option =
+      app.add_option("--stabiliser", flags.stabiliser_paths,
                      "learned stabiliser models (train_stabiliser), one row each (default: the "
                      "package's models/stabiliser_generic.yaml)")
           ->check(deep_ois::existingFile())
           ->type_name("FILE.yaml ...");
-  bool no_stabiliser = false;
-  app.add_flag("--no-stabiliser", no_stabiliser, "leave out the stabiliser model rows")
-      ->excludes(stabiliser_option);
+  app.add_flag("--no-stabiliser", flags.no_stabiliser, "leave out the stabiliser model rows")
+      ->excludes(flags.stabiliser_option);
   // The oracle of a stabiliser design: its own simulator controller on the camera's gyro.
-  std::vector<std::string> oracle_designs;
-  CLI::Option* oracle_option =
-      app.add_option("--oracle", oracle_designs,
+  flags.oracle_option =
+      app.add_option("--oracle", flags.oracle_designs,
                      "stabiliser designs (simulator module overlays, e.g. "
                      "config/simulator/modules/X.yaml) whose own controller and lens loop, with "
                      "their parameters, are run on the recordings' gyro and scored as a "
@@ -143,68 +170,69 @@ int main(int argc, char** argv) {
                      "camera's gyro")
           ->check(deep_ois::existingFile())
           ->type_name("MODULE.yaml ...");
-  std::string oracle_base = package.empty() ? "" : package + "/config/simulator/RE.yaml";
-  app.add_option("--oracle-base", oracle_base,
+  app.add_option("--oracle-base", flags.oracle_base,
                  "the simulator config the --oracle overlays go over (default: the package's "
                  "config/simulator/RE.yaml; only its ois and sensor sections matter)")
       ->check(deep_ois::existingFile())
       ->type_name("CONFIG.yaml")
-      ->needs(oracle_option);
+      ->needs(flags.oracle_option);
   // By default the oracle starts at each recording's first gyro sample, as the stabiliser model
   // rows do. The simulator starts its stabiliser earlier (kSimulatorMarginS before the first
   // frame, before its IMU starts); starting the oracle then with the first sample held back to it
   // measured worse on 5 of 6 modules (docs/stabiliser_model.md), so it is a choice, not the default.
-  double oracle_start_s = std::numeric_limits<double>::quiet_NaN();
   command_line
-      .addNumber("--oracle-start", oracle_start_s,
+      .addNumber("--oracle-start", flags.oracle_start_s,
                  "start the --oracle designs' stabilisers, centred and at rest, this many seconds "
                  "before each recording's first scored frame (the simulator starts its own 0.25 s "
                  "before), the gyro held at its first sample until it has one (default: at the "
                  "first gyro sample, as the stabiliser model rows)")
       ->default_str("")
       ->check(deep_ois::atLeast(0.0))
-      ->needs(oracle_option);
-  std::string live_model;
-  app.add_option("--live-model", live_model,
+      ->needs(flags.oracle_option);
+  app.add_option("--live-model", flags.live_model,
                  "with --recorded: the model the live compensation ran (default: the package's "
                  "models/stabiliser_generic.yaml, the launch files' default); its offline row is "
                  "compared with the recorded flows")
       ->type_name("FILE");
-  command_line.addNumber("--torch-threads", torch_threads, "torch threads of the model row")
+  command_line.addNumber("--torch-threads", flags.torch_threads, "torch threads of the model row")
       ->check(deep_ois::atLeast(1));
-  app.add_option("--recorded", recorded,
+  app.add_option("--recorded", flags.recorded,
                  "rosbag record of the live nodelets' gyro_flow and compensated_flow")
       ->check(deep_ois::existingFile())
       ->type_name("LIVE.bag");
-  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
-  if (stabiliser_option->count() == 0 && !no_stabiliser && !shipped_stabiliser.empty() &&
-      std::filesystem::exists(shipped_stabiliser)) {
-    stabiliser_paths.push_back(shipped_stabiliser);
+}
+
+// The defaults that depend on other flags, and the combinations refused; a usage error's exit
+// status, or nothing when the flags are usable.
+std::optional<int> resolveFlags(deep_ois::ToolCommandLine& command_line, EvaluateFlags& flags) {
+  if (flags.stabiliser_option->count() == 0 && !flags.no_stabiliser && !flags.shipped_stabiliser.empty() &&
+      std::filesystem::exists(flags.shipped_stabiliser)) {
+    flags.stabiliser_paths.push_back(flags.shipped_stabiliser);
   }
-  if (live_model.empty()) live_model = shipped_stabiliser;
-  const bool live_stabiliser = deep_ois::isStabiliserModelPath(live_model);
-  const std::string live_stabiliser_row =
-      "stabiliser model, " + std::filesystem::path(live_model).filename().string();
-  if (!recorded.empty() && live_stabiliser &&
-      std::find(stabiliser_paths.begin(), stabiliser_paths.end(), live_model) ==
-          stabiliser_paths.end()) {
-    stabiliser_paths.push_back(live_model);  // the offline row the live flows are compared with
+  if (flags.live_model.empty()) flags.live_model = flags.shipped_stabiliser;
+  flags.live_stabiliser = deep_ois::isStabiliserModelPath(flags.live_model);
+  flags.live_stabiliser_row =
+      "stabiliser model, " + std::filesystem::path(flags.live_model).filename().string();
+  if (!flags.recorded.empty() && flags.live_stabiliser &&
+      std::find(flags.stabiliser_paths.begin(), flags.stabiliser_paths.end(), flags.live_model) ==
+          flags.stabiliser_paths.end()) {
+    flags.stabiliser_paths.push_back(flags.live_model);  // the offline row the live flows are compared with
   }
-  standard.image_baselines = !no_image_baselines;
-  standard.ground_truth = !no_ground_truth;
-  options.show_progress = !no_progress;
-  if (no_model) model_path.clear();
-  if (gyro_config.empty()) {
+  flags.standard.image_baselines = !flags.no_image_baselines;
+  flags.standard.ground_truth = !flags.no_ground_truth;
+  flags.options.show_progress = !flags.no_progress;
+  if (flags.no_model) flags.model_path.clear();
+  if (flags.gyro_config.empty()) {
     return command_line.usageError(
         "package deep_ois not found (source its setup.bash), so pass --gyro-config");
   }
-  if (!camera.empty() && annotations.empty()) {
+  if (!flags.camera.empty() && flags.annotations.empty()) {
     return command_line.usageError("--camera applies to --annotations recordings only");
   }
   // The compensation rows score an OIS camera's pairs only: asked for on recordings said to be of
   // a camera without OIS they would be empty, so an explicit request is refused, not dropped.
-  if (camera == "non-ois") {
-    for (CLI::Option* option : {stabiliser_option, model_option, oracle_option}) {
+  if (flags.camera == "non-ois") {
+    for (CLI::Option* option : {flags.stabiliser_option, flags.model_option, flags.oracle_option}) {
       if (option->count() == 0) continue;
       return command_line.usageError(
           option->get_name() +
@@ -213,111 +241,116 @@ int main(int argc, char** argv) {
           "ois to score the model on them anyway (what it does to a camera without OIS)");
     }
   }
-  if (camera == "ois") {
-    options.annotated_scope = deep_ois::kOisCameraPairs;
-  } else if (camera == "non-ois") {
-    options.annotated_scope = deep_ois::kNonOisCameraPairs;
+  if (flags.camera == "ois") {
+    flags.options.annotated_scope = deep_ois::kOisCameraPairs;
+  } else if (flags.camera == "non-ois") {
+    flags.options.annotated_scope = deep_ois::kNonOisCameraPairs;
   }
-
-  deep_ois::EvaluationReport report;
-  bool parity_failed = false;
-  // Each model row with the camera it was trained for, compared with the recordings' after the run.
-  std::vector<std::pair<std::string, deep_ois::CameraDescription>> model_cameras;
-#ifdef DEEP_OIS_WITH_TORCH
-  std::unique_ptr<deep_ois::CompensationModel> model;
-#else
+#ifndef DEEP_OIS_WITH_TORCH
   // Built without libtorch: only an explicit --model is an error, the default row is left out.
-  if (model_option->count() > 0) {
+  if (flags.model_option->count() > 0) {
     return command_line.usageError(
         "--model: this build has no compensation network (built without libtorch)");
   }
-  model_path.clear();
-  const std::unique_ptr<int> model;  // no model row
+  flags.model_path.clear();
 #endif
-  try {
-    options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(gyro_config));
-    if (!annotations.empty()) options.annotations = deep_ois::readAnnotationFile(annotations);
-    // The ground truth must describe the gyro's row patches.
-    standard.solver.patch_count = options.gyro.rolling_shutter.patch_count;
-    deep_ois::EvaluationRunner runner(options);
-    runner.addMethods(deep_ois::standardAlignmentMethods(standard));
-    // The camera's own lens log, when the recordings have one: the exact OIS motion, no network.
-    if (deep_ois::recordingsHaveLensShiftLog(options)) runner.addMethod(deep_ois::gyroLensLogMethod());
-    // The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow, over
-    // each recording's pairs in order with the motion history, as the nodelet runs it.
-#ifdef DEEP_OIS_WITH_TORCH
-    if (!model_path.empty()) {
-      deep_ois::setTorchThreads(torch_threads);
-      model = std::make_unique<deep_ois::CompensationModel>(
-          deep_ois::CompensationModel::load(model_path));
-      const std::string model_row = modelRowName(model_path, model->metadata().preset);
-      model_cameras.emplace_back(model_row, model->metadata().camera);
-      auto stream = std::make_shared<deep_ois::CompensationStream>(*model);
-      auto recording = std::make_shared<std::uint64_t>(0);
-      runner.addMethod({model_row,
-                        deep_ois::kOisCameraPairs,
-                        [stream, recording](const deep_ois::FramePairContext& pair) {
-                          if (pair.recording_id != *recording) stream->reset();
-                          *recording = pair.recording_id;
-                          return deep_ois::AlignmentEstimate::gridFlow(stream->compensate(
-                              pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
-                        }});
-    }
-#else
-    (void)torch_threads;
-#endif
-    // Learned stabiliser models: their state carried over each recording's gyro stream.
-    for (const std::string& path : stabiliser_paths) {
-      const deep_ois::StabiliserModelFile file = deep_ois::StabiliserModelFile::load(path);
-      const std::string row = "stabiliser model, " + std::filesystem::path(path).filename().string();
-      runner.addMethod(deep_ois::stabiliserAlignmentMethod(row, file.parameters));
-      model_cameras.emplace_back(row, file.camera);
-    }
-    // Stabiliser oracles: each design's own controller driven by the recordings' gyro.
-    for (const std::string& path : oracle_designs) {
-      if (oracle_base.empty()) {
-        throw std::runtime_error("--oracle: package deep_ois not found, so pass --oracle-base");
-      }
-      const deep_ois::sim::SimulatorConfig design =
-          deep_ois::sim::loadSimulatorConfig(oracle_base, {path});
-      runner.addMethod(deep_ois::stabiliserOracleMethod(
-          "oracle, " + std::filesystem::path(path).filename().string() +
-              " controller on the camera gyro",
-          design, oracle_start_s));
-    }
-    // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
-    std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
-    if (!recorded.empty()) {
-      live_gyro = deep_ois::readRecordedFlows(recorded, "/deep_ois/gyro_flow");
-      live_compensated = deep_ois::readRecordedFlows(recorded, "/deep_ois/compensated_flow");
-      // The gyro row is scored on the recorded homographies (as the offline gyro row); the
-      // compensation's on the recorded grid flow for a network (as its offline row) and on the
-      // recorded per-patch homographies for a stabiliser model (as its offline row): like with
-      // like, so they must agree.
-      auto recordedMethod =
-          [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
-             bool use_homographies) {
-            return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
-              const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
-              if (found == flows.end())
-                return deep_ois::AlignmentEstimate::failed("not in the recording");
-              return use_homographies
-                         ? deep_ois::AlignmentEstimate::patchHomographies(
-                               found->second.homographies)
-                         : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
-            };
-          };
-      runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs,
-                        recordedMethod(live_gyro, true)});
-      runner.addMethod({"compensation (live nodelets, recorded)", deep_ois::kOisCameraPairs,
-                        recordedMethod(live_compensated, live_stabiliser)});
-    }
-    report = runner.run();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "evaluate: %s\n", e.what());
-    return 1;
-  }
+  return std::nullopt;
+}
 
+// The gyro flow parameters and the annotation file. Throws naming the file and the problem.
+void loadInputs(EvaluateFlags& flags) {
+  flags.options.gyro = deep_ois::loadGyroFlowParameters(deep_ois::YamlParameters(flags.gyro_config));
+  if (!flags.annotations.empty()) flags.options.annotations = deep_ois::readAnnotationFile(flags.annotations);
+  // The ground truth must describe the gyro's row patches.
+  flags.standard.solver.patch_count = flags.options.gyro.rolling_shutter.patch_count;
+}
+
+// The shipped model: the compensation nodelet's network on the gyro flow nodelet's flow, over
+// each recording's pairs in order with the motion history, as the nodelet runs it.
+void addModelRow(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags, EvaluationRows& rows) {
+#ifdef DEEP_OIS_WITH_TORCH
+  if (flags.model_path.empty()) return;
+  deep_ois::setTorchThreads(flags.torch_threads);
+  rows.model = std::make_unique<deep_ois::CompensationModel>(deep_ois::CompensationModel::load(flags.model_path));
+  rows.model_row = modelRowName(flags.model_path, rows.model->metadata().preset);
+  rows.model_cameras.emplace_back(rows.model_row, rows.model->metadata().camera);
+  auto stream = std::make_shared<deep_ois::CompensationStream>(*rows.model);
+  auto recording = std::make_shared<std::uint64_t>(0);
+  runner.addMethod({rows.model_row,
+                    deep_ois::kOisCameraPairs,
+                    [stream, recording](const deep_ois::FramePairContext& pair) {
+                      if (pair.recording_id != *recording) stream->reset();
+                      *recording = pair.recording_id;
+                      return deep_ois::AlignmentEstimate::gridFlow(stream->compensate(
+                          pair.gyro_flow_grid, pair.stamp_a_ns, pair.stamp_b_ns));
+                    }});
+#else
+  (void)runner, (void)flags, (void)rows;
+#endif
+}
+
+// Learned stabiliser models: their state carried over each recording's gyro stream.
+void addStabiliserRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags, EvaluationRows& rows) {
+  for (const std::string& path : flags.stabiliser_paths) {
+    const deep_ois::StabiliserModelFile file = deep_ois::StabiliserModelFile::load(path);
+    const std::string row = "stabiliser model, " + std::filesystem::path(path).filename().string();
+    runner.addMethod(deep_ois::stabiliserAlignmentMethod(row, file.parameters));
+    rows.model_cameras.emplace_back(row, file.camera);
+  }
+}
+
+// Stabiliser oracles: each design's own controller driven by the recordings' gyro.
+void addOracleRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags) {
+  for (const std::string& path : flags.oracle_designs) {
+    if (flags.oracle_base.empty()) {
+      throw std::runtime_error("--oracle: package deep_ois not found, so pass --oracle-base");
+    }
+    const deep_ois::sim::SimulatorConfig design = deep_ois::sim::loadSimulatorConfig(flags.oracle_base, {path});
+    runner.addMethod(deep_ois::stabiliserOracleMethod(
+        "oracle, " + std::filesystem::path(path).filename().string() + " controller on the camera gyro", design,
+        flags.oracle_start_s));
+  }
+}
+
+// Replay parity: what the live nodelets published, as rows of their own. The gyro row is scored
+// on the recorded homographies (as the offline gyro row); the compensation's on the recorded grid
+// flow for a network (as its offline row) and on the recorded per-patch homographies for a
+// stabiliser model (as its offline row): like with like, so they must agree.
+void addRecordedRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags, EvaluationRows& rows) {
+  if (flags.recorded.empty()) return;
+  rows.live_gyro = deep_ois::readRecordedFlows(flags.recorded, "/deep_ois/gyro_flow");
+  rows.live_compensated = deep_ois::readRecordedFlows(flags.recorded, "/deep_ois/compensated_flow");
+  auto recordedMethod = [](const std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow>& flows,
+                           bool use_homographies) {
+    return [&flows, use_homographies](const deep_ois::FramePairContext& pair) {
+      const auto found = flows.find({pair.stamp_a_ns, pair.stamp_b_ns});
+      if (found == flows.end()) return deep_ois::AlignmentEstimate::failed("not in the recording");
+      return use_homographies ? deep_ois::AlignmentEstimate::patchHomographies(found->second.homographies)
+                              : deep_ois::AlignmentEstimate::gridFlow(found->second.grid_flow);
+    };
+  };
+  runner.addMethod({"gyro, OIS camera (live nodelet, recorded)", deep_ois::kOisCameraPairs,
+                    recordedMethod(rows.live_gyro, true)});
+  runner.addMethod({"compensation (live nodelets, recorded)", deep_ois::kOisCameraPairs,
+                    recordedMethod(rows.live_compensated, flags.live_stabiliser)});
+}
+
+// Every row in the table's order: the standard rows, the lens log's (when the recordings have
+// one: the exact OIS motion, no network), the network's, the stabiliser models', the oracles' and
+// the recorded live flows'.
+void addRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags, EvaluationRows& rows) {
+  runner.addMethods(deep_ois::standardAlignmentMethods(flags.standard));
+  if (deep_ois::recordingsHaveLensShiftLog(flags.options)) runner.addMethod(deep_ois::gyroLensLogMethod());
+  addModelRow(runner, flags, rows);
+  addStabiliserRows(runner, flags, rows);
+  addOracleRows(runner, flags);
+  addRecordedRows(runner, flags, rows);
+}
+
+// On stderr: per recording its pairs or its error, the report's errors, the rows left out, the
+// model rows' camera notes and where the time went.
+void printRunSummary(const deep_ois::EvaluationReport& report, const EvaluateFlags& flags,
+                     const EvaluationRows& rows) {
   for (const deep_ois::RecordingOutcome& recording : report.recordings) {
     if (!recording.error.empty()) {
       std::fprintf(stderr, "evaluate: %s (not scored)\n", recording.error.c_str());
@@ -327,66 +360,83 @@ int main(int argc, char** argv) {
     for (const auto& [reason, count] : recording.skip_reasons) {
       skipped += ", " + std::to_string(count) + " skipped (" + reason + ")";
     }
-    std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", recording.path.c_str(),
-                 recording.pairs_scored, skipped.c_str());
+    std::fprintf(stderr, "evaluate: %s: %zu pairs%s\n", recording.path.c_str(), recording.pairs_scored,
+                 skipped.c_str());
   }
-  for (const std::string& error : report.errors)
-    std::fprintf(stderr, "evaluate: %s\n", error.c_str());
+  for (const std::string& error : report.errors) std::fprintf(stderr, "evaluate: %s\n", error.c_str());
   for (const std::string& row : report.rowsWithoutPairs()) {
-    std::fprintf(stderr,
-                 "evaluate: %s: left out, no pair in its scope (it compensates an OIS camera%s)\n",
+    std::fprintf(stderr, "evaluate: %s: left out, no pair in its scope (it compensates an OIS camera%s)\n",
                  row.c_str(),
-                 camera == "non-ois" ? "; --camera non-ois: pass --camera ois to score it" : "");
+                 flags.camera == "non-ois" ? "; --camera non-ois: pass --camera ois to score it" : "");
   }
-  for (const auto& [row, camera] : model_cameras) {
+  for (const auto& [row, camera] : rows.model_cameras) {
     std::fprintf(stderr, "evaluate: %s\n", deep_ois::modelCameraNote(row, camera, report.recordings).c_str());
   }
-  std::fprintf(
-      stderr,
-      "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
-      report.elapsed_s, report.reading_s);
-  for (const auto& [method, seconds] : report.method_s)
-    std::fprintf(stderr, " %s %.1f s;", method.c_str(), seconds);
+  std::fprintf(stderr, "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
+               report.elapsed_s, report.reading_s);
+  for (const auto& [method, seconds] : report.method_s) std::fprintf(stderr, " %s %.1f s;", method.c_str(), seconds);
   std::fprintf(stderr, "\n");
+}
 
+// Replay parity: the live nodelets' flows against the same computation offline, pair by pair.
+// Prints one line per comparison; false when one of them differs.
+bool printReplayParity(const deep_ois::EvaluationReport& report, const EvaluateFlags& flags,
+                       const EvaluationRows& rows) {
+  constexpr double kParityTolerancePx = 1e-3;
+  std::vector<std::pair<std::string, std::string>> comparisons = {
+      {"gyro, OIS camera (uncompensated)", "gyro, OIS camera (live nodelet, recorded)"}};
+  if (flags.live_stabiliser) {
+    comparisons.push_back({flags.live_stabiliser_row, "compensation (live nodelets, recorded)"});
+  } else if (rows.model) {
+    comparisons.push_back({rows.model_row, "compensation (live nodelets, recorded)"});
+  }
+  std::printf("\nreplay parity (live nodelets recorded in %s vs offline):\n", flags.recorded.c_str());
+  bool all_agree = true;
+  for (const auto& [offline, live] : comparisons) {
+    const deep_ois::MethodAgreement agreement = deep_ois::compareMethods(report, offline, live);
+    const bool agrees = agreement.pairs_compared > 0 && agreement.max_abs_difference_px <= kParityTolerancePx;
+    std::printf("- %s: %zu pairs compared, largest difference %.6f px, %zu not in the recording: %s\n",
+                live.c_str(), agreement.pairs_compared, agreement.max_abs_difference_px,
+                agreement.missing_in_second, agrees ? "same numbers" : "DIFFERENT");
+    if (!agrees) all_agree = false;
+  }
+  return all_agree;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  EvaluateFlags flags;
+  deep_ois::ToolCommandLine command_line("evaluate", kDescription, kFooter);
+  addFlags(command_line, flags);
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (const std::optional<int> status = resolveFlags(command_line, flags)) return *status;
+
+  deep_ois::EvaluationReport report;
+  EvaluationRows rows;
+  try {
+    loadInputs(flags);
+    deep_ois::EvaluationRunner runner(flags.options);
+    addRows(runner, flags, rows);
+    report = runner.run();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "evaluate: %s\n", e.what());
+    return 1;
+  }
+  printRunSummary(report, flags, rows);
   if (report.table.methods().empty()) {
     std::fprintf(stderr, "evaluate: no frame pair could be scored\n");
     return 1;
   }
   std::printf("%s", report.markdown().c_str());
-  if (!recorded.empty()) {
-    // Replay parity: the live nodelets' flows against the same computation offline, pair by pair.
-    constexpr double kParityTolerancePx = 1e-3;
-#ifdef DEEP_OIS_WITH_TORCH
-    const std::string model_row =
-        model ? modelRowName(model_path, model->metadata().preset) : "";
-#else
-    const std::string model_row;
-#endif
-    std::vector<std::pair<std::string, std::string>> comparisons = {
-        {"gyro, OIS camera (uncompensated)", "gyro, OIS camera (live nodelet, recorded)"}};
-    if (live_stabiliser) {
-      comparisons.push_back({live_stabiliser_row, "compensation (live nodelets, recorded)"});
-    } else if (model) {
-      comparisons.push_back({model_row, "compensation (live nodelets, recorded)"});
-    }
-    std::printf("\nreplay parity (live nodelets recorded in %s vs offline):\n", recorded.c_str());
-    for (const auto& [offline, live] : comparisons) {
-      const deep_ois::MethodAgreement agreement = deep_ois::compareMethods(report, offline, live);
-      const bool agrees =
-          agreement.pairs_compared > 0 && agreement.max_abs_difference_px <= kParityTolerancePx;
-      std::printf(
-          "- %s: %zu pairs compared, largest difference %.6f px, %zu not in the recording: %s\n",
-          live.c_str(), agreement.pairs_compared, agreement.max_abs_difference_px,
-          agreement.missing_in_second, agrees ? "same numbers" : "DIFFERENT");
-      if (!agrees) parity_failed = true;
-    }
-  }
+  const bool parity_failed = !flags.recorded.empty() && !printReplayParity(report, flags, rows);
   std::fflush(stdout);
-  if (!out_dir.empty()) {
+  if (!flags.out_dir.empty()) {
     try {
-      const std::vector<std::string> written = deep_ois::writeEvaluationReport(report, out_dir);
-      std::fprintf(stderr, "evaluate: wrote %zu files to %s\n", written.size(), out_dir.c_str());
+      std::string plot_problem;
+      const std::vector<std::string> written = deep_ois::writeEvaluationReport(report, flags.out_dir, &plot_problem);
+      std::fprintf(stderr, "evaluate: wrote %zu files to %s\n", written.size(), flags.out_dir.c_str());
+      if (!plot_problem.empty()) std::fprintf(stderr, "evaluate: %s\n", plot_problem.c_str());
     } catch (const std::exception& e) {
       std::fprintf(stderr, "evaluate: %s\n", e.what());
       return 1;

@@ -9,7 +9,6 @@
 //
 // The gyro is used over the whole log in both folds (the stabiliser's state needs its history and
 // the gyro is always there); only the lens labels are split.
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -25,7 +24,7 @@
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/recording/android_ois_log.h"
 #include "deep_ois/tools/support/command_line.h"
-#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/csv_plot.h"
 
 namespace {
 
@@ -158,27 +157,36 @@ void writeTrajectory(const deep_ois::StabiliserParameters& parameters, const dee
   std::vector<double> times;
   for (double t = from; t < to; t += 0.005) times.push_back(t);
   const auto predicted = positionsAt(parameters, log, times);
-  std::ofstream csv(prefix + ".csv");
-  csv << "t_s,predicted_x_px,predicted_y_px,logged_x_px,logged_y_px\n";
-  std::vector<double> px, py, lx, ly;
-  std::size_t j = 0;
-  for (std::size_t k = 0; k < times.size(); ++k) {
-    while (j + 1 < log.lens.size() && log.lens[j + 1].stamp_s <= times[k]) ++j;
-    Eigen::Vector2d logged = log.lens[j].shift_px;
-    if (j + 1 < log.lens.size() && log.lens[j].stamp_s <= times[k]) {
-      const double a = (times[k] - log.lens[j].stamp_s) / (log.lens[j + 1].stamp_s - log.lens[j].stamp_s);
-      logged = (1.0 - a) * log.lens[j].shift_px + a * log.lens[j + 1].shift_px;
+  {
+    std::ofstream csv(prefix + ".csv");
+    csv << "t_s,predicted_x_px,predicted_y_px,logged_x_px,logged_y_px\n";
+    std::size_t j = 0;
+    for (std::size_t k = 0; k < times.size(); ++k) {
+      while (j + 1 < log.lens.size() && log.lens[j + 1].stamp_s <= times[k]) ++j;
+      Eigen::Vector2d logged = log.lens[j].shift_px;
+      if (j + 1 < log.lens.size() && log.lens[j].stamp_s <= times[k]) {
+        const double a = (times[k] - log.lens[j].stamp_s) / (log.lens[j + 1].stamp_s - log.lens[j].stamp_s);
+        logged = (1.0 - a) * log.lens[j].shift_px + a * log.lens[j + 1].shift_px;
+      }
+      csv << times[k] - log.rates.front().stamp_s << "," << predicted[k].x() << "," << predicted[k].y()
+          << "," << logged.x() << "," << logged.y() << "\n";
     }
-    csv << times[k] - log.rates.front().stamp_s << "," << predicted[k].x() << "," << predicted[k].y()
-        << "," << logged.x() << "," << logged.y() << "\n";
-    px.push_back(predicted[k].x()), py.push_back(predicted[k].y());
-    lx.push_back(logged.x()), ly.push_back(logged.y());
+    if (!csv) throw std::runtime_error(prefix + ".csv: cannot write");
   }
-  const cv::Mat plot = deep_ois::drawLinePlot(
-      {{"logged x", lx, cv::Scalar(0, 0, 0)}, {"predicted x", px, cv::Scalar(0, 0, 220)},
-       {"logged y", ly, cv::Scalar(120, 120, 120)}, {"predicted y", py, cv::Scalar(220, 120, 0)}},
-      title, "5 ms step", "lens shift [px]", false, cv::Size(1200, 500));
-  cv::imwrite(prefix + ".png", plot);
+  deep_ois::CsvPlot plot;
+  plot.title = title;
+  plot.x_column = "t_s";
+  plot.x_label = "time since the gyro log's first sample [s]";
+  plot.y_labels = {"lens shift x [px]", "lens shift y [px]"};
+  plot.curves = {{"logged_x_px", "logged x", deep_ois::PlotRole::kLogged, 1},
+                 {"predicted_x_px", "predicted x", deep_ois::PlotRole::kPredicted, 1},
+                 {"logged_y_px", "logged y", deep_ois::PlotRole::kLogged, 2},
+                 {"predicted_y_px", "predicted y", deep_ois::PlotRole::kPredicted, 2}};
+  plot.width_px = 1200;
+  plot.height_px = 600;
+  const deep_ois::PlotOutcome outcome = deep_ois::plotCsv(plot, prefix + ".csv", prefix + ".png");
+  if (!outcome.written)
+    std::fprintf(stderr, "lens_log_fit: %s\n", deep_ois::describePlot(outcome, prefix + ".csv", prefix + ".png").c_str());
 }
 
 }  // namespace

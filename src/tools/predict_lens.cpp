@@ -2,8 +2,6 @@
 // 5 ms grid, and per frame pair and row patch the predicted lens motion beside the recording's own
 // (the simulator's truth, the camera's lens log or the gyro-anchored estimate from the images),
 // as CSV and a PNG plot, with the R^2 and RMS of the motion.
-#include <opencv2/imgcodecs.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -18,7 +16,7 @@
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
-#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/csv_plot.h"
 
 int main(int argc, char** argv) {
   deep_ois::ToolCommandLine command_line(
@@ -90,7 +88,6 @@ int main(int argc, char** argv) {
     });
     std::ofstream csv(prefix + "_motion.csv");
     csv << "t_a_s,t_b_s,recorded_x_px,recorded_y_px,predicted_x_px,predicted_y_px\n";
-    std::vector<double> rx, ry, px, py;
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     for (std::size_t k : order) mean += recording.observations[k].motion_px;
     if (order.empty()) throw std::runtime_error(bag + ": no frame pair after the warm-up to compare");
@@ -101,23 +98,28 @@ int main(int argc, char** argv) {
       const auto& o = recording.observations[k];
       csv << o.t_a_s - t0 << "," << o.t_b_s - t0 << "," << o.motion_px.x() << "," << o.motion_px.y()
           << "," << predicted[k].x() << "," << predicted[k].y() << "\n";
-      rx.push_back(o.motion_px.x()), ry.push_back(o.motion_px.y());
-      px.push_back(predicted[k].x()), py.push_back(predicted[k].y());
       error += (predicted[k] - o.motion_px).squaredNorm();
       spread += (o.motion_px - mean).squaredNorm();
     }
-    const cv::Mat plot = deep_ois::drawLinePlot(
-        {{target + " x", rx, cv::Scalar(0, 0, 0)}, {"predicted x", px, cv::Scalar(0, 0, 220)},
-         {target + " y", ry, cv::Scalar(120, 120, 120)}, {"predicted y", py, cv::Scalar(220, 120, 0)}},
-        "predict_lens: lens motion per frame pair and row patch", "observation (time order)",
-        "lens motion [px]", false, cv::Size(1200, 500));
-    if (!cv::imwrite(prefix + "_motion.png", plot))
-      throw std::runtime_error(prefix + "_motion.png: cannot write");
+    csv.close();
+    if (!csv) throw std::runtime_error(prefix + "_motion.csv: cannot write");
+    deep_ois::CsvPlot plot;
+    plot.title = "predict_lens: lens motion per frame pair and row patch, " + target + " and predicted";
+    plot.x_column = "t_a_s";
+    plot.x_label = "start of the frame pair, time since the first gyro sample [s]";
+    plot.y_labels = {"lens motion x [px]", "lens motion y [px]"};
+    plot.curves = {{"recorded_x_px", target + " x", deep_ois::PlotRole::kLogged, 1},
+                   {"predicted_x_px", "predicted x", deep_ois::PlotRole::kPredicted, 1},
+                   {"recorded_y_px", target + " y", deep_ois::PlotRole::kLogged, 2},
+                   {"predicted_y_px", "predicted y", deep_ois::PlotRole::kPredicted, 2}};
+    plot.width_px = 1200;
+    plot.height_px = 600;
+    const deep_ois::PlotOutcome outcome = deep_ois::plotCsv(plot, prefix + "_motion.csv", prefix + "_motion.png");
     std::printf("%s: %zu lens motions compared (%zu before the warm-up or outside the gyro): R^2 "
-                "%.4f, RMS error %.4f px; wrote %s_position.csv, %s_motion.csv, %s_motion.png\n",
+                "%.4f, RMS error %.4f px; wrote %s_position.csv, %s_motion.csv; %s\n",
                 bag.c_str(), order.size(), predicted.size() - order.size(), 1.0 - error / spread,
                 std::sqrt(error / static_cast<double>(order.size())), prefix.c_str(), prefix.c_str(),
-                prefix.c_str());
+                deep_ois::describePlot(outcome, prefix + "_motion.csv", prefix + "_motion.png").c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "predict_lens: %s\n", e.what());
     return 1;

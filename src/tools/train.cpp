@@ -8,7 +8,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
+#include <numeric>
 #include <random>
 #include <set>
 #include <string>
@@ -21,7 +21,7 @@
 #include "deep_ois/ros/bag/training_set_reader.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/dataset_hash.h"
-#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/csv_plot.h"
 #include "deep_ois/tools/support/progress_bar.h"
 
 namespace {
@@ -76,7 +76,7 @@ std::string stripSuffix(const std::string& path, const std::string& suffix) {
 constexpr char kDescription[] =
     "Trains the compensation network on training-set bags of the Fundamental Mixtures job. Writes "
     "NAME.pt (weights + metadata, with the SHA-256 of the training bags), NAME.yaml (the metadata, "
-    "for people), NAME_loss.png and, during training, NAME.checkpoint.pt (after every epoch; "
+    "for people), NAME_loss.csv and NAME_loss.png and, during training, NAME.checkpoint.pt (after every epoch; "
     "Ctrl-C "
     "writes it too; --resume goes on from it). Losses and errors are in working-grid pixels.";
 constexpr char kFooter[] =
@@ -236,15 +236,20 @@ int main(int argc, char** argv) {
     std::ofstream yaml(stem + ".yaml");
     yaml << "# Metadata of " << out << " (also stored inside it).\n" << model.metadata().toYaml();
     if (!yaml) throw std::runtime_error("cannot write " + stem + ".yaml");
-    const cv::Mat plot = deep_ois::drawLinePlot(
-        {{"training loss", record.train_loss, cv::Scalar(200, 80, 0)},
-         {"validation loss", record.validation_loss, cv::Scalar(0, 120, 230)}},
-        "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch", "epoch",
-        "loss (px)", true);
-    if (!cv::imwrite(stem + "_loss.png", plot))
-      throw std::runtime_error("cannot write " + stem + "_loss.png");
-    std::printf("train: wrote %s, %s.yaml, %s_loss.png after %d epochs, %.0f s of training\n",
-                out.c_str(), stem.c_str(), stem.c_str(), record.epochs, record.training_time_s);
+    std::vector<double> epochs(record.train_loss.size());
+    std::iota(epochs.begin(), epochs.end(), 1.0);
+    deep_ois::CsvPlot plot;
+    plot.title = "deep_ois " + model.metadata().preset + ": " + options.loss + " loss per epoch";
+    plot.x_column = plot.x_label = "epoch";
+    plot.y_labels = {"loss [px]"};
+    plot.curves = {{"train_loss_px", "training loss"}, {"validation_loss_px", "validation loss"}};
+    plot.log_y = true;
+    const deep_ois::PlotOutcome plot_outcome = deep_ois::writeAndPlotCsv(
+        plot, {{"epoch", epochs}, {"train_loss_px", record.train_loss}, {"validation_loss_px", record.validation_loss}},
+        stem + "_loss.csv", stem + "_loss.png");
+    std::printf("train: wrote %s, %s.yaml after %d epochs, %.0f s of training; %s\n", out.c_str(), stem.c_str(),
+                record.epochs, record.training_time_s,
+                deep_ois::describePlot(plot_outcome, stem + "_loss.csv", stem + "_loss.png").c_str());
     if (!record.validation_epe_px.empty()) {
       std::printf("train: validation EPE %.4f px vs gyro input %.4f px (working grid %dx%d)\n",
                   record.validation_epe_px.back(), record.validation_gyro_epe_px.back(),

@@ -21,7 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
+#include <numeric>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -37,7 +37,7 @@
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/dataset_hash.h"
-#include "deep_ois/tools/support/line_plot.h"
+#include "deep_ois/tools/support/csv_plot.h"
 #include "deep_ois/tools/support/progress_bar.h"
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
 #include "deep_ois/tools/support/stabiliser_training_choice.h"
@@ -89,7 +89,7 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
       "camera_info and the IMU -> camera transform): the lens motion per frame pair and row patch "
       "from the images with the gyro's rotations (gyro-anchored ground truth), then the "
       "stabiliser model fitted to it. Writes MODEL.yaml (parameters, camera, training data) and "
-      "MODEL_fit.png (the fit's loss curve and the kept model's residual), and "
+      "MODEL_fit.csv and MODEL_fit.png (the fit's loss curve and the kept model's residual), and "
       "keeps each recording's ground truth in a cache directory (a re-run resumes from it).",
       "Exit status: 0 done, 1 no usable recording or the fit failed, 2 usage, 3 done but some "
       "recordings could not be read, the calibration (or the lens log's clock) looks wrong or the "
@@ -311,12 +311,20 @@ std::string writeFitPlot(const std::string& out_path, const FitStage& stage,
   const std::string fitted = choice.keptNoLensMotion() ? "fit, refused" : "fit";
   const std::string written = choice.keptNoLensMotion() ? "kept: no lens motion" : "kept model";
   {
-    const cv::Mat plot = deep_ois::drawLinePlot(
-        {{fitted, fit.rms_history, cv::Scalar(200, 80, 0)}, {written, kept, cv::Scalar(0, 0, 200)}},
-        "train_stabiliser: fit of " + fs::path(out_path).filename().string(),
-        "Levenberg-Marquardt step", "RMS lens-motion residual [px]", true);
-    if (!cv::imwrite(plot_path, plot))
-      std::fprintf(stderr, "train_stabiliser: cannot write %s\n", plot_path.c_str());
+    std::vector<double> steps(fit.rms_history.size());
+    std::iota(steps.begin(), steps.end(), 1.0);
+    deep_ois::CsvPlot plot;
+    plot.title = "train_stabiliser: fit of " + fs::path(out_path).filename().string();
+    plot.x_column = "step";
+    plot.x_label = "accepted Levenberg-Marquardt step (all stages of the fit)";
+    plot.y_labels = {"RMS lens-motion residual [px]"};
+    plot.curves = {{"rms_px", fitted}, {"kept_rms_px", written}};
+    plot.log_y = true;
+    const std::string csv_path = plot_path.substr(0, plot_path.size() - 4) + ".csv";
+    const deep_ois::PlotOutcome outcome = deep_ois::writeAndPlotCsv(
+        plot, {{"step", steps}, {"rms_px", fit.rms_history}, {"kept_rms_px", kept}}, csv_path, plot_path);
+    if (!outcome.written)
+      std::fprintf(stderr, "train_stabiliser: %s\n", deep_ois::describePlot(outcome, csv_path, plot_path).c_str());
   }
   return plot_path;
 }

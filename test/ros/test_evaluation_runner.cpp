@@ -4,6 +4,8 @@
 // without simulator truth. No roscore needed.
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include <iostream>
 #include <limits>
 
@@ -165,6 +167,14 @@ TEST(EvaluationRunner, ScoresEveryRowOnTheSampleBagWithPluggableMethods) {
     EXPECT_GT(std::filesystem::file_size(out + "/" + file), 100u) << file;
   }
   EXPECT_EQ(written.size(), 6u);
+  // The bar charts are matplotlib's (scripts/plot_csv.py over evaluation.csv): 1000 px wide, a
+  // row of 34 px per method.
+  for (const char* file : {"bars_RE.png", "bars_Avg.png"}) {
+    const cv::Mat bars = cv::imread(out + "/" + file);
+    ASSERT_FALSE(bars.empty()) << file;
+    EXPECT_EQ(bars.cols, 1000) << file;
+    EXPECT_EQ(bars.rows, 110 + 34 * static_cast<int>(table.methods().size())) << file;
+  }
   // evaluation.json holds the table's numbers, method by method.
   std::ifstream json_file(out + "/evaluation.json");
   const nlohmann::json json = nlohmann::json::parse(json_file);

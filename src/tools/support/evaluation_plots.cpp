@@ -9,13 +9,8 @@
 namespace deep_ois {
 namespace {
 
-const cv::Scalar kBlack(0, 0, 0), kWhite(255, 255, 255), kGrey(150, 150, 150);
+const cv::Scalar kBlack(0, 0, 0), kWhite(255, 255, 255);
 const int kFont = cv::FONT_HERSHEY_SIMPLEX;
-
-// Distinguishable bar colours (RGB), cycled.
-const cv::Scalar kPalette[] = {{128, 128, 128}, {31, 119, 180}, {174, 199, 232}, {255, 127, 14},
-                               {255, 187, 120}, {44, 160, 44},  {152, 223, 138}, {214, 39, 40},
-                               {148, 103, 189}, {140, 86, 75},  {227, 119, 194}, {23, 190, 207}};
 
 int textWidth(const std::string& text, double scale, int thickness = 1) {
   int baseline = 0;
@@ -40,50 +35,6 @@ std::vector<std::string> wrap(const std::string& text, double scale, int width) 
 }
 
 }  // namespace
-
-cv::Mat drawBarChart(const std::string& title, const std::vector<std::string>& labels,
-                     const std::vector<double>& values, const std::string& unit) {
-  if (labels.empty() || labels.size() != values.size()) {
-    throw std::invalid_argument("drawBarChart: need as many values as labels, at least one");
-  }
-  const double label_scale = 0.5, title_scale = 0.6;
-  int label_width = 0;
-  for (const std::string& label : labels)
-    label_width = std::max(label_width, textWidth(label, label_scale));
-  double largest = 0.0;
-  for (double value : values) {
-    if (std::isfinite(value)) largest = std::max(largest, value);
-  }
-  if (!(largest > 0.0)) largest = 1.0;
-  const int margin = 12, bar_height = 24, gap = 8, top = 64, bar_area = 520, value_area = 70;
-  const int left = margin + label_width + 10;
-  const int width =
-      std::max(left + bar_area + value_area + margin, textWidth(title, title_scale) + 2 * margin);
-  const int height = top + static_cast<int>(labels.size()) * (bar_height + gap) + 40;
-  cv::Mat chart(height, width, CV_8UC3, kWhite);
-  cv::putText(chart, title, cv::Point(margin, 26), kFont, title_scale, kBlack, 1, cv::LINE_AA);
-  cv::putText(chart, unit, cv::Point(margin, 50), kFont, 0.45, kGrey, 1, cv::LINE_AA);
-  for (std::size_t i = 0; i < labels.size(); ++i) {
-    const int y = top + static_cast<int>(i) * (bar_height + gap);
-    const int baseline = y + bar_height / 2 + 6;
-    cv::putText(chart, labels[i],
-                cv::Point(left - 10 - textWidth(labels[i], label_scale), baseline), kFont,
-                label_scale, kBlack, 1, cv::LINE_AA);
-    if (!std::isfinite(values[i])) {
-      cv::putText(chart, "-", cv::Point(left + 4, baseline), kFont, label_scale, kBlack, 1,
-                  cv::LINE_AA);
-      continue;
-    }
-    const int length = std::max(1, static_cast<int>(std::lround(bar_area * values[i] / largest)));
-    const cv::Scalar colour = kPalette[i % (sizeof(kPalette) / sizeof(kPalette[0]))];
-    cv::rectangle(chart, cv::Rect(left, y, length, bar_height), colour, cv::FILLED);
-    cv::putText(chart, formatPx(values[i]), cv::Point(left + length + 6, baseline), kFont,
-                label_scale, kBlack, 1, cv::LINE_AA);
-  }
-  // The zero line.
-  cv::line(chart, cv::Point(left, top - 4), cv::Point(left, height - 36), kBlack, 1);
-  return chart;
-}
 
 cv::Mat magnifyCentre(const cv::Mat& image, int factor) {
   if (factor < 1) throw std::invalid_argument("magnifyCentre: factor must be >= 1");

@@ -17,6 +17,7 @@
 
 #include "deep_ois/core/evaluation/annotation_file.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
+#include "deep_ois/tools/support/csv_plot.h"
 
 namespace deep_ois {
 namespace {
@@ -255,7 +256,8 @@ std::string EvaluationReport::pairsCsv() const {
 }
 
 std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
-                                               const std::string& directory) {
+                                               const std::string& directory,
+                                               std::string* plot_problem) {
   std::error_code error;
   std::filesystem::create_directories(directory, error);
   if (error)
@@ -266,26 +268,34 @@ std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
   writeText(directory + "/evaluation.json", report.json(), written);
   writeText(directory + "/evaluation_pairs.csv", report.pairsCsv(), written);
   const EvaluationTable& table = report.table;
-  const std::string unit = "geometry distance, px (capped at identity; lower is better)";
   std::vector<std::string> columns = table.categories();
   columns.push_back("Avg");
   for (const std::string& column : columns) {
-    std::vector<std::string> labels;
-    std::vector<double> values;
-    std::size_t pairs = 0;
+    std::size_t methods = 0, pairs = 0;
     for (const std::string& method : table.methods()) {
       const bool average = column == "Avg";
       if (!average && table.count(method, column) == 0) continue;
-      labels.push_back(method);
-      values.push_back(average ? table.average(method) : table.mean(method, column));
+      ++methods;
       if (!average) pairs = std::max(pairs, table.count(method, column));
     }
-    if (labels.empty()) continue;
-    const std::string title =
-        column == "Avg" ? "Avg: mean of the category means"
-                        : "Category " + column + ": " + std::to_string(pairs) + " frame pairs";
-    writePng(directory + "/bars_" + fileSafe(column) + ".png",
-             drawBarChart(title, labels, values, unit), written);
+    if (methods == 0) continue;
+    // evaluation.csv's rows of this column: one bar per method, in the table's order.
+    CsvPlot bars;
+    bars.title = column == "Avg" ? "Avg: mean of the category means"
+                                 : "Category " + column + ": " + std::to_string(pairs) + " frame pairs";
+    bars.x_label = "geometry distance [px], each pair capped at identity; lower is better";
+    bars.bar_label_column = "method";
+    bars.bar_value_column = "mean_px";
+    bars.where = {{"category", column}};
+    bars.width_px = 1000;
+    bars.height_px = 110 + 34 * static_cast<int>(methods);
+    const std::string png = directory + "/bars_" + fileSafe(column) + ".png";
+    const PlotOutcome outcome = plotCsv(bars, directory + "/evaluation.csv", png);
+    if (outcome.written) {
+      written.push_back(png);
+    } else if (plot_problem && plot_problem->empty()) {
+      *plot_problem = describePlot(outcome, directory + "/evaluation.csv", png);
+    }
   }
   for (const std::string& category : table.categories()) {
     std::vector<GhostSample> samples;

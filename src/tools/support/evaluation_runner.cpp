@@ -175,26 +175,86 @@ void EvaluationRunner::addMethods(std::vector<AlignmentMethod> methods) {
   for (AlignmentMethod& method : methods) addMethod(std::move(method));
 }
 
-EvaluationReport EvaluationRunner::run() {
-  const Clock::time_point started = Clock::now();
-  EvaluationReport report;
-  const bool annotated = options_.annotations.has_value();
-  std::vector<bool> annotation_used(annotated ? options_.annotations->pairs.size() : 0, false);
+namespace {
 
-  std::size_t total_pairs = 0;
-  if (annotated) {
-    total_pairs = options_.annotations->pairs.size();
-  } else {
-    for (const std::string& path : options_.bags) {
-      std::size_t pairs = indexedCount(path, options_.topics.frame_pair_truth);
-      if (options_.max_pairs_per_bag > 0) pairs = std::min(pairs, options_.max_pairs_per_bag);
-      total_pairs += pairs;
-    }
+// What every method sees of a pair: its frames, the gyro flow nodelet's homographies and grid
+// flow, the lens log's homographies (when the recording has a log), the annotated points.
+FramePairContext pairContext(const Recording& recording, const PairToScore& pair, const BagFrame& a,
+                             const BagFrame& b, const RollingShutterHomographies& gyro, double stamp_a_s,
+                             double stamp_b_s) {
+  const CameraModel& camera = *recording.sequence.camera;
+  FramePairContext context;
+  context.recording_id = recording.index;
+  context.stamp_a_ns = pair.stamp_a_ns;
+  context.stamp_b_ns = pair.stamp_b_ns;
+  context.category = pair.category;
+  context.scope = pair.scope;
+  context.camera = &camera;
+  context.rgb_a = a.rgb;
+  context.rgb_b = b.rgb;
+  context.gray_a = a.gray;
+  context.gray_b = b.gray;
+  context.gyro_homographies = gyro.homographies;
+  context.gyro_rotations = gyro.rotations;
+  context.imu = &recording.imu;
+  context.rolling_shutter = &recording.rolling_shutter;
+  context.stamp_a_s = stamp_a_s;
+  context.stamp_b_s = stamp_b_s;
+  if (recording.lens_log) {
+    std::optional<std::vector<Eigen::Matrix3d>> lens = lensLogHomographies(
+        camera.K(), gyro.rotations, *recording.lens_log, recording.rolling_shutter, stamp_a_s, stamp_b_s);
+    if (lens) context.lens_log_homographies = std::move(*lens);
   }
-  std::unique_ptr<ProgressBar> progress;
-  if (options_.show_progress) progress = std::make_unique<ProgressBar>(total_pairs, "pairs");
-  std::size_t pairs_done = 0;
-  std::map<std::string, int> ghost_samples;  // per category
+  recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
+  context.points_a_px = pair.points_a_px;
+  context.points_b_px = pair.points_b_px;
+  return context;
+}
+
+// One run of the evaluator over every bag: the state its steps share. The steps, in order: count
+// the pairs (for the progress bar); per recording, read ahead on another thread, describe its
+// camera, list its pairs (from the simulator's truth or the annotation file), choose the ghost
+// pairs, and score each pair with each method; then report the annotated pairs no bag held and
+// order the table.
+class EvaluationRun {
+ public:
+  EvaluationRun(const EvaluationOptions& options, std::vector<AlignmentMethod>& methods)
+      : options_(options),
+        methods_(methods),
+        annotated_(options.annotations.has_value()),
+        annotation_used_(annotated_ ? options.annotations->pairs.size() : 0, false) {}
+
+  EvaluationReport run();
+
+ private:
+  std::size_t countPairs() const;
+  void describeRecording(const Recording& recording, RecordingOutcome& result);
+  std::vector<PairToScore> pairsFromTruth(const Recording& recording) const;
+  std::vector<PairToScore> pairsFromAnnotations(const Recording& recording);
+  bool annotatedPointsInside(const AnnotatedPair& pair, const Recording& recording);
+  void chooseGhostPairs(std::vector<PairToScore>& pairs);
+  void scoreRecording(Recording& recording, RecordingOutcome& result);
+  void scorePair(const Recording& recording, std::size_t p, const PairToScore& pair, RecordingOutcome& result);
+  void scoreMethod(AlignmentMethod& method, const FramePairContext& context, const PairToScore& pair,
+                   double identity_px, GhostSample* ghost);
+  void reportUnmatchedAnnotations();
+  void finish();
+
+  const EvaluationOptions& options_;
+  std::vector<AlignmentMethod>& methods_;
+  const bool annotated_;
+  const Clock::time_point started_ = Clock::now();
+  EvaluationReport report_;
+  std::vector<bool> annotation_used_;  // per pair of the annotation file: a bag held it
+  std::unique_ptr<ProgressBar> progress_;
+  std::size_t total_pairs_ = 0;
+  std::size_t pairs_done_ = 0;
+  std::map<std::string, int> ghost_samples_;  // per category
+};
+
+EvaluationReport EvaluationRun::run() {
+  total_pairs_ = countPairs();
+  if (options_.show_progress) progress_ = std::make_unique<ProgressBar>(total_pairs_, "pairs");
 
   // Reading a bag (mostly bz2 decompression) overlaps scoring the previous one: one thread reads
   // ahead, the methods run on this thread, so they need not be thread-safe.
@@ -206,277 +266,289 @@ EvaluationReport EvaluationRunner::run() {
   for (std::size_t index = 0; index < options_.bags.size(); ++index) {
     RecordingOutcome outcome;
     outcome.path = options_.bags[index];
-    report.recordings.push_back(outcome);
-    RecordingOutcome& result = report.recordings.back();
+    report_.recordings.push_back(outcome);
+    RecordingOutcome& result = report_.recordings.back();
     try {
-      // ---- The recording, read while the previous one was scored. ----
       const std::unique_ptr<Recording> loaded = next.get();
-      report.reading_s += loaded->reading_s;
+      report_.reading_s += loaded->reading_s;
       if (index + 1 < options_.bags.size()) next = prefetch(index + 1);
-      Recording& recording = *loaded;
-      const BagSequence& sequence = recording.sequence;
-      const CameraModel& camera = *sequence.camera;
-      result.camera = describeCamera(camera, recording.rolling_shutter.readout_time_s);
-      // The frame rate from the camera_info stamps, so a model of another rate is told apart.
-      std::vector<double> frame_stamps_s;
-      for (const ros::Time& stamp : sequence.frame_stamps)
-        frame_stamps_s.push_back(sequence.secondsSinceBase(stamp));
-      result.camera.frame_rate_hz = frameRateOfStampsHz(frame_stamps_s);
-      auto fail = [&](const std::string& what) {
-        throw std::runtime_error(recording.path + ": " + what);
-      };
-
-      if (recording.lens_log_refused > 0) {
-        report.errors.push_back(recording.path + ": " + std::to_string(recording.lens_log_refused) + " of " +
-                                std::to_string(sequence.lens_shift_log.size()) + " samples on " +
-                                options_.topics.lens_shift_log +
-                                " refused (out of order, duplicate or non-finite); the rest is used");
-      }
-
-      // ---- The pairs to score. ----
-      std::vector<PairToScore> pairs;
-      if (!annotated) {
-        if (sequence.truths.empty()) {
-          fail("no annotated frame pair on " + options_.topics.frame_pair_truth +
-               " (a recording without simulator truth needs --annotations)");
-        }
-        for (const FramePairTruth& truth : sequence.truths) {
-          PairToScore pair;
-          pair.stamp_a_ns = static_cast<std::int64_t>(truth.previous_stamp.toNSec());
-          pair.stamp_b_ns = static_cast<std::int64_t>(truth.header.stamp.toNSec());
-          pair.category = truth.category;
-          pair.scope = truth.ois_enabled ? kOisCameraPairs : kNonOisTwinPairs;
-          pair.points_a_px = unflattenPoints(truth.points_a);
-          pair.points_b_px = unflattenPoints(truth.points_b);
-          pairs.push_back(std::move(pair));
-        }
-      } else {
-        const AnnotationFile& file = *options_.annotations;
-        for (std::size_t p = 0; p < file.pairs.size(); ++p) {
-          if (annotation_used[p]) continue;
-          const AnnotatedPair& annotated_pair = file.pairs[p];
-          const bool has_a = recording.frame_of_stamp.count(annotated_pair.stamp_a_ns) > 0;
-          const bool has_b = recording.frame_of_stamp.count(annotated_pair.stamp_b_ns) > 0;
-          if (!has_a && !has_b) continue;  // another bag's pair
-          annotation_used[p] = true;
-          const std::string where =
-              file.path + ":" + std::to_string(annotated_pair.lines.front()) + ": ";
-          if (!has_a || !has_b) {
-            report.errors.push_back(
-                where +
-                (has_a ? "stamp_b " + formatStampNs(annotated_pair.stamp_b_ns)
-                       : "stamp_a " + formatStampNs(annotated_pair.stamp_a_ns)) +
-                " is not a frame of " + recording.path + " (the other stamp is)");
-            ++pairs_done;
-            continue;
-          }
-          bool inside = true;
-          for (std::size_t k = 0; k < annotated_pair.points_a_px.size() && inside; ++k) {
-            for (const Eigen::Vector2d& p_px :
-                 {annotated_pair.points_a_px[k], annotated_pair.points_b_px[k]}) {
-              if (p_px.x() < -0.5 || p_px.y() < -0.5 || p_px.x() > camera.width() - 0.5 ||
-                  p_px.y() > camera.height() - 0.5) {
-                report.errors.push_back(file.path + ":" + std::to_string(annotated_pair.lines[k]) +
-                                        ": point (" + std::to_string(p_px.x()) + ", " +
-                                        std::to_string(p_px.y()) + ") is outside the " +
-                                        std::to_string(camera.width()) + "x" +
-                                        std::to_string(camera.height()) + " image of " +
-                                        recording.path + "; pair not scored");
-                inside = false;
-                break;
-              }
-            }
-          }
-          if (!inside) {
-            ++pairs_done;
-            continue;
-          }
-          PairToScore pair;
-          pair.stamp_a_ns = annotated_pair.stamp_a_ns;
-          pair.stamp_b_ns = annotated_pair.stamp_b_ns;
-          pair.category = annotated_pair.category;
-          pair.scope = options_.annotated_scope;
-          pair.points_a_px = annotated_pair.points_a_px;
-          pair.points_b_px = annotated_pair.points_b_px;
-          pairs.push_back(std::move(pair));
-        }
-      }
-      if (options_.max_pairs_per_bag > 0 && pairs.size() > options_.max_pairs_per_bag) {
-        pairs.resize(options_.max_pairs_per_bag);
-      }
-      // Ghost images: the middle pair of each category of this recording (benchmark pairs only;
-      // the twins' only row is the gyro's), while the category needs samples.
-      {
-        std::map<std::string, std::vector<std::size_t>> of_category;
-        for (std::size_t p = 0; p < pairs.size(); ++p) {
-          if (pairs[p].scope & kBenchmarkPairs) of_category[pairs[p].category].push_back(p);
-        }
-        for (const auto& [category, members] : of_category) {
-          if (ghost_samples[category] >= options_.ghost_pairs_per_category) continue;
-          pairs[members[members.size() / 2]].ghost = true;
-          ++ghost_samples[category];
-        }
-      }
-
-      // ---- Score. ----
-      for (std::size_t p = 0; p < pairs.size(); ++p) {
-        const PairToScore& pair = pairs[p];
-        if (progress) progress->update(++pairs_done);
-        auto skip = [&](const std::string& reason) {
-          ++result.pairs_skipped;
-          ++result.skip_reasons[reason];
-        };
-        const auto frame_a = recording.frame_of_stamp.find(pair.stamp_a_ns);
-        const auto frame_b = recording.frame_of_stamp.find(pair.stamp_b_ns);
-        if (frame_a == recording.frame_of_stamp.end() ||
-            frame_b == recording.frame_of_stamp.end()) {
-          skip("truth stamps are not frames of the bag");
-          continue;
-        }
-        if (pair.points_a_px.empty() || pair.points_a_px.size() != pair.points_b_px.size()) {
-          skip("no annotated point");
-          continue;
-        }
-        // The gyro flow nodelet's computation for this pair.
-        const RollingShutterHomographies gyro = computeRollingShutterHomographies(
-            recording.imu, options_.gyro.integration, recording.rolling_shutter, camera.K(),
-            sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns)),
-            sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns)));
-        if (!gyro.ok()) {
-          skip(std::string("gyro: ") + toString(gyro.status));
-          continue;
-        }
-        FramePairContext context;
-        context.recording_id = index;
-        context.stamp_a_ns = pair.stamp_a_ns;
-        context.stamp_b_ns = pair.stamp_b_ns;
-        context.category = pair.category;
-        context.scope = pair.scope;
-        context.camera = &camera;
-        const BagFrame& a = recording.frames[frame_a->second];
-        const BagFrame& b = recording.frames[frame_b->second];
-        context.rgb_a = a.rgb;
-        context.rgb_b = b.rgb;
-        context.gray_a = a.gray;
-        context.gray_b = b.gray;
-        context.gyro_homographies = gyro.homographies;
-        context.gyro_rotations = gyro.rotations;
-        context.imu = &recording.imu;
-        context.rolling_shutter = &recording.rolling_shutter;
-        context.stamp_a_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns));
-        context.stamp_b_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns));
-        if (recording.lens_log) {
-          std::optional<std::vector<Eigen::Matrix3d>> lens = lensLogHomographies(
-              camera.K(), gyro.rotations, *recording.lens_log, recording.rolling_shutter,
-              sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns)),
-              sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns)));
-          if (lens) context.lens_log_homographies = std::move(*lens);
-        }
-        recording.flow_renderer->render(gyro.homographies, context.gyro_flow_grid);
-        context.points_a_px = pair.points_a_px;
-        context.points_b_px = pair.points_b_px;
-        const double identity_px = geometryDistance(pair.points_a_px, pair.points_b_px,
-                                                    {Eigen::Matrix3d::Identity()}, camera.height());
-
-        GhostSample ghost;
-        if (pair.ghost) {
-          ghost.category = pair.category;
-          ghost.label =
-              fileName(recording.path) + ", pair " + std::to_string(p) + " (" +
-              formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) + ")" +
-              (options_.ghost_zoom > 1 ? ", centre " + std::to_string(options_.ghost_zoom) + "x"
-                                       : "");
-        }
-        for (AlignmentMethod& method : methods_) {
-          if ((method.scope & pair.scope) == 0) continue;
-          AlignmentEstimate estimate;
-          PairScore score;
-          score.recording = index;
-          score.stamp_a_ns = pair.stamp_a_ns;
-          score.stamp_b_ns = pair.stamp_b_ns;
-          score.category = pair.category;
-          score.method = method.name;
-          score.identity_px = identity_px;
-          score.distance_px = std::nan("");
-          const Clock::time_point estimating = Clock::now();
-          try {
-            estimate = method.estimate(context);
-            report.method_s[method.name] += secondsSince(estimating);
-            if (estimate.ok()) {
-              score.distance_px = estimateDistance(estimate, context);
-              if (!std::isfinite(score.distance_px)) score.failure = "non-finite motion";
-            } else {
-              score.failure =
-                  estimate.failure_reason.empty() ? "no estimate" : estimate.failure_reason;
-            }
-          } catch (const std::exception& e) {
-            report.method_s[method.name] += secondsSince(estimating);
-            score.failure = std::string("error: ") + e.what();
-          }
-          if (!score.failure.empty()) {
-            estimate = AlignmentEstimate::failed(score.failure);
-            report.table.addFailure(method.name, pair.category, identity_px);
-            ++report.failure_reasons[method.name][score.failure];
-            score.scored_px = identity_px;
-          } else {
-            score.scored_px =
-                report.table.addCapped(method.name, pair.category, score.distance_px, identity_px);
-          }
-          report.pairs.push_back(score);
-          if (pair.ghost) {
-            GhostPanel panel;
-            panel.method = method.name;
-            panel.distance_px = score.scored_px;
-            panel.failed = !estimate.ok();
-            panel.capped = estimate.ok() && score.distance_px > identity_px;
-            try {
-              panel.ghost_rgb = magnifyCentre(
-                  ghostOverlay(
-                      context.rgb_a,
-                      warpFrameBOntoA(context.rgb_b, estimateCameraFlow(estimate, camera))),
-                  options_.ghost_zoom);
-              ghost.panels.push_back(std::move(panel));
-            } catch (const std::exception&) {
-              // A motion that cannot be drawn was already scored (as a failure); the panel stays
-              // blank.
-            }
-          }
-        }
-        if (pair.ghost) report.ghosts.push_back(std::move(ghost));
-        ++result.pairs_scored;
-      }
+      scoreRecording(*loaded, result);
     } catch (const std::exception& e) {
       // One unreadable recording must not lose the others; bag readers' messages name the file.
       if (index + 1 < options_.bags.size() && !next.valid()) next = prefetch(index + 1);
       const std::string what = e.what();
       result.error = what.rfind(result.path, 0) == 0 ? what : result.path + ": " + what;
-      if (progress && progress->drawing())
+      if (progress_ && progress_->drawing())
         std::fprintf(stderr, "\nevaluate: %s\n", result.error.c_str());
     }
   }
-  if (annotated) {
-    for (std::size_t p = 0; p < annotation_used.size(); ++p) {
-      if (annotation_used[p]) continue;
-      const AnnotatedPair& pair = options_.annotations->pairs[p];
-      report.errors.push_back(
-          options_.annotations->path + ":" + std::to_string(pair.lines.front()) + ": pair " +
-          formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) +
-          " matches no frame of the bags given");
+  reportUnmatchedAnnotations();
+  finish();
+  return std::move(report_);
+}
+
+// Every pair the run will meet: the annotation file's, or each bag's truth messages (from the
+// bag's index) up to max_pairs_per_bag.
+std::size_t EvaluationRun::countPairs() const {
+  if (annotated_) return options_.annotations->pairs.size();
+  std::size_t total = 0;
+  for (const std::string& path : options_.bags) {
+    std::size_t pairs = indexedCount(path, options_.topics.frame_pair_truth);
+    if (options_.max_pairs_per_bag > 0) pairs = std::min(pairs, options_.max_pairs_per_bag);
+    total += pairs;
+  }
+  return total;
+}
+
+// The recording's camera in the report, with the frame rate from the camera_info stamps, so a
+// model of another rate is told apart; and the lens-log samples it refused.
+void EvaluationRun::describeRecording(const Recording& recording, RecordingOutcome& result) {
+  const BagSequence& sequence = recording.sequence;
+  result.camera = describeCamera(*sequence.camera, recording.rolling_shutter.readout_time_s);
+  std::vector<double> frame_stamps_s;
+  for (const ros::Time& stamp : sequence.frame_stamps) frame_stamps_s.push_back(sequence.secondsSinceBase(stamp));
+  result.camera.frame_rate_hz = frameRateOfStampsHz(frame_stamps_s);
+  if (recording.lens_log_refused > 0) {
+    report_.errors.push_back(recording.path + ": " + std::to_string(recording.lens_log_refused) + " of " +
+                             std::to_string(sequence.lens_shift_log.size()) + " samples on " +
+                             options_.topics.lens_shift_log +
+                             " refused (out of order, duplicate or non-finite); the rest is used");
+  }
+}
+
+// The simulator's truth messages of the recording, one pair each. Throws when it has none.
+std::vector<PairToScore> EvaluationRun::pairsFromTruth(const Recording& recording) const {
+  const BagSequence& sequence = recording.sequence;
+  if (sequence.truths.empty()) {
+    throw std::runtime_error(recording.path + ": no annotated frame pair on " + options_.topics.frame_pair_truth +
+                             " (a recording without simulator truth needs --annotations)");
+  }
+  std::vector<PairToScore> pairs;
+  for (const FramePairTruth& truth : sequence.truths) {
+    PairToScore pair;
+    pair.stamp_a_ns = static_cast<std::int64_t>(truth.previous_stamp.toNSec());
+    pair.stamp_b_ns = static_cast<std::int64_t>(truth.header.stamp.toNSec());
+    pair.category = truth.category;
+    pair.scope = truth.ois_enabled ? kOisCameraPairs : kNonOisTwinPairs;
+    pair.points_a_px = unflattenPoints(truth.points_a);
+    pair.points_b_px = unflattenPoints(truth.points_b);
+    pairs.push_back(std::move(pair));
+  }
+  return pairs;
+}
+
+// The annotation file's pairs whose stamps are frames of this recording (each pair is taken by
+// the first bag that has one of its stamps). A pair with only one of its stamps here, or with a
+// point outside the image, is reported and not scored.
+std::vector<PairToScore> EvaluationRun::pairsFromAnnotations(const Recording& recording) {
+  const AnnotationFile& file = *options_.annotations;
+  std::vector<PairToScore> pairs;
+  for (std::size_t p = 0; p < file.pairs.size(); ++p) {
+    if (annotation_used_[p]) continue;
+    const AnnotatedPair& annotated_pair = file.pairs[p];
+    const bool has_a = recording.frame_of_stamp.count(annotated_pair.stamp_a_ns) > 0;
+    const bool has_b = recording.frame_of_stamp.count(annotated_pair.stamp_b_ns) > 0;
+    if (!has_a && !has_b) continue;  // another bag's pair
+    annotation_used_[p] = true;
+    const std::string where = file.path + ":" + std::to_string(annotated_pair.lines.front()) + ": ";
+    if (!has_a || !has_b) {
+      report_.errors.push_back(where +
+                               (has_a ? "stamp_b " + formatStampNs(annotated_pair.stamp_b_ns)
+                                      : "stamp_a " + formatStampNs(annotated_pair.stamp_a_ns)) +
+                               " is not a frame of " + recording.path + " (the other stamp is)");
+      ++pairs_done_;
+      continue;
+    }
+    if (!annotatedPointsInside(annotated_pair, recording)) {
+      ++pairs_done_;
+      continue;
+    }
+    PairToScore pair;
+    pair.stamp_a_ns = annotated_pair.stamp_a_ns;
+    pair.stamp_b_ns = annotated_pair.stamp_b_ns;
+    pair.category = annotated_pair.category;
+    pair.scope = options_.annotated_scope;
+    pair.points_a_px = annotated_pair.points_a_px;
+    pair.points_b_px = annotated_pair.points_b_px;
+    pairs.push_back(std::move(pair));
+  }
+  return pairs;
+}
+
+// False, with the first offending point reported, when a point of the pair is outside the image.
+bool EvaluationRun::annotatedPointsInside(const AnnotatedPair& pair, const Recording& recording) {
+  const CameraModel& camera = *recording.sequence.camera;
+  for (std::size_t k = 0; k < pair.points_a_px.size(); ++k) {
+    for (const Eigen::Vector2d& p_px : {pair.points_a_px[k], pair.points_b_px[k]}) {
+      if (p_px.x() < -0.5 || p_px.y() < -0.5 || p_px.x() > camera.width() - 0.5 ||
+          p_px.y() > camera.height() - 0.5) {
+        report_.errors.push_back(options_.annotations->path + ":" + std::to_string(pair.lines[k]) + ": point (" +
+                                 std::to_string(p_px.x()) + ", " + std::to_string(p_px.y()) + ") is outside the " +
+                                 std::to_string(camera.width()) + "x" + std::to_string(camera.height()) +
+                                 " image of " + recording.path + "; pair not scored");
+        return false;
+      }
     }
   }
-  if (progress) {
-    if (pairs_done < total_pairs) progress->update(total_pairs);  // pairs no bag held
-    if (progress->drawing()) std::fprintf(stderr, "\n");
+  return true;
+}
+
+// Ghost images: the middle pair of each category of this recording (benchmark pairs only; the
+// twins' only row is the gyro's), while the category needs samples.
+void EvaluationRun::chooseGhostPairs(std::vector<PairToScore>& pairs) {
+  std::map<std::string, std::vector<std::size_t>> of_category;
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    if (pairs[p].scope & kBenchmarkPairs) of_category[pairs[p].category].push_back(p);
   }
-  report.table.orderCategories({"RE", "LT", "LL", "MF"});  // the paper's column order
+  for (const auto& [category, members] : of_category) {
+    if (ghost_samples_[category] >= options_.ghost_pairs_per_category) continue;
+    pairs[members[members.size() / 2]].ghost = true;
+    ++ghost_samples_[category];
+  }
+}
+
+void EvaluationRun::scoreRecording(Recording& recording, RecordingOutcome& result) {
+  describeRecording(recording, result);
+  std::vector<PairToScore> pairs = annotated_ ? pairsFromAnnotations(recording) : pairsFromTruth(recording);
+  if (options_.max_pairs_per_bag > 0 && pairs.size() > options_.max_pairs_per_bag) {
+    pairs.resize(options_.max_pairs_per_bag);
+  }
+  chooseGhostPairs(pairs);
+  for (std::size_t p = 0; p < pairs.size(); ++p) scorePair(recording, p, pairs[p], result);
+}
+
+// The pair's inputs as the nodelets would have them (the gyro flow nodelet's homographies and
+// grid flow, the lens log's homographies), then every method whose scope holds the pair.
+void EvaluationRun::scorePair(const Recording& recording, std::size_t p, const PairToScore& pair,
+                              RecordingOutcome& result) {
+  const BagSequence& sequence = recording.sequence;
+  const CameraModel& camera = *sequence.camera;
+  if (progress_) progress_->update(++pairs_done_);
+  auto skip = [&](const std::string& reason) {
+    ++result.pairs_skipped;
+    ++result.skip_reasons[reason];
+  };
+  const auto frame_a = recording.frame_of_stamp.find(pair.stamp_a_ns);
+  const auto frame_b = recording.frame_of_stamp.find(pair.stamp_b_ns);
+  if (frame_a == recording.frame_of_stamp.end() || frame_b == recording.frame_of_stamp.end()) {
+    skip("truth stamps are not frames of the bag");
+    return;
+  }
+  if (pair.points_a_px.empty() || pair.points_a_px.size() != pair.points_b_px.size()) {
+    skip("no annotated point");
+    return;
+  }
+  const double stamp_a_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_a_ns));
+  const double stamp_b_s = sequence.secondsSinceBase(ros::Time().fromNSec(pair.stamp_b_ns));
+  // The gyro flow nodelet's computation for this pair.
+  const RollingShutterHomographies gyro = computeRollingShutterHomographies(
+      recording.imu, options_.gyro.integration, recording.rolling_shutter, camera.K(), stamp_a_s, stamp_b_s);
+  if (!gyro.ok()) {
+    skip(std::string("gyro: ") + toString(gyro.status));
+    return;
+  }
+  const FramePairContext context =
+      pairContext(recording, pair, recording.frames[frame_a->second], recording.frames[frame_b->second], gyro,
+                  stamp_a_s, stamp_b_s);
+  const double identity_px =
+      geometryDistance(pair.points_a_px, pair.points_b_px, {Eigen::Matrix3d::Identity()}, camera.height());
+
+  GhostSample ghost;
+  if (pair.ghost) {
+    ghost.category = pair.category;
+    ghost.label = fileName(recording.path) + ", pair " + std::to_string(p) + " (" + formatStampNs(pair.stamp_a_ns) +
+                  " -> " + formatStampNs(pair.stamp_b_ns) + ")" +
+                  (options_.ghost_zoom > 1 ? ", centre " + std::to_string(options_.ghost_zoom) + "x" : "");
+  }
+  for (AlignmentMethod& method : methods_) {
+    if ((method.scope & pair.scope) == 0) continue;
+    scoreMethod(method, context, pair, identity_px, pair.ghost ? &ghost : nullptr);
+  }
+  if (pair.ghost) report_.ghosts.push_back(std::move(ghost));
+  ++result.pairs_scored;
+}
+
+// One method on one pair: its time, its distance capped at identity (identity where it fails or
+// throws, with the reason counted) and, for a ghost pair, its panel.
+void EvaluationRun::scoreMethod(AlignmentMethod& method, const FramePairContext& context, const PairToScore& pair,
+                                double identity_px, GhostSample* ghost) {
+  AlignmentEstimate estimate;
+  PairScore score;
+  score.recording = static_cast<std::size_t>(context.recording_id);
+  score.stamp_a_ns = pair.stamp_a_ns;
+  score.stamp_b_ns = pair.stamp_b_ns;
+  score.category = pair.category;
+  score.method = method.name;
+  score.identity_px = identity_px;
+  score.distance_px = std::nan("");
+  const Clock::time_point estimating = Clock::now();
+  try {
+    estimate = method.estimate(context);
+    report_.method_s[method.name] += secondsSince(estimating);
+    if (estimate.ok()) {
+      score.distance_px = estimateDistance(estimate, context);
+      if (!std::isfinite(score.distance_px)) score.failure = "non-finite motion";
+    } else {
+      score.failure = estimate.failure_reason.empty() ? "no estimate" : estimate.failure_reason;
+    }
+  } catch (const std::exception& e) {
+    report_.method_s[method.name] += secondsSince(estimating);
+    score.failure = std::string("error: ") + e.what();
+  }
+  if (!score.failure.empty()) {
+    estimate = AlignmentEstimate::failed(score.failure);
+    report_.table.addFailure(method.name, pair.category, identity_px);
+    ++report_.failure_reasons[method.name][score.failure];
+    score.scored_px = identity_px;
+  } else {
+    score.scored_px = report_.table.addCapped(method.name, pair.category, score.distance_px, identity_px);
+  }
+  report_.pairs.push_back(score);
+  if (!ghost) return;
+  GhostPanel panel;
+  panel.method = method.name;
+  panel.distance_px = score.scored_px;
+  panel.failed = !estimate.ok();
+  panel.capped = estimate.ok() && score.distance_px > identity_px;
+  try {
+    panel.ghost_rgb = magnifyCentre(
+        ghostOverlay(context.rgb_a, warpFrameBOntoA(context.rgb_b, estimateCameraFlow(estimate, *context.camera))),
+        options_.ghost_zoom);
+    ghost->panels.push_back(std::move(panel));
+  } catch (const std::exception&) {
+    // A motion that cannot be drawn was already scored (as a failure); the panel stays blank.
+  }
+}
+
+void EvaluationRun::reportUnmatchedAnnotations() {
+  if (!annotated_) return;
+  for (std::size_t p = 0; p < annotation_used_.size(); ++p) {
+    if (annotation_used_[p]) continue;
+    const AnnotatedPair& pair = options_.annotations->pairs[p];
+    report_.errors.push_back(options_.annotations->path + ":" + std::to_string(pair.lines.front()) + ": pair " +
+                             formatStampNs(pair.stamp_a_ns) + " -> " + formatStampNs(pair.stamp_b_ns) +
+                             " matches no frame of the bags given");
+  }
+}
+
+// The progress bar to its end; categories in the paper's order, rows in the order added.
+void EvaluationRun::finish() {
+  if (progress_) {
+    if (pairs_done_ < total_pairs_) progress_->update(total_pairs_);  // pairs no bag held
+    if (progress_->drawing()) std::fprintf(stderr, "\n");
+  }
+  report_.table.orderCategories({"RE", "LT", "LL", "MF"});  // the paper's column order
   std::vector<std::string> method_order;
   for (const AlignmentMethod& method : methods_) {
     method_order.push_back(method.name);
-    report.method_scopes.emplace_back(method.name, method.scope);
+    report_.method_scopes.emplace_back(method.name, method.scope);
   }
-  report.table.orderMethods(method_order);
-  report.elapsed_s = secondsSince(started);
-  return report;
+  report_.table.orderMethods(method_order);
+  report_.elapsed_s = secondsSince(started_);
 }
+
+}  // namespace
+
+EvaluationReport EvaluationRunner::run() { return EvaluationRun(options_, methods_).run(); }
 
 }  // namespace deep_ois

@@ -1,6 +1,7 @@
-// Figures of the evaluator, drawn with OpenCV only: bar charts of the table and ghost-image grids
-// (the paper's visual check: the red channel of frame b, brought onto frame a by a method's
-// motion, over frame a; grey where aligned, red/cyan fringes where not).
+// Images of the evaluator, composed with OpenCV: ghost-image grids (the paper's visual check: the
+// red channel of frame b, brought onto frame a by a method's motion, over frame a; grey where
+// aligned, red/cyan fringes where not). Its bar charts are drawn by matplotlib from
+// evaluation.csv (evaluation_report.h).
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -8,12 +9,6 @@
 #include <vector>
 
 namespace deep_ois {
-
-// One horizontal bar per label, its value printed beside it, a title on top and a note on the
-// axis unit. NaN values get no bar and the text "-". Returns CV_8UC3 in RGB order. Throws
-// std::invalid_argument when labels and values differ in count or are empty.
-cv::Mat drawBarChart(const std::string& title, const std::vector<std::string>& labels,
-                     const std::vector<double>& values, const std::string& unit);
 
 // The centre 1/factor of an image magnified `factor` times (nearest neighbour, so one-pixel
 // fringes stay sharp): the same size as the input. factor 1 returns the image. Throws

@@ -112,9 +112,12 @@ std::string modelCameraNote(const std::string& model_name, const CameraDescripti
                             const std::vector<RecordingOutcome>& recordings);
 
 // Writes evaluation.csv, evaluation.json, evaluation_pairs.csv, bars_<category>.png per category
-// plus bars_Avg.png, and ghosts_<category>.png into `directory` (created when missing). Returns the
-// paths written. Throws std::runtime_error naming the file that cannot be written.
+// plus bars_Avg.png (drawn from evaluation.csv by matplotlib, tools/support/csv_plot.h), and
+// ghosts_<category>.png into `directory` (created when missing). Returns the paths written.
+// Throws std::runtime_error naming the file that cannot be written. A bar chart that cannot be
+// drawn (matplotlib missing) is not an error: the first reason goes to `plot_problem` when given.
 std::vector<std::string> writeEvaluationReport(const EvaluationReport& report,
-                                               const std::string& directory);
+                                               const std::string& directory,
+                                               std::string* plot_problem = nullptr);
 
 }  // namespace deep_ois
