@@ -76,8 +76,13 @@ function(deep_ois_precompile_headers)
   endif()
   set(_families)
   get_property(_targets DIRECTORY ${PROJECT_SOURCE_DIR} PROPERTY BUILDSYSTEM_TARGETS)
+  # The one source of the object libraries that compile the headers (CMake compiles a header only
+  # for a target with a source that uses it). Written once: a new time stamp at every configure
+  # would compile it again.
   set(_empty_source ${CMAKE_CURRENT_BINARY_DIR}/deep_ois_pch_empty.cpp)
-  file(WRITE ${_empty_source} "// The object libraries that compile deep_ois' precompiled headers.\n")
+  if(NOT EXISTS ${_empty_source})
+    file(WRITE ${_empty_source} "// The object libraries that compile deep_ois' precompiled headers.\n")
+  endif()
   foreach(_target ${_targets})
     _deep_ois_pch_family(${_target} _family)
     if(NOT _family)
