@@ -5,11 +5,12 @@
 # (launch/demo.launch -> launch/deep_ois.launch: gyro flow + compensation nodelets), recording their
 # flows; prints the summary of the gyro flows, then the paper's table on the bag's annotated
 # correspondences, with the rows of the live recording beside the offline ones (they must agree).
-# Fails when a frame pair got no gyro flow.
+# Fails when a frame pair got no gyro flow. Builds only what it runs (build.sh --demo); `bash
+# scripts/build.sh` builds the other tools.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$repo/scripts/install_deps.sh"
-bash "$repo/scripts/build.sh"
+bash "$repo/scripts/build.sh" --demo
 # shellcheck disable=SC1091
 source "$repo/scripts/ros_env.sh"
 
@@ -66,4 +67,6 @@ fi
 echo
 echo "==== geometry distance on the annotated correspondences of $(basename "$bag") ===="
 rosrun deep_ois evaluate --bags "$bag" --recorded "$recording" --out "$out" || status=$?
+echo
+echo "demo: built only what it runs; 'bash scripts/build.sh' builds the other tools (rosrun deep_ois TOOL)."
 exit "$status"
