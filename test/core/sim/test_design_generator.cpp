@@ -157,6 +157,7 @@ TEST(DesignGenerator, SimulatorRunsTheDesignOfOisDesignSeed) {
 TEST(DesignGenerator, ADesignBuiltAsTheReferenceModuleMovesItsLens) {
   StabiliserDesign design;
   design.hall.noise_px = 0.0;
+  design.actuator.end_stop_margin = 1.0;  // the module's lens stops at its stroke
   ASSERT_EQ("", design.validate());
   const OisConfig module;
   const CameraMotion motion(CameraMotionConfig(), 31, -0.25, 3.0);
@@ -187,7 +188,7 @@ TEST(DesignGenerator, EveryClassAndStageVariantAppearsAmongTheFirstSeeds) {
     EXPECT_GE(count[tag], 2) << tag << " appears " << count[tag] << " times in the first " << kSeeds << " seeds";
   }
   for (const std::string& name : designClasses()) {
-    EXPECT_GE(count[name], kSeeds / 10) << name;
+    EXPECT_GE(count[name], kSeeds / 15) << name;
   }
   // And no tag outside the documented list.
   for (const auto& [tag, n] : count) {
@@ -286,13 +287,16 @@ TEST(DesignGenerator, DesignLensShiftsIsTheOracleAtTheGyroStamps) {
   ASSERT_EQ(lens.size(), trace.gyro.size());
   const StabiliserOracle oracle(design, kFocalPx, trace.gyro);
   for (std::size_t i = 0; i < lens.size(); i += 37) EXPECT_EQ(0.0, (lens[i] - oracle.lensShift(trace.gyro[i].stamp_s)).norm());
-  // On the camera's gyro (another noise, bias and rate) it stays close to the true lens.
+  // On the camera's gyro (another noise, bias and rate) it stays close to the true lens: the
+  // frame-to-frame (30 Hz) lens motion, what a frame pair's alignment sees, as the oracle test.
   double error = 0.0, motion = 0.0;
-  for (std::size_t i = 0; i < lens.size(); ++i) {
-    error = std::max(error, (lens[i] - trace.lens_px[i]).norm());
-    motion = std::max(motion, trace.lens_px[i].norm());
+  const std::size_t frame = 400 / 30;  // gyro samples per frame at 400 Hz
+  for (std::size_t i = 0; i + frame < lens.size(); ++i) {
+    const Eigen::Vector2d truth = trace.lens_px[i + frame] - trace.lens_px[i];
+    error += (lens[i + frame] - lens[i] - truth).squaredNorm();
+    motion += truth.squaredNorm();
   }
-  EXPECT_LT(error, 0.25 * motion);
+  EXPECT_LT(std::sqrt(error), 0.1 * std::sqrt(motion));
   DesignTraceOptions bad;
   bad.imu.time_offset_s = 0.01;
   try {

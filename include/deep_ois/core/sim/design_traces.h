@@ -26,9 +26,10 @@ namespace sim {
 
 // The lens shift (pixels, x right, y down) of `design` at each sample's stamp, its controller
 // driven by `gyro` (camera optical frame, rad/s; linear between samples) from start_s (NaN: the
-// first sample), centred and at rest then. focal_px: the camera's focal length in pixels. Samples
-// not later than the one before are dropped, and get the lens of the one they repeat (the result
-// has one entry per input sample). Throws std::invalid_argument as StabiliserOracle does.
+// first sample), centred and at rest then. focal_px: the camera's focal length in pixels. A sample
+// not later than the one before does not drive the design (StabiliserOracle drops it); its entry
+// is still the lens at its stamp (one entry per input sample). Throws std::invalid_argument as
+// StabiliserOracle does.
 std::vector<Eigen::Vector2d> designLensShifts(
     const StabiliserDesign& design, double focal_px, const std::vector<CameraRateSample>& gyro,
     double start_s = std::numeric_limits<double>::quiet_NaN());
