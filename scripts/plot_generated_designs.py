@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Draws the contact sheet of the generated stabiliser designs (docs/simulator.md): one row per
-design class, a few designs per row, each the lens shift against what the camera's gyro says a
-lens would have to do to cancel all of the rotation (f times the integrated rate, no centring).
+design class, a few designs per row, all on the same hand-held motion: each design's lens shift
+(x and y) against one reference computed from the camera's gyro, f times the gyro angle about the
+camera's y axis high-passed at 0.3 Hz (the x shift a plain first-order stabiliser would command,
+stroke ignored). Centring, strokes, pan handling, gain and delay show as departures from it.
 
 Input: the CSV pair written by `sim_contact_sheet --designs-csv FILE.csv` (FILE.csv with the
 traces, FILE_designs.csv with the designs). Needs python3-matplotlib (scripts/install_deps.sh).
@@ -12,6 +14,7 @@ traces, FILE_designs.csv with the designs). Needs python3-matplotlib (scripts/in
 """
 import argparse
 import csv
+import math
 import sys
 import textwrap
 from collections import OrderedDict, defaultdict
@@ -40,12 +43,18 @@ def read_traces(path):
     return traces
 
 
-def integrate(t, rate):
-    """Trapezoidal integral of rate over t, starting at 0."""
+def highpass(t, rate, corner_hz):
+    """The leaky integral y' = rate - 2 pi corner y (a first-order high-passed angle), from 0."""
+    w = 2.0 * math.pi * corner_hz
     angle = [0.0]
     for i in range(1, len(t)):
-        angle.append(angle[-1] + 0.5 * (rate[i] + rate[i - 1]) * (t[i] - t[i - 1]))
+        dt = t[i] - t[i - 1]
+        decay = math.exp(-w * dt)
+        angle.append(decay * angle[-1] + (1.0 - decay) / w * 0.5 * (rate[i] + rate[i - 1]))
     return angle
+
+
+REFERENCE_CORNER_HZ = 0.3
 
 
 def main():
@@ -76,14 +85,13 @@ def main():
             design, trace = designs[seed], traces[seed]
             f = float(design["focal_px"])
             t = trace["t_s"]
-            # The shift that cancels all of the rotation: f (angle_y, -angle_x) (docs/simulator.md).
-            full_x = [f * a for a in integrate(t, trace["gyro_y_rad_s"])]
-            full_y = [-f * a for a in integrate(t, trace["gyro_x_rad_s"])]
-            ax.plot(t, full_x, color="0.6", lw=0.8, label="x: f x gyro angle (no centring)")
-            ax.plot(t, trace["lens_x_px"], color="tab:blue", lw=1.1, label="x: lens")
-            ax.plot(t, full_y, color="0.6", lw=0.8, ls="--", label="y: -f x gyro angle")
-            ax.plot(t, trace["lens_y_px"], color="tab:orange", lw=1.1, label="y: lens")
-            ax.set_ylim(-9, 9)
+            # s = f (angle_y, -angle_x) cancels the rotation (docs/simulator.md); x only, as reference.
+            reference_x = [f * a for a in highpass(t, trace["gyro_y_rad_s"], REFERENCE_CORNER_HZ)]
+            ax.plot(t, reference_x, color="black", lw=0.7,
+                    label="reference: f x gyro angle (y), high-passed at %g Hz" % REFERENCE_CORNER_HZ)
+            ax.plot(t, trace["lens_x_px"], color="tab:blue", lw=1.2, label="lens x")
+            ax.plot(t, trace["lens_y_px"], color="tab:orange", lw=0.9, alpha=0.75, label="lens y")
+            ax.set_ylim(-8, 8)
             ax.grid(True, lw=0.3)
             features = [tag for tag in design["features"].split() if tag != name]
             title = "design %d (%s)\n%s" % (seed, design["split"].replace("_", " "),
@@ -94,11 +102,12 @@ def main():
             if r == len(by_class) - 1:
                 ax.set_xlabel("time (s)")
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", ncol=4, fontsize=9, frameon=False)
-    fig.suptitle("Generated stabiliser designs: the lens against the camera gyro's full-cancellation "
-                 "shift (same hand-held motion for all, f = %g px)" % float(next(iter(designs.values()))["focal_px"]),
-                 fontsize=11, y=0.995)
-    fig.tight_layout(rect=(0, 0, 1, 0.965))
+    fig.suptitle("Generated stabiliser designs: the lens shift of a few designs per class, all on the same "
+                 "hand-held motion (f = %g px, 8 s)" % float(next(iter(designs.values()))["focal_px"]),
+                 fontsize=12, y=0.995)
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.978), ncol=3, fontsize=10,
+               frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 0.955))
     fig.savefig(args.out, dpi=80)
     print("plot_generated_designs: wrote %s (%d designs)" % (args.out, len(designs)))
 

@@ -41,7 +41,7 @@ void writeDesignTraces(const std::string& path, int per_class, double duration_s
   std::ofstream designs(designs_path);
   if (!traces || !designs) throw std::runtime_error("cannot write " + path + " or " + designs_path);
   traces << "design_seed,t_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,lens_x_px,lens_y_px\n";
-  designs << "design_seed,class,split,focal_px,features\n";
+  designs << "design_seed,class,split,focal_px,features,description\n";
   sim::DesignTraceOptions options;
   options.duration_s = duration_s;
   std::map<std::string, int> written;
@@ -55,8 +55,14 @@ void writeDesignTraces(const std::string& path, int per_class, double duration_s
     const sim::DesignTrace trace = sim::simulateDesignTrace(seed, 1, options);
     std::string features;
     for (const std::string& tag : sim::designFeatures(design)) features += (features.empty() ? "" : " ") + tag;
+    // describe() on one line, quoted (it holds commas, never a double quote).
+    std::string description = sim::describe(design);
+    while (!description.empty() && description.back() == '\n') description.pop_back();
+    for (std::size_t at = description.find('\n'); at != std::string::npos; at = description.find('\n', at)) {
+      description.replace(at, 1, "; ");
+    }
     designs << seed << "," << trace.design_class << "," << sim::toString(trace.split) << ","
-            << options.focal_px << "," << features << "\n";
+            << options.focal_px << "," << features << ",\"" << description << "\"\n";
     char row[256];
     for (std::size_t i = 0; i < trace.gyro.size(); ++i) {
       const Eigen::Vector3d& w = trace.gyro[i].rate_rad_s;

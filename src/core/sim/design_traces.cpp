@@ -12,14 +12,6 @@
 namespace deep_ois {
 namespace sim {
 
-namespace {
-
-// The simulator's margin (kSimulatorMarginS in simulator.h, not included: that header pulls in the
-// renderer): the stabiliser settles from rest before t = 0.
-constexpr double kMarginS = 0.25;
-
-}  // namespace
-
 std::vector<Eigen::Vector2d> designLensShifts(const StabiliserDesign& design, double focal_px,
                                               const std::vector<CameraRateSample>& gyro,
                                               double start_s) {
@@ -57,13 +49,13 @@ DesignTrace simulateDesignTrace(std::uint32_t design_seed, std::uint32_t motion_
   trace.design_class = designClass(design);
   trace.split = designSplit(design_seed);
 
-  // Streams of the motion seed, as the simulator's (motion 1, stabiliser noise 2, IMU 4), mixed
-  // with the design seed for the stabiliser's own noise.
-  const CameraMotion motion(options.motion, streamSeed(motion_seed, 1), -kMarginS,
-                            options.duration_s + kMarginS);
-  const int steps = static_cast<int>(std::ceil((motion.endTime() - motion.startTime()) * kDesignPhysicsRateHz));
+  // Streams of the motion seed, as the simulator's (motion 1, IMU 4), and the stabiliser's own
+  // noise from both seeds. The stabiliser starts centred and at rest at t = 0, with the gyro, so
+  // that designLensShifts on the trace's gyro is the design's oracle from the same start.
+  const CameraMotion motion(options.motion, streamSeed(motion_seed, 1), 0.0, options.duration_s);
+  const int steps = static_cast<int>(std::ceil(options.duration_s * kDesignPhysicsRateHz));
   std::mt19937 noise(streamSeed(motion_seed ^ design_seed, 2));
-  const LensShiftGrid lens = runDesign(design, options.focal_px, motion.startTime(), steps,
+  const LensShiftGrid lens = runDesign(design, options.focal_px, 0.0, steps,
                                        [&motion](double t_s) { return motion.angularVelocity(t_s); },
                                        &noise);
   for (const ImuMeasurement& m :

@@ -6,7 +6,8 @@
 //    the lens its own controller would command from that gyro (the design's oracle);
 //  - simulateDesignTrace: a (design seed, motion seed) pair drawn whole: the simulator's hand-held
 //    motion, the camera's gyro sampled from it (with the camera IMU's noise and bias, as a model
-//    sees it at run time) and the design's true lens (run on its own noisy gyro, as in a bag).
+//    sees it at run time) and the design's true lens (run on its own noisy gyro, as in a bag),
+//    both from t = 0, where the stabiliser starts centred and at rest.
 //    Cost: about the length of the trace x 4 kHz physics steps (well under a second per 10 s).
 #pragma once
 
@@ -35,7 +36,7 @@ std::vector<Eigen::Vector2d> designLensShifts(
     double start_s = std::numeric_limits<double>::quiet_NaN());
 
 struct DesignTraceOptions {
-  double duration_s = 10.0;  // from t = 0; the stabiliser starts 0.25 s earlier (the simulator's margin)
+  double duration_s = 10.0;  // from t = 0, the first gyro sample, where the stabiliser starts at rest
   double focal_px = 257.0;   // the RE camera: 360 px over 70 degrees
   CameraMotionConfig motion;  // hand-held shake and pans (config/simulator/RE.yaml's)
   // The camera's gyro: rate, noise, bias; its imu_to_camera_rotation is undone (the trace is in
