@@ -109,6 +109,10 @@ def main():
                frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 0.955))
     fig.savefig(args.out, dpi=80)
+    # A palette image is a third of the size of matplotlib's RGBA for the same look (Pillow comes
+    # with python3-matplotlib).
+    from PIL import Image
+    Image.open(args.out).convert("RGB").quantize(colors=64).save(args.out, optimize=True)
     print("plot_generated_designs: wrote %s (%d designs)" % (args.out, len(designs)))
 
 
