@@ -262,7 +262,7 @@ std::string describe(const StabiliserDesign& d) {
   out << "design " << d.seed << " (" << designClass(d) << ")\n";
   out << "  mount: roll " << d.mount.roll_deg << " deg, tilt " << d.mount.tilt_deg << " deg, pan "
       << d.mount.pan_deg << " deg, gyro noise " << d.mount.noise_rad_s << " rad/s\n";
-  out << "  loop: " << d.loop.rate_hz << " Hz, "
+  out << "  loop: " << static_cast<int>(d.loop.rate_hz) << " Hz, "
       << (d.loop.sampling == GyroSampling::kLatest ? "latest sample" : "averaged") << "\n";
   out << "  estimator: " << toString(d.estimator.kind) << ", corner " << d.estimator.corner_hz << " Hz";
   if (d.estimator.kind == EstimatorKind::kHighpass2 || d.estimator.kind == EstimatorKind::kAlphaBeta) {
