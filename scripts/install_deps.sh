@@ -38,6 +38,8 @@ packages=(
   libopencv-videoio-dev
   # the compensation network (CPU libtorch 1.13)
   libtorch-dev
+  # the figures of docs/ (scripts/plot_generated_designs.py)
+  python3-matplotlib
 )
 
 if [ "${1:-}" = "--visualisation" ]; then

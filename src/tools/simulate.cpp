@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/simulator.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/progress_bar.h"
@@ -58,6 +59,15 @@ int main(int argc, char** argv) {
       ->check(deep_ois::existingFile())
       ->type_name("FILE.yaml");
   app.add_option("--out", out_path, "the bag to write")->required()->type_name("FILE.bag");
+  std::uint32_t design_seed = 0;
+  CLI::Option* design_option =
+      command_line
+          .addNumber("--design-seed", design_seed,
+                     "run the lens by the generated stabiliser design of this seed, "
+                     "0..4294967295, instead of the config's stabiliser (as ois.design_seed; "
+                     "docs/simulator.md)")
+          ->default_str("")
+          ->type_name("SEED");
   app.add_option("--ois", ois_override, "override the config's OIS (off: the non-OIS twin)")
       ->check(deep_ois::oneOf({"on", "off"}))
       ->type_name("on|off");
@@ -71,6 +81,14 @@ int main(int argc, char** argv) {
   try {
     deep_ois::sim::SimulatorConfig config = deep_ois::sim::loadSimulatorConfig(config_path, overlays);
     if (!ois_override.empty()) config.ois.enabled = ois_override == "on";
+    if (design_option->count() > 0) config.ois.design_seed = design_seed;
+    std::string design;
+    if (config.ois.design_seed >= 0) {
+      const auto seed = static_cast<std::uint32_t>(config.ois.design_seed);
+      design = std::string(", generated design ") + std::to_string(seed) + " (" +
+               deep_ois::sim::designClass(deep_ois::sim::generateDesign(seed)) + ", " +
+               deep_ois::sim::toString(deep_ois::sim::designSplit(seed)) + ")";
+    }
     const auto started = std::chrono::steady_clock::now();
     const deep_ois::sim::Simulator simulator(config, static_cast<std::uint32_t>(seed), duration_s);
 
@@ -88,10 +106,10 @@ int main(int argc, char** argv) {
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     std::printf(
-        "simulate: %s: %s, OIS %s, seed %u, %d frames %dx%d, %d frame pairs with %d "
+        "simulate: %s: %s, OIS %s%s, seed %u, %d frames %dx%d, %d frame pairs with %d "
         "correspondences, %d IMU samples, %d lens-shift samples (truth), %d logged by the camera, %.1f s%s\n",
         out_path.c_str(), deep_ois::sim::toString(config.category),
-        config.ois.enabled ? "on" : "off", seed, stats.frames, config.sensor.width_px,
+        config.ois.enabled ? "on" : "off", design.c_str(), seed, stats.frames, config.sensor.width_px,
         config.sensor.height_px, stats.frame_pairs, stats.correspondences, stats.imu_messages,
         stats.lens_shift_messages, stats.lens_shift_log_messages, elapsed,
         stats.interrupted ? " (interrupted: the bag holds the frames written so far)" : "");

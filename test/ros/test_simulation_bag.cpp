@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -157,6 +159,36 @@ TEST(SimulationBag, OisMakesTheGyroMissTheAnnotations) {
   EXPECT_GT(ois_px, 2.0 * twin_px);
   for (const auto& truth : with_ois.truths) EXPECT_TRUE(truth.ois_enabled);
   for (const auto& truth : twin.truths) EXPECT_FALSE(truth.ois_enabled);
+}
+
+// A generated stabiliser design (ois.design_seed) renders as any module: its lens is in the bag's
+// truth, another than the category's own stabiliser's, and its non-OIS twin has none.
+TEST(SimulationBag, AGeneratedDesignRendersToABag) {
+  sim::SimulatorConfig config = sim::loadSimulatorConfig(configPath("RE"));
+  config.sensor.width_px = 160;  // small and fast: the lens is what is checked
+  config.sensor.height_px = 120;
+  const BagSequence module = readBagSequence(writeBag(config, 6, 0.5, "module_design"));
+  config.ois.design_seed = 7;
+  const BagSequence generated = readBagSequence(writeBag(config, 6, 0.5, "generated_design"));
+  config.ois.enabled = false;
+  const BagSequence twin = readBagSequence(writeBag(config, 6, 0.5, "generated_design_twin"));
+  ASSERT_EQ(generated.truths.size(), module.truths.size());
+  ASSERT_FALSE(generated.truths.empty());
+  double largest_px = 0.0, difference_px = 0.0;
+  for (std::size_t k = 0; k < generated.truths.size(); ++k) {
+    EXPECT_TRUE(generated.truths[k].ois_enabled);
+    const auto& lens = generated.truths[k].lens_shift_a;
+    ASSERT_EQ(lens.size(), module.truths[k].lens_shift_a.size());
+    for (std::size_t i = 0; i < lens.size(); ++i) {
+      largest_px = std::max(largest_px, std::abs(lens[i]));
+      difference_px = std::max(difference_px, std::abs(lens[i] - module.truths[k].lens_shift_a[i]));
+    }
+    for (double shift : twin.truths[k].lens_shift_a) EXPECT_EQ(0.0, shift);
+  }
+  std::cout << "[ measured ] generated design 7: lens up to " << largest_px
+            << " px, up to " << difference_px << " px from RE's own stabiliser\n";
+  EXPECT_GT(largest_px, 0.3);
+  EXPECT_GT(difference_px, 0.1);
 }
 
 TEST(SimulationBag, SameSeedAndConfigGiveIdenticalBags) {

@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/sim/design_generator.h"
+#include "deep_ois/core/sim/stabiliser_design_runner.h"
 #include "deep_ois/core/sim/stabiliser_lens_loop.h"
 
 namespace deep_ois {
@@ -130,6 +132,11 @@ std::string OisConfig::validate() const {
     why << "actuator_cross_coupling: must be within +-0.5 (got " << actuator_cross_coupling << ")";
   } else if (!std::isfinite(hall_lag_s) || hall_lag_s < 0.0 || hall_lag_s > 0.1) {
     why << "hall_lag_s: must be in [0, 0.1] s (got " << hall_lag_s << ")";
+  } else if (design_seed < -1 || design_seed > 4294967295LL) {
+    why << "design_seed: must be a generated design's seed, 0..4294967295, or -1 for none (got "
+        << design_seed << ")";
+  } else if (design_seed >= 0 && !lens_shift_csv.empty()) {
+    why << "design_seed: a generated design and lens_shift_csv exclude each other";
   } else if (!positive(control_rate_hz) ||
              control_rate_hz < kMinControlStepsPerActuatorPeriod * actuator_natural_hz) {
     why << "control_rate_hz: must be at least " << kMinControlStepsPerActuatorPeriod
@@ -169,6 +176,21 @@ OisModel::OisModel(const OisConfig& config, const CameraMotion& motion, double f
   const double limit_y_deg =
       config_.stroke_limit_y_deg > 0.0 ? config_.stroke_limit_y_deg : config_.stroke_limit_deg;
   stroke_limit_y_px_ = focal_px * std::tan(limit_y_deg * kPi / 180.0);
+  if (config_.design_seed >= 0) {
+    // A generated design: its own stroke (the larger direction per axis) and its own chain.
+    const StabiliserDesign design = generateDesign(static_cast<std::uint32_t>(config_.design_seed));
+    stroke_limit_px_ = focal_px * std::tan(std::max(design.stroke.x_positive_deg,
+                                                    design.stroke.x_negative_deg) * kPi / 180.0);
+    stroke_limit_y_px_ = focal_px * std::tan(std::max(design.stroke.y_positive_deg,
+                                                      design.stroke.y_negative_deg) * kPi / 180.0);
+    if (!config_.enabled) return;
+    const int steps = std::max(
+        1, static_cast<int>(std::ceil((motion.endTime() - start_s_) * kDesignPhysicsRateHz)));
+    std::mt19937 rng(seed);
+    grid_ = runDesign(design, focal_px, start_s_, steps,
+                      [&motion](double t_s) { return motion.angularVelocity(t_s); }, &rng);
+    return;
+  }
   if (!config_.enabled) return;
 
   const double dt = 1.0 / config_.control_rate_hz;

@@ -211,6 +211,7 @@ void readSimulatorConfig(const std::string& path, SimulatorConfig& config) {
         .read("mount_rotation_deg", o.mount_rotation_deg)
         .read("actuator_cross_coupling", o.actuator_cross_coupling)
         .read("lens_shift_csv", o.lens_shift_csv)
+        .read("design_seed", o.design_seed)
         .finish();
     if (!parseStrokeShape(stroke_shape, &o.stroke_shape)) {
       throw std::runtime_error("ois.stroke_shape: '" + stroke_shape + "' is not box or circle");

@@ -80,6 +80,10 @@ struct OisConfig {
   // header line and rows "t_s,x_px,y_px", t in seconds from the start of the motion, e.g. a real
   // phone's lens log re-timed), linear between rows and held outside them.
   std::string lens_shift_csv;
+  // When not -1: the lens is run by the generated stabiliser design of this seed
+  // (core/sim/design_generator.h, 0..4294967295) instead of the stabiliser keys above, which are
+  // then not used; `enabled` still turns it off (the non-OIS twin). Not with lens_shift_csv.
+  std::int64_t design_seed = -1;
 
   std::string validate() const;  // empty, or a sentence naming the bad field
 };

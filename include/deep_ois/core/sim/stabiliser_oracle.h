@@ -15,12 +15,14 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <limits>
 #include <vector>
 
 #include "deep_ois/core/ois/stabiliser_model.h"
 #include "deep_ois/core/sim/lens_shift_grid.h"
 #include "deep_ois/core/sim/ois_model.h"
+#include "deep_ois/core/sim/stabiliser_design.h"
 
 namespace deep_ois {
 namespace sim {
@@ -35,7 +37,14 @@ class StabiliserOracle {
   // fewer than two usable samples.
   // `start_s`: when the stabiliser starts, centred and at rest, on the gyro's clock; NaN: at the
   // first sample. Before the first sample the gyro is held at it.
+  // A config with ois.design_seed set runs that generated design (as the simulator does).
   StabiliserOracle(const OisConfig& config, double focal_px,
+                   const std::vector<CameraRateSample>& rates,
+                   double start_s = std::numeric_limits<double>::quiet_NaN());
+  // The oracle of a generated (or hand-built) stabiliser design (core/sim/stabiliser_design.h):
+  // its chain at kDesignPhysicsRateHz on these rates, without its gyro's and Hall sensor's noise.
+  // Throws std::invalid_argument for an invalid design, as above for the rest.
+  StabiliserOracle(const StabiliserDesign& design, double focal_px,
                    const std::vector<CameraRateSample>& rates,
                    double start_s = std::numeric_limits<double>::quiet_NaN());
 
@@ -46,6 +55,12 @@ class StabiliserOracle {
   int droppedSamples() const { return dropped_; }
 
  private:
+  // Runs `run(start_s, steps, rate)` at rate_hz over the usable samples from start_s.
+  using Runner = std::function<LensShiftGrid(
+      double start_s, int steps, const std::function<Eigen::Vector3d(double t_s)>& rate)>;
+  void runOver(const std::vector<CameraRateSample>& rates, double start_s, double rate_hz,
+               const Runner& run);
+
   double start_s_ = 0.0, last_s_ = 0.0;
   int dropped_ = 0;
   LensShiftGrid grid_;

@@ -1,0 +1,32 @@
+// A stabiliser design (core/sim/stabiliser_design.h) run over a gyro: its chain of stages at
+// kDesignPhysicsRateHz, from the camera-frame angular velocity to the lens shift.
+//
+// Two callers, one code path, as runStabiliser (stabiliser_lens_loop.h) for the hand-named
+// modules: the simulator's OisModel runs it on the true motion with the stabiliser's own gyro and
+// Hall noise (ois.design_seed), and its oracle (StabiliserOracle) runs it on a camera's gyro.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <random>
+
+#include "deep_ois/core/sim/lens_shift_grid.h"
+#include "deep_ois/core/sim/stabiliser_design.h"
+
+namespace deep_ois {
+namespace sim {
+
+// `design` valid (StabiliserDesign::validate(), else std::invalid_argument naming the field),
+// focal_px > 0 (sets pixels per radian), steps >= 1. Physics step j is at
+// start_s + j / kDesignPhysicsRateHz; the stabiliser starts centred and at rest at step 0 and the
+// result has steps + 1 samples. `angular_velocity_rad_s(t)`: the camera-frame (optical) angular
+// velocity, asked once per step j = 1..steps in increasing time; the stabiliser's gyro sees it
+// turned by design.mount. `noise`: per step, the Hall reading's white noise (hall.noise_px, drawn
+// only when not 0: x, y) and then the stabiliser gyro's (mount.noise_rad_s: x, y in the gyro's
+// frame, always drawn); null: none (the oracle).
+LensShiftGrid runDesign(const StabiliserDesign& design, double focal_px, double start_s, int steps,
+                        const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s,
+                        std::mt19937* noise);
+
+}  // namespace sim
+}  // namespace deep_ois
