@@ -32,14 +32,13 @@ packages=(
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
   # the tools: flag parsing, the evaluation JSON, the data-set SHA-256
   libcli11-dev nlohmann-json3-dev libssl-dev
-  # the tools' PNG charts: scripts/plot_csv.py draws the CSVs they write
+  # the tools' PNG charts (scripts/plot_csv.py over the CSVs they write) and the figures of docs/
+  # (scripts/plot_generated_designs.py)
   python3-matplotlib
   # convert_recording's video input: OpenCV's FFmpeg backend (HEVC, H.264)
   libopencv-videoio-dev
   # the compensation network (CPU libtorch 1.13)
   libtorch-dev
-  # the figures of docs/ (scripts/plot_generated_designs.py)
-  python3-matplotlib
 )
 
 if [ "${1:-}" = "--visualisation" ]; then
