@@ -37,8 +37,9 @@ namespace deep_ois {
 // message with the flow replaced by the network's), `compensated_flow/color` (rgb8),
 // `aligned/image_raw` (frame a warped onto frame b by the compensated flow, frame b's stamp and
 // frame a's encoding) and `aligned/ghost` (rgb8: red of frame b over green/blue of the aligned
-// frame a). Inputs are subscribed only while an output has a subscriber; each output is computed
-// only while it has one.
+// frame a). Inputs are subscribed only while an output has a subscriber (compensation_check
+// included); each output is computed only while it has one. Every field of an input GyroFlow is
+// validated before use, and every published GyroFlow before it goes out (message_validation.h).
 //
 // The gyro flows are one camera's consecutive pairs: the model sees each with the motion history
 // of the earlier ones (CompensationStream); a gap (a pair never received, a bag that loops)
