@@ -16,6 +16,7 @@
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/ros/messages/message_validation.h"
 
 namespace deep_ois {
 
@@ -31,10 +32,11 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       private_nh_(private_nh),
       log_name_(private_nh.getNamespace()),
       params_(loadCompensationParameters(private_nh)),
+      compensator_kind_(compensatorKindFor(params_.model_path)),
       it_(nh),
       matcher_(FlowFrameMatcherOptions{static_cast<std::size_t>(params_.image_cache_size),
                                        static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}) {
-  if (isStabiliserModelPath(params_.model_path)) {
+  if (compensator_kind_ == CompensatorKind::kStabiliserModel) {
     stabiliser_ = std::make_unique<StabiliserFlowCompensator>(StabiliserModelFile::load(params_.model_path));
   } else {
     model_ = std::make_unique<CompensationModel>(CompensationModel::load(params_.model_path));
@@ -61,9 +63,6 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   // checked against the stream; say so rather than "matches".
   diagnostics_->setValue("model camera", modelCamera().known() ? modelCamera().summary()
                                                                : "none recorded (a generic model)");
-  if (stabiliser_) {
-    learning_ = std::make_unique<OnlineLearningRos>(nh_, params_, stabiliser_->model(), *diagnostics_, log_name_);
-  }
   // Live-tunable parameters; built before the lock below (it applies the values once here).
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
@@ -84,7 +83,13 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         params_.learning_cpu_share = live.learning_cpu_share;
         if (learning_) learning_->setLearning(live.learning, live.learning_cpu_share);
       });
+  // Held across every advertise (compensation_check's too): a subscriber connecting meanwhile
+  // waits in connectCallback until the publishers exist.
   std::lock_guard<std::mutex> lock(mutex_);
+  if (stabiliser_) {
+    learning_ = std::make_unique<OnlineLearningRos>(nh_, params_, stabiliser_->model(), *diagnostics_, log_name_,
+                                                    [this] { connectCallback(); });
+  }
   auto on_subscribers = [this](const ros::SingleSubscriberPublisher&) { connectCallback(); };
   auto on_image_subscribers = [this](const image_transport::SingleSubscriberPublisher&) { connectCallback(); };
   compensated_pub_ = nh_.advertise<GyroFlow>("compensated_flow", 5, on_subscribers, on_subscribers);
@@ -94,6 +99,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   flow_image_pub_ = FlowImagePublisher(nh_, "compensated_flow/image", [this] { connectCallback(); });
   // Gives up on flows whose frames stopped coming (no image callback runs then).
   expire_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), &CompensationRos::expireTimerCallback, this);
+  updateSubscriptions();  // subscribers that connected before the callbacks could see them
   if (model_) {
     const ModelMetadata& m = model_->metadata();
     ROS_INFO_NAMED("compensation", "%s: model %s (preset %s, working grid %dx%d, trained %d epochs for %s), %d torch "
@@ -119,12 +125,18 @@ CompensationRos::~CompensationRos() {
 }
 
 bool CompensationRos::anyOutputWanted() const {
+  // The per-pair checks are an output too: a lone `rostopic echo compensation_check` gets them.
   return compensated_pub_.getNumSubscribers() > 0 || color_pub_.getNumSubscribers() > 0 ||
-         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0 || flow_image_pub_.wanted();
+         aligned_pub_.getNumSubscribers() > 0 || ghost_pub_.getNumSubscribers() > 0 || flow_image_pub_.wanted() ||
+         (learning_ && learning_->checksWanted());
 }
 
 void CompensationRos::connectCallback() {
   std::lock_guard<std::mutex> lock(mutex_);
+  updateSubscriptions();
+}
+
+void CompensationRos::updateSubscriptions() {
   const bool wanted = anyOutputWanted();
   const bool subscribed = static_cast<bool>(gyro_flow_sub_);
   if (!wanted && subscribed) {
@@ -148,6 +160,7 @@ void CompensationRos::imageCallback(const sensor_msgs::ImageConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   diagnostics_->tick("images");
   guarded(image_sub_.getTopic(), [&] {
+    checkStampClock(msg->header.stamp, image_sub_.getTopic());
     const std::string problem = validateImage(*msg);
     if (!problem.empty()) {
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: refusing frame %.6f on %s: %s", log_name_.c_str(),
@@ -172,6 +185,16 @@ void CompensationRos::gyroFlowCallback(const GyroFlowConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   diagnostics_->tick("gyro flows");
   guarded(gyro_flow_sub_.getTopic(), [&] {
+    checkStampClock(msg->header.stamp, gyro_flow_sub_.getTopic());
+    // Every field, before anything uses one: what is published is made from a valid input (the
+    // methods that pass input fields through, as measured or the fallback to the plain gyro, too).
+    const std::string problem = gyroFlowProblem(*msg);
+    if (!problem.empty()) {
+      countDrop("malformed gyro flow (warned)");
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: refusing gyro flow %.6f on %s: %s", log_name_.c_str(),
+                              msg->header.stamp.toSec(), gyro_flow_sub_.getTopic().c_str(), problem.c_str());
+      return;
+    }
     if (last_flow_stamp_ && msg->previous_stamp > *last_flow_stamp_) {
       // Consecutive pairs chain; a gap means flows lost upstream (the gyro flow nodelet says why)
       // or in a full subscriber queue.
@@ -179,10 +202,6 @@ void CompensationRos::gyroFlowCallback(const GyroFlowConstPtr& msg) {
     }
     if (last_flow_stamp_ && msg->header.stamp < *last_flow_stamp_) min_delay_s_.reset();  // time went back
     last_flow_stamp_ = msg->header.stamp;
-    if (!(msg->previous_stamp < msg->header.stamp)) {
-      countDrop("previous_stamp not before stamp");
-      return;
-    }
     settle(matcher_.addFlow(static_cast<std::int64_t>(msg->previous_stamp.toNSec()),
                             static_cast<std::int64_t>(msg->header.stamp.toNSec()), msg, ros::WallTime::now().toSec()));
   });
@@ -285,6 +304,15 @@ void CompensationRos::sayTimeJump(const GyroFlow& gyro, double back_s) {
                  kStabiliserWarmUpS);
 }
 
+void CompensationRos::checkStampClock(const ros::Time& stamp, const std::string& topic) {
+  const bool say = stamp_clock_.observe(stamp.toSec(), ros::Time::now().toSec());
+  diagnostics_->setClockProblem(stamp_clock_.describe());
+  // Once per timeline (the check starts over when time goes back): not throttled.
+  if (say) {
+    ROS_WARN_NAMED("compensation", "%s: %s: %s", log_name_.c_str(), topic.c_str(), stamp_clock_.describe().c_str());
+  }
+}
+
 double CompensationRos::lagS(const ros::Time& stamp_b) {
   const ros::Time now = ros::Time::now();
   if (now.isZero()) return 0.0;  // simulated time before the first /clock message
@@ -307,6 +335,43 @@ void CompensationRos::reportDrops() {
                  "frames on %s): %s", log_name_.c_str(),
                  count, gyro_flow_sub_.getTopic().c_str(), drops_.total(), image_sub_.getTopic().c_str(),
                  drops_.take().c_str());
+}
+
+std::optional<CompensationRos::CompensatedMotion> CompensationRos::asMeasured(const GyroFlow& gyro,
+                                                                              const cv::Mat& gyro_flow) {
+  // The network's motion history holds gyro flows: it restarts at the next pair without the log
+  // (as at the start of a stream) rather than mixing in lens-corrected ones; a stabiliser model
+  // keeps following the gyro stream.
+  if (stream_) stream_->reset();
+  if (stabiliser_) sayTimeJump(gyro, stabiliser_->observe(gyro));
+  return CompensatedMotion{gyro_flow.clone(), {}, {}};
+}
+
+std::optional<CompensationRos::CompensatedMotion> CompensationRos::withStabiliserModel(
+    const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a, const sensor_msgs::ImageConstPtr& image_b,
+    const std::vector<Eigen::Matrix3d>& gyro_homographies, const cv::Mat& gyro_flow) {
+  if (learning_) learning_->beforePair(gyro, *stabiliser_);  // the model in use (a swap is said once)
+  StabiliserFlowResult result = stabiliser_->compensate(gyro);
+  sayTimeJump(gyro, result.time_jump_back_s);
+  if (!result.ok) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",
+                            log_name_.c_str(), gyro.header.stamp.toSec(), result.reason.c_str());
+    countDrop("stabiliser model: " + result.reason);
+    return std::nullopt;
+  }
+  if (learning_) learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies);
+  // The checks found the model worse than the plain gyro: the gyro's motion is published.
+  if (publishesPlainGyro(CompensationMethod::kStabiliserModel, learning_ && learning_->fallingBack())) {
+    return CompensatedMotion{gyro_flow.clone(), gyro_homographies, result.camera};
+  }
+  return CompensatedMotion{result.flow, std::move(result.homographies), result.camera};
+}
+
+std::optional<CompensationRos::CompensatedMotion> CompensationRos::withNetwork(const GyroFlow& gyro,
+                                                                               const cv::Mat& gyro_flow) {
+  return CompensatedMotion{stream_->compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
+                                               static_cast<std::int64_t>(gyro.header.stamp.toNSec())),
+                           {}, {}};
 }
 
 void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
@@ -342,63 +407,60 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     countDrop("gyro flow and frames of different sizes");
     return;
   }
-  // A flow made with the camera's lens-shift log is already the OIS camera's motion: published as
-  // it is. The network's motion history holds gyro flows, so it restarts at the next pair without
-  // the log (as at the start of a stream) rather than mixing in lens-corrected ones; a stabiliser
-  // model keeps following the gyro stream.
-  cv::Mat compensated;
-  std::vector<Eigen::Matrix3d> compensated_homographies;  // the stabiliser model's, else empty
-  CameraModel compensated_camera;                         // the camera they refer to
-  if (gyro.motion_model == GyroFlow::MOTION_GYRO_LENS_LOG) {
-    if (stream_) stream_->reset();
-    if (stabiliser_) sayTimeJump(gyro, stabiliser_->observe(gyro));
-    compensated = gyro_flow.clone();
-  } else if (!checkModelCamera(gyro)) {
+  const CompensationMethod method =
+      compensationMethodFor(compensator_kind_, gyro.motion_model == GyroFlow::MOTION_GYRO_LENS_LOG);
+  if (methodUsesModel(method) && !checkModelCamera(gyro)) {
     countDrop("model trained for another camera (~require_matching_camera)");
     return;
-  } else if (stabiliser_) {
-    if (learning_) learning_->beforePair(gyro, *stabiliser_);  // the model in use (a swap is said once)
-    StabiliserFlowResult result = stabiliser_->compensate(gyro);
-    sayTimeJump(gyro, result.time_jump_back_s);
-    if (!result.ok) {
-      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",
-                              log_name_.c_str(), gyro.header.stamp.toSec(), result.reason.c_str());
-      countDrop("stabiliser model: " + result.reason);
-      return;
-    }
-    compensated_camera = result.camera;
-    if (learning_) learning_->afterPair(gyro, image_a, image_b, result, homographies);
-    if (learning_ && learning_->fallingBack()) {
-      // The checks found the model worse than the plain gyro: the gyro's motion is published.
-      compensated = gyro_flow.clone();
-      compensated_homographies = homographies;
-    } else {
-      compensated = result.flow;
-      compensated_homographies = std::move(result.homographies);
-    }
-  } else {
-    compensated = stream_->compensate(gyro_flow, static_cast<std::int64_t>(gyro.previous_stamp.toNSec()),
-                                      static_cast<std::int64_t>(gyro.header.stamp.toNSec()));
   }
-  if (!cv::checkRange(compensated)) {
+  std::optional<CompensatedMotion> motion;
+  switch (method) {
+    case CompensationMethod::kAsMeasured:
+      motion = asMeasured(gyro, gyro_flow);
+      break;
+    case CompensationMethod::kStabiliserModel:
+      motion = withStabiliserModel(gyro, image_a, image_b, homographies, gyro_flow);
+      break;
+    case CompensationMethod::kNetwork:
+      motion = withNetwork(gyro, gyro_flow);
+      break;
+  }
+  if (!motion) return;  // counted and said where it failed
+  const cv::Mat& compensated = motion->flow;
+  const std::vector<Eigen::Matrix3d>& compensated_homographies = motion->homographies;
+  const CameraModel& compensated_camera = motion->camera;
+  bool finite_homographies = true;
+  for (const Eigen::Matrix3d& h : compensated_homographies) finite_homographies = finite_homographies && h.allFinite();
+  if (!cv::checkRange(compensated) || !finite_homographies) {
     // Never publish NaN: a model that diverges on this input gives no output for it.
     if (stream_) stream_->reset();
     countDrop("the model output holds NaN or inf");
     return;
   }
+  GyroFlowPtr compensated_msg;
+  if (compensated_pub_.getNumSubscribers() > 0) {
+    compensated_msg = boost::make_shared<GyroFlow>(gyro);
+    // Same grid, encoding and size as the gyro flow (readGyroFlowMsg checked the layout).
+    CV_Assert(compensated.isContinuous() &&
+              compensated_msg->flow.data.size() == compensated.total() * compensated.elemSize());
+    std::memcpy(compensated_msg->flow.data.data(), compensated.data, compensated_msg->flow.data.size());
+    // A stabiliser model's motion is per patch too: the message carries it (the network's stays
+    // the gyro input's, its output being only the flow).
+    if (!compensated_homographies.empty()) compensated_msg->homographies = flattenMatrices(compensated_homographies);
+    // The whole message, fields passed through included, before anything of this pair goes out.
+    const std::string problem = gyroFlowProblem(*compensated_msg);
+    if (!problem.empty()) {
+      countDrop("an output that failed validation (warned)");
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: not publishing the compensation of gyro flow %.6f "
+                              "on %s (%s): %s", log_name_.c_str(), gyro.header.stamp.toSec(),
+                              gyro_flow_sub_.getTopic().c_str(), toString(method), problem.c_str());
+      return;
+    }
+  }
   diagnostics_->tick("compensated flows");
   diagnostics_->latency((ros::Time::now() - gyro.header.stamp).toSec());
 
-  if (compensated_pub_.getNumSubscribers() > 0) {
-    auto msg = boost::make_shared<GyroFlow>(gyro);
-    // Same grid, encoding and size as the gyro flow (readGyroFlowMsg checked the layout).
-    CV_Assert(compensated.isContinuous() && msg->flow.data.size() == compensated.total() * compensated.elemSize());
-    std::memcpy(msg->flow.data.data(), compensated.data, msg->flow.data.size());
-    // A stabiliser model's motion is per patch too: the message carries it (the network's stays
-    // the gyro input's, its output being only the flow).
-    if (!compensated_homographies.empty()) msg->homographies = flattenMatrices(compensated_homographies);
-    compensated_pub_.publish(msg);
-  }
+  if (compensated_msg) compensated_pub_.publish(compensated_msg);
   const cv::Size camera_size(static_cast<int>(gyro.image_width), static_cast<int>(gyro.image_height));
   flow_image_pub_.publish(gyro.header, compensated);
   if (color_pub_.getNumSubscribers() > 0) {

@@ -14,6 +14,7 @@
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/ros/messages/message_validation.h"
 
 namespace deep_ois {
 
@@ -33,9 +34,6 @@ void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& par
   diagnostics.setValue("grid [px]", std::to_string(params.grid_size.width) + "x" +
                                         std::to_string(params.grid_size.height));
 }
-constexpr std::size_t kIntervalHistory = 9;    // frame intervals behind the typical interval
-// A pair this many typical intervals long lost a frame in between.
-constexpr double kSpanningFactor = 1.5;
 }  // namespace
 
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -148,6 +146,13 @@ void GyroFlowRos::resetState(const std::string& why) {
   time_base_.reset();
 }
 
+void GyroFlowRos::checkStampClock(const ros::Time& stamp, const std::string& topic) {
+  const bool say = stamp_clock_.observe(stamp.toSec(), ros::Time::now().toSec());
+  diagnostics_->setClockProblem(stamp_clock_.describe());
+  // Once per timeline (the check starts over when time goes back): not throttled.
+  if (say) ROS_WARN_NAMED("gyro_flow", "%s: %s: %s", log_name_.c_str(), topic.c_str(), stamp_clock_.describe().c_str());
+}
+
 double GyroFlowRos::secondsSinceBase(const ros::Time& stamp) {
   if (!time_base_) time_base_ = ros::Time(stamp.sec, 0);
   return (stamp - *time_base_).toSec();
@@ -161,6 +166,7 @@ void GyroFlowRos::imuCallback(const sensor_msgs::ImuConstPtr& imu) {
 
 void GyroFlowRos::handleImu(const sensor_msgs::ImuConstPtr& imu) {
   checkRosTimeJump();
+  checkStampClock(imu->header.stamp, imu_sub_.getTopic());
   ++imu_in_window_;
   if (imu->header.stamp > newest_imu_stamp_) newest_imu_stamp_ = imu->header.stamp;
   ++imu_received_;
@@ -244,6 +250,7 @@ void GyroFlowRos::handleFrame(const sensor_msgs::ImageConstPtr& image, const sen
   // Without an image (~use_camera_info_only) the CameraInfo's header stands for the frame's.
   const std_msgs::Header& header = image ? image->header : info->header;
   if (header.stamp > newest_frame_stamp_) newest_frame_stamp_ = header.stamp;
+  checkStampClock(header.stamp, topic);
   const double stamp_s = header.stamp.toSec();
 
   std::string problem = image ? validateImage(*image) : "";
@@ -333,10 +340,7 @@ void GyroFlowRos::processPendingFrames() {
       }
     }
     // Published or dropped, this frame is the earlier frame of the next pair.
-    if (previous_) {
-      recent_intervals_s_.push_back((frame.stamp - previous_->stamp).toSec());
-      if (recent_intervals_s_.size() > kIntervalHistory) recent_intervals_s_.pop_front();
-    }
+    if (previous_) pair_rules_.accepted((frame.stamp - previous_->stamp).toSec());
     previous_ = frame;
     frames_dropped_since_previous_ = 0;
     pending_frames_.pop_front();
@@ -395,21 +399,26 @@ std::optional<Eigen::Matrix3d> GyroFlowRos::imuToCameraRotation(const Frame& fra
 GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   const Frame& previous = *previous_;
   const double interval_s = (frame.stamp - previous.stamp).toSec();
-  if (interval_s > params_.max_frame_interval_s) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "%s: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
-                            "%.1f ms): not pairing them", log_name_.c_str(),
-                            previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(),
-                            interval_s * 1e3, params_.max_frame_interval_s * 1e3);
-    skipPair("frames further apart than ~max_frame_interval");
-    return Outcome::kDropped;
-  }
-  if (frame.camera != previous.camera) {
-    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                            "%s: %s changed between frames %.6f and %.6f: not pairing them", log_name_.c_str(),
-                            info_topic_.c_str(), previous.stamp.toSec(), frame.stamp.toSec());
-    skipPair("camera_info changed between the frames");
-    return Outcome::kDropped;
+  pair_rules_.setLimits(FramePairLimits{params_.max_frame_interval_s, params_.imu_wait_timeout_s,
+                                        params_.lens_shift_wait_timeout_s});
+  switch (pair_rules_.check(secondsSinceBase(previous.stamp), secondsSinceBase(frame.stamp),
+                            frame.camera == previous.camera)) {
+    case FramePairCheck::kPair:
+      break;
+    case FramePairCheck::kTooFarApart:
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                              "%s: frames %.6f and %.6f on %s are %.1f ms apart (> ~max_frame_interval "
+                              "%.1f ms): not pairing them", log_name_.c_str(),
+                              previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(),
+                              interval_s * 1e3, params_.max_frame_interval_s * 1e3);
+      skipPair("frames further apart than ~max_frame_interval");
+      return Outcome::kDropped;
+    case FramePairCheck::kCameraChanged:
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
+                              "%s: %s changed between frames %.6f and %.6f: not pairing them", log_name_.c_str(),
+                              info_topic_.c_str(), previous.stamp.toSec(), frame.stamp.toSec());
+      skipPair("camera_info changed between the frames");
+      return Outcome::kDropped;
   }
   bool wait_for_transform = false;
   const std::optional<Eigen::Matrix3d> rotation = imuToCameraRotation(frame, wait_for_transform);
@@ -424,17 +433,11 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
       imu_buffer_, params_.integration, config, frame.camera.K(), secondsSinceBase(previous.stamp),
       secondsSinceBase(frame.stamp));
   if (!result.ok()) {
-    const bool may_still_come = result.status == IntegrationStatus::kNotYetAvailable ||
-                                result.status == IntegrationStatus::kEmptyBuffer;
-    // Give up only when the IMU stream itself went quiet: a frame whose samples are still
-    // queued behind a stalled callback thread (a loaded machine) keeps waiting, as IMU messages
-    // keep arriving; kMaxPendingFrames bounds the wait when the IMU lags for good.
     const ros::Time now = ros::Time::now();
     const double waited_s = (now - frame.received).toSec();
-    const double imu_quiet_s = last_imu_arrival_.isZero() ? waited_s : (now - last_imu_arrival_).toSec();
-    if (may_still_come && (waited_s < params_.imu_wait_timeout_s || imu_quiet_s < params_.imu_wait_timeout_s)) {
-      return Outcome::kWaitForImu;
-    }
+    const double imu_quiet_s = last_imu_arrival_.isZero() ? -1.0 : (now - last_imu_arrival_).toSec();
+    if (pair_rules_.imuWait(result.status, waited_s, imu_quiet_s) == FrameWait::kWait) return Outcome::kWaitForImu;
+    const bool may_still_come = FramePairRules::imuMayStillCome(result.status);
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: dropping frame %.6f: %s on %s%s", log_name_.c_str(),
                             frame.stamp.toSec(), result.reason.c_str(), imu_sub_.getTopic().c_str(),
                             may_still_come ? " (waited ~imu_wait_timeout)" : "");
@@ -448,9 +451,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   }
   // A pair longer than the camera's usual interval lost a frame in between: say so (it still
   // is a right flow between these two frames).
-  const double typical_s = typicalFrameIntervalS();
-  if (typical_s > 0.0 && interval_s > kSpanningFactor * typical_s) {
-    const int spans = static_cast<int>(std::lround(interval_s / typical_s));
+  if (const int spans = pair_rules_.spannedIntervals(interval_s); spans > 0) {
     const std::string where = frames_dropped_since_previous_ > 0
                                   ? "frame(s) between them were dropped here (see the warnings)"
                                   : "frame(s) between them never reached this nodelet (lost upstream, or a full "
@@ -459,7 +460,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
                             "%s: the flow from %.6f to %.6f on %s spans %d frame intervals (%.1f ms, usual "
                             "%.1f ms): %s", log_name_.c_str(),
                             previous.stamp.toSec(), frame.stamp.toSec(), image_topic_.c_str(), spans,
-                            interval_s * 1e3, typical_s * 1e3, where.c_str());
+                            interval_s * 1e3, pair_rules_.typicalIntervalS() * 1e3, where.c_str());
     skipPair("flow spanning " + std::to_string(spans) + " frame intervals (published)");
   }
 
@@ -473,10 +474,8 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
     const LensLogInterval needed =
         lensLogInterval(config, secondsSinceBase(previous.stamp), secondsSinceBase(frame.stamp));
     const ros::Time now = ros::Time::now();
-    const double waited_s = (now - frame.received).toSec();
-    const double lens_quiet_s = (now - last_lens_arrival_).toSec();
-    if (lens_log_.newestStampS() < needed.end_s &&
-        waited_s < params_.lens_shift_wait_timeout_s && lens_quiet_s < params_.lens_shift_wait_timeout_s) {
+    if (pair_rules_.lensLogWait(lens_log_.newestStampS(), needed.end_s, (now - frame.received).toSec(),
+                                (now - last_lens_arrival_).toSec()) == FrameWait::kWait) {
       return Outcome::kWaitForLensLog;
     }
     with_lens_log = lensLogHomographiesFor(previous, frame, config, result.rotations, homographies);
@@ -509,10 +508,20 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
       metadata.camera_rates.push_back(rate);
     }
   }
+  GyroFlowPtr msg;
   if (flow_pub_.getNumSubscribers() > 0) {
-    auto msg = boost::make_shared<GyroFlow>();
+    msg = boost::make_shared<GyroFlow>();
     fillGyroFlowMsg(metadata, homographies, flow, *msg);
     msg->motion_model = with_lens_log ? GyroFlow::MOTION_GYRO_LENS_LOG : GyroFlow::MOTION_GYRO;
+    // Every field checked before anything of the pair goes out (the inputs were checked one by one).
+    const std::string problem = gyroFlowProblem(*msg);
+    if (!problem.empty()) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: not publishing the flow %.6f -> %.6f on %s: %s",
+                              log_name_.c_str(), previous.stamp.toSec(), frame.stamp.toSec(),
+                              flow_pub_.getTopic().c_str(), problem.c_str());
+      skipPair("an output that failed validation (warned)");
+      return Outcome::kDropped;
+    }
     flow_pub_.publish(msg);
   }
   if (color_pub_.getNumSubscribers() > 0) {
@@ -574,13 +583,6 @@ void GyroFlowRos::reportSkips() {
                  "%s: %zu frame pair(s) on %s skipped or spanning lost frames since the last report (%zu "
                  "since start): %s", log_name_.c_str(),
                  count, image_topic_.c_str(), skipped_.total(), skipped_.take().c_str());
-}
-
-double GyroFlowRos::typicalFrameIntervalS() const {
-  if (recent_intervals_s_.size() < 3) return 0.0;
-  std::vector<double> sorted(recent_intervals_s_.begin(), recent_intervals_s_.end());
-  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-  return sorted[sorted.size() / 2];
 }
 
 void GyroFlowRos::waitingTimerCallback(const ros::WallTimerEvent&) {

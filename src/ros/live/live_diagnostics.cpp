@@ -65,6 +65,11 @@ void LiveDiagnostics::setValue(const std::string& key, const std::string& value)
   values_.emplace_back(key, value);
 }
 
+void LiveDiagnostics::setClockProblem(const std::string& problem) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (problem != clock_problem_) clock_problem_ = problem;
+}
+
 void LiveDiagnostics::timerCallback(const ros::WallTimerEvent&) { updater_.force_update(); }
 
 void LiveDiagnostics::report(diagnostic_updater::DiagnosticStatusWrapper& status) {
@@ -84,12 +89,21 @@ void LiveDiagnostics::report(diagnostic_updater::DiagnosticStatusWrapper& status
   }
   status.add("dropped total", drops_total);
   status.add("dropped in last period", drops_in_window_);
-  status.add("latency mean [s]", printfText("%.4f", latency_count_ > 0 ? latency_sum_s_ / latency_count_ : 0.0));
-  status.add("latency max [s]", printfText("%.4f", latency_max_s_));
+  if (!clock_problem_.empty()) {
+    // Stamp minus clock of two clocks: not a latency.
+    status.add("latency mean [s]", "not measurable: " + clock_problem_);
+    status.add("latency max [s]", "not measurable (see latency mean)");
+  } else {
+    status.add("latency mean [s]", printfText("%.4f", latency_count_ > 0 ? latency_sum_s_ / latency_count_ : 0.0));
+    status.add("latency max [s]", printfText("%.4f", latency_max_s_));
+  }
   for (const auto& [key, value] : values_) status.add(key, value);
 
   const std::size_t outputs = window_ticks_[output_stream_];
-  if (drops_in_window_ > 0) {
+  if (!clock_problem_.empty()) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "input stamps and ROS time disagree (use_sim_time?): see latency mean");
+  } else if (drops_in_window_ > 0) {
     status.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%zu dropped in the last %.1f s (%zu in all)",
                     drops_in_window_, window_s, drops_total);
   } else if (inputs_flow && outputs == 0) {

@@ -13,6 +13,7 @@
 #include <deep_ois/CompensationPairCheck.h>
 
 #include "deep_ois/ros/messages/conversions.h"
+#include "deep_ois/ros/messages/message_validation.h"
 
 namespace deep_ois {
 namespace {
@@ -56,9 +57,13 @@ std::string learnedModelPath(const std::string& dir, const std::string& key, con
 
 OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParameters& params,
                                      StabiliserModelFile shipped, LiveDiagnostics& diagnostics,
-                                     const std::string& log_name)
+                                     const std::string& log_name, std::function<void()> on_check_subscribers)
     : nh_(nh), params_(params), shipped_(std::move(shipped)), diagnostics_(diagnostics), log_name_(log_name) {
-  check_pub_ = nh_.advertise<CompensationPairCheck>("compensation_check", 30);
+  ros::SubscriberStatusCallback on_subscribers;
+  if (on_check_subscribers) {
+    on_subscribers = [on_check_subscribers](const ros::SingleSubscriberPublisher&) { on_check_subscribers(); };
+  }
+  check_pub_ = nh_.advertise<CompensationPairCheck>("compensation_check", 30, on_subscribers, on_subscribers);
   diagnostics_.setValue("learning", params_.learning ? "on (waiting for the first pair)" : "off");
 }
 
@@ -176,6 +181,14 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     msg->confidence = static_cast<float>(verdict.check.confidence);
     msg->falling_back = verdict.falling_back && params_.fallback_to_gyro;
     msg->model_version = static_cast<std::uint32_t>(version_in_use_);
+    // Checked as every output: a check that cannot be right is counted and said, not published.
+    const std::string problem = compensationPairCheckProblem(*msg);
+    if (!problem.empty()) {
+      diagnostics_.drop("compensation_check failed validation (warned)");
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: not publishing the check of pair %.6f on %s: %s",
+                              log_name_.c_str(), verdict.stamp_b_s, check_pub_.getTopic().c_str(), problem.c_str());
+      continue;
+    }
     check_pub_.publish(msg);
   }
   // The figures every 15 pairs; the learning state every pair, as a fit lasts a fraction of a

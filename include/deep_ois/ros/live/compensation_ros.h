@@ -17,6 +17,8 @@
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/common/drop_tally.h"
+#include "deep_ois/core/common/stamp_clock_check.h"
+#include "deep_ois/core/ois/compensation_method.h"
 #include "deep_ois/core/flow/flow_frame_matcher.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/net/compensation_stream.h"
@@ -35,8 +37,9 @@ namespace deep_ois {
 // message with the flow replaced by the network's), `compensated_flow/color` (rgb8),
 // `aligned/image_raw` (frame a warped onto frame b by the compensated flow, frame b's stamp and
 // frame a's encoding) and `aligned/ghost` (rgb8: red of frame b over green/blue of the aligned
-// frame a). Inputs are subscribed only while an output has a subscriber; each output is computed
-// only while it has one.
+// frame a). Inputs are subscribed only while an output has a subscriber (compensation_check
+// included); each output is computed only while it has one. Every field of an input GyroFlow is
+// validated before use, and every published GyroFlow before it goes out (message_validation.h).
 //
 // The gyro flows are one camera's consecutive pairs: the model sees each with the motion history
 // of the earlier ones (CompensationStream); a gap (a pair never received, a bag that loops)
@@ -67,7 +70,18 @@ class CompensationRos {
  private:
   using Matcher = FlowFrameMatcher<GyroFlowConstPtr, sensor_msgs::ImageConstPtr>;
 
+  // The motion a method made for one pair: the flow on the gyro flow's grid, and the per-patch
+  // homographies in `camera` when the method has them (empty: the message keeps the input's).
+  struct CompensatedMotion {
+    cv::Mat flow;
+    std::vector<Eigen::Matrix3d> homographies;
+    CameraModel camera;
+  };
+
   void connectCallback();
+  // Subscribes the inputs while an output (compensation_check included) has a subscriber, and
+  // unsubscribes when none has. mutex_ held.
+  void updateSubscriptions();
   void gyroFlowCallback(const GyroFlowConstPtr& msg);
   void imageCallback(const sensor_msgs::ImageConstPtr& msg);
   void expireTimerCallback(const ros::WallTimerEvent&);
@@ -89,6 +103,16 @@ class CompensationRos {
   void reportDrops();
   void process(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                const sensor_msgs::ImageConstPtr& image_b);
+  // The three methods (compensation_method.h chooses): each returns the motion to publish, or
+  // nothing after counting and saying why. `gyro_flow` views the message's flow.
+  std::optional<CompensatedMotion> asMeasured(const GyroFlow& gyro, const cv::Mat& gyro_flow);
+  std::optional<CompensatedMotion> withStabiliserModel(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
+                                                       const sensor_msgs::ImageConstPtr& image_b,
+                                                       const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                                                       const cv::Mat& gyro_flow);
+  std::optional<CompensatedMotion> withNetwork(const GyroFlow& gyro, const cv::Mat& gyro_flow);
+  // Says once (per timeline) when the stamps on `topic` are far from ROS time (use_sim_time).
+  void checkStampClock(const ros::Time& stamp, const std::string& topic);
   bool anyOutputWanted() const;
   // The model's camera (either kind) against the flow's (once per camera); false when it differs
   // and ~require_matching_camera refuses it (the flow is then counted as dropped).
@@ -102,6 +126,7 @@ class CompensationRos {
   std::string log_name_;
   // Its live-tunable fields change (under mutex_) through dynamic_reconfigure.
   CompensationParameters params_;
+  CompensatorKind compensator_kind_;  // from ~model, once
   // Exactly one of: the network over the camera's pairs with their motion history, or the learned
   // stabiliser model carrying the stabiliser's state on the gyro stream.
   std::unique_ptr<CompensationModel> model_;
@@ -135,6 +160,7 @@ class CompensationRos {
   std::optional<ros::Time> last_flow_stamp_;  // frame b of the last gyro flow received
   std::optional<double> min_delay_s_;         // smallest handling delay seen (see ~max_lag)
   std::optional<cv::Size> last_flow_grid_;    // the history restarts when the grid changes
+  StampClockCheck stamp_clock_;               // input stamps against ROS time
   std::size_t errors_ = 0;  // exceptions caught at the callbacks
   std::size_t published_ = 0;
   std::size_t ghosts_not_drawn_ = 0;  // pairs with an output whose ghost could not be drawn

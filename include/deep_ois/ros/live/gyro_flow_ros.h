@@ -20,6 +20,8 @@
 
 #include "deep_ois/core/camera/camera_model.h"
 #include "deep_ois/core/common/drop_tally.h"
+#include "deep_ois/core/common/stamp_clock_check.h"
+#include "deep_ois/core/gyro/frame_pair_rules.h"
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/ois/lens_shift_log.h"
@@ -88,8 +90,8 @@ class GyroFlowRos {
   void skipPair(const std::string& reason);
   // The throttled warning of every pair skipped since the last one.
   void reportSkips();
-  // Median interval of the recent consecutive frames, seconds; 0 until known.
-  double typicalFrameIntervalS() const;
+  // Says once (per timeline) when the stamps on `topic` are far from ROS time (use_sim_time).
+  void checkStampClock(const ros::Time& stamp, const std::string& topic);
   // R_cam_imu from the parameter or tf for `frame`. Empty when unavailable: then either `wait` is
   // set (no rotation found yet since the start and the frame has waited less than
   // ~imu_wait_timeout: at start-up a latched /tf_static can arrive after the first frames), or
@@ -146,7 +148,8 @@ class GyroFlowRos {
   DropTally skipped_;
   ros::WallTime last_skip_report_;
   std::size_t frames_dropped_since_previous_ = 0;  // frames refused here since previous_
-  std::deque<double> recent_intervals_s_;         // of consecutive accepted frames
+  FramePairRules pair_rules_;                     // pairing, wait rules, typical frame interval
+  StampClockCheck stamp_clock_;                   // input stamps against ROS time
   std::size_t errors_ = 0;                        // exceptions caught at the callbacks
 
   // Counters for the watchdog: since start, and in the current window.

@@ -48,6 +48,9 @@ class LiveDiagnostics {
   void latency(double seconds);
   // A configuration value shown with the status (model, time offset, ...).
   void setValue(const std::string& key, const std::string& value);
+  // The input stamps disagree with ROS time (StampClockCheck::describe(); empty: they agree).
+  // While set, the latency figures are replaced by this text and the status is a warning.
+  void setClockProblem(const std::string& problem);
 
  private:
   void report(diagnostic_updater::DiagnosticStatusWrapper& status);
@@ -62,6 +65,7 @@ class LiveDiagnostics {
   double latency_sum_s_ = 0.0, latency_max_s_ = 0.0;
   std::size_t latency_count_ = 0;
   std::vector<std::pair<std::string, std::string>> values_;  // in the order first set
+  std::string clock_problem_;
   ros::WallTime window_start_;
 
   diagnostic_updater::Updater updater_;

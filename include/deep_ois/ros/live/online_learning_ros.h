@@ -13,6 +13,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -30,8 +31,14 @@ std::string learnedModelPath(const std::string& dir, const std::string& key, con
 class OnlineLearningRos {
  public:
   // `shipped`: the ~model file (a candidate, and the model in use when this camera has none stored).
+  // `on_check_subscribers`: called when a subscriber to compensation_check connects or leaves (the
+  // compensation's lazy subscription counts it as an output).
   OnlineLearningRos(ros::NodeHandle nh, const CompensationParameters& params, StabiliserModelFile shipped,
-                    LiveDiagnostics& diagnostics, const std::string& log_name);
+                    LiveDiagnostics& diagnostics, const std::string& log_name,
+                    std::function<void()> on_check_subscribers = {});
+
+  // Whether compensation_check has a subscriber.
+  bool checksWanted() const { return check_pub_.getNumSubscribers() > 0; }
 
   // Before a pair is compensated: the learner exists for the stream's camera and the compensator
   // uses the model in use (a swap is said once). Never blocks on a fit.
