@@ -288,10 +288,9 @@ int main(int argc, char** argv) {
   ros::AsyncSpinner spinner(2);
   spinner.start();
   ros::NodeHandle nh;
+  deep_ois::DiagnosticsKeysSeen& seen = deep_ois::diagnostics_keys_seen;
   const ros::Subscriber diagnostics_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
-      "/diagnostics", 100, [](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
-        deep_ois::diagnostics_keys_seen.add(msg);
-      });
+      "/diagnostics", 100, [&seen](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) { seen.add(msg); });
   const int result = RUN_ALL_TESTS();
   ros::shutdown();
   return result;
