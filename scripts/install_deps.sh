@@ -28,6 +28,13 @@ packages=(
   # run time tools: master, rosout, roslaunch, rosbag play, rostest
   python3-rosmaster python3-roslaunch rosout python3-rosbag rosbash
   python3-rostest librostest-dev python3-rosnode python3-rostopic
+  # the Python side of every message type the nodelets and tools publish or read, for rostopic
+  # echo/pub, rosbag's Python API and rospy (deep_ois's generated Python messages import std_msgs
+  # and sensor_msgs): Imu, Image, CameraInfo, /tf_static, /diagnostics, /clock, /rosout, the
+  # dynamic_reconfigure topics; rosmsg/rossrv (python3-rosmsg); rospy for the launch files'
+  # deprecated-argument warning (scripts/deprecated_launch_argument)
+  python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-tf2-msgs
+  python3-diagnostic-msgs python3-rosgraph-msgs python3-rosmsg python3-rospy
   # maths, vision, tests
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
   # the tools: flag parsing, the evaluation JSON, the data-set SHA-256

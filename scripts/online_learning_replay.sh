@@ -36,7 +36,7 @@ export ROS_HOME="$out/ros_home"
 rm -rf "$ROS_HOME" "$out/live_flows.bag" "$out/checks.bag"
 mkdir -p "$ROS_HOME"
 export ROS_MASTER_URI=http://localhost:11352
-roslaunch -p 11352 deep_ois demo.launch bag:="$bag" config:="$gyro_config" summary:=false play:=false \
+roslaunch -p 11352 deep_ois demo.launch bag:="$bag" gyro_config:="$gyro_config" summary:=false play:=false \
   record:="$out/live_flows.bag" >"$out/roslaunch.log" 2>&1 &
 launch_pid=$!
 trap 'kill -INT "$launch_pid" 2>/dev/null || true; wait "$launch_pid" 2>/dev/null || true' EXIT

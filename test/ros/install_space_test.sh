@@ -48,6 +48,9 @@ for file in models/fast.pt models/fast.yaml models/stabiliser_generic.yaml bags/
             launch/deep_ois.launch launch/demo.launch rviz nodelet_plugins.xml package.xml; do
   [ -e "$package_dir/$file" ] || { echo "install_space_test: $file is not installed"; exit 1; }
 done
+# The launch files run it when an argument is given by its old name (config:= for gyro_config:=).
+[ -x "$prefix/lib/deep_ois/deprecated_launch_argument" ] ||
+  { echo "install_space_test: lib/deep_ois/deprecated_launch_argument is not installed"; exit 1; }
 bag="$package_dir/bags/sample.bag"
 
 # A private master port: several tests (and engineers) run on one machine.

@@ -17,11 +17,28 @@
 #include "deep_ois/FramePairTruth.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
 #include "deep_ois/ros/messages/conversions.h"
+#include "documented_diagnostics.h"
 
 #include <map>
 #include <mutex>
+#include <set>
 
 namespace deep_ois {
+
+// Every key of every status on /diagnostics since the test node started (main subscribes before
+// the tests run), by status name: a key published only once (after 15 pairs, after a fit) counts.
+struct DiagnosticsKeysSeen {
+  std::mutex mutex;
+  std::map<std::string, std::set<std::string>> keys;
+  void add(const diagnostic_msgs::DiagnosticArrayConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& status : msg->status) {
+      for (const auto& kv : status.values) keys[status.name].insert(kv.key);
+    }
+  }
+};
+DiagnosticsKeysSeen diagnostics_keys_seen;
+
 namespace {
 
 constexpr double kPlaybackSpeed = 1.0;
@@ -236,6 +253,32 @@ TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
   EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);
 }
 
+// Runs after the two above (the whole bag was compensated): the keys both nodelets published over
+// the run against the tables of docs/ros_api.md (as test_parameter_docs does for the parameters).
+TEST(CompensationSampleBag, DiagnosticsKeysAreDocumented) {
+  ros::NodeHandle private_nh("~");
+  std::string model = "models/fast.pt";
+  private_nh.param("model_suffix", model, model);
+  const bool network = model.size() > 3 && model.substr(model.size() - 3) == ".pt";
+  const std::string model_kind = network ? "network" : "stabiliser model";
+  const std::string docs = std::string(DEEP_OIS_SOURCE_DIR) + "/docs/ros_api.md";
+  // One more period, so that what the last pairs set is in a status too.
+  ros::WallDuration(1.5).sleep();
+  std::lock_guard<std::mutex> lock(diagnostics_keys_seen.mutex);
+  for (const std::string nodelet : {"deep_ois/gyro_flow", "deep_ois/compensation"}) {
+    SCOPED_TRACE(nodelet);
+    const std::vector<DocumentedDiagnosticsKey> documented = documentedDiagnosticsKeys(docs, nodelet);
+    ASSERT_FALSE(documented.empty()) << "no table '### " << nodelet << " keys' under '## Diagnostics' in " << docs;
+    const std::set<std::string>& published = diagnostics_keys_seen.keys[nodelet + ": status"];
+    ASSERT_FALSE(published.empty()) << "no status '" << nodelet << ": status' on /diagnostics";
+    std::printf("[ INFO     ] %s published %zu keys with the %s; docs/ros_api.md lists %zu\n", nodelet.c_str(),
+                published.size(), model_kind.c_str(), documented.size());
+    for (const std::string& problem : diagnosticsKeyProblems(documented, published, nodelet, model_kind)) {
+      ADD_FAILURE() << problem;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace deep_ois
 
@@ -244,6 +287,10 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "test_compensation_sample_bag");
   ros::AsyncSpinner spinner(2);
   spinner.start();
+  ros::NodeHandle nh;
+  deep_ois::DiagnosticsKeysSeen& seen = deep_ois::diagnostics_keys_seen;
+  const ros::Subscriber diagnostics_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100, [&seen](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) { seen.add(msg); });
   const int result = RUN_ALL_TESTS();
   ros::shutdown();
   return result;

@@ -256,7 +256,9 @@ std::string importedGyroFlowYaml(const ImportedRecording& recording, const std::
   std::ostringstream out;
   out << std::setprecision(12);
   out << "# Gyro flow parameters of " << source << ", written by convert_recording from the logger's metadata.\n"
-      << "# Load after config/gyro_flow.yaml; give to calibrate / train_stabiliser as --gyro-config.\n"
+      << "# Only the camera's own parameters: the others keep the package's values. Live:\n"
+      << "#   roslaunch deep_ois deep_ois.launch gyro_config:=<this file> (loaded over config/gyro_flow.yaml)\n"
+      << "# Tools: train_stabiliser, predict_lens and evaluate take it as --gyro-config <this file>.\n"
       << "# Exposure (median): " << recording.exposure_s * 1e3 << " ms; OIS " << (recording.ois_enabled ? "on" : "off")
       << ".\n"
       << "# Frames are in the sensor's orientation: rows are read out top to bottom.\n"
