@@ -3,26 +3,12 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "deep_ois/core/common/matrix_exponential.h"
+
 namespace deep_ois {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-// exp(M) of a 3x3 matrix by scaling and squaring with a Taylor series (to double precision).
-Eigen::Matrix3d expm(const Eigen::Matrix3d& M) {
-  const double norm = M.cwiseAbs().rowwise().sum().maxCoeff();
-  int squarings = 0;
-  while (norm / std::ldexp(1.0, squarings) > 0.5) ++squarings;
-  const Eigen::Matrix3d A = M / std::ldexp(1.0, squarings);
-  Eigen::Matrix3d result = Eigen::Matrix3d::Identity();
-  Eigen::Matrix3d term = Eigen::Matrix3d::Identity();
-  for (int n = 1; n <= 18; ++n) {
-    term = term * A / n;
-    result += term;
-  }
-  for (int i = 0; i < squarings; ++i) result = result * result;
-  return result;
-}
 
 }  // namespace
 
@@ -41,7 +27,7 @@ LensActuator::LensActuator(double natural_hz, double damping, double step_s, dou
   augmented << 0.0, wh, 0.0,         //
       -wh, -2.0 * damping * wh, wh,  //
       0.0, 0.0, 0.0;
-  const Eigen::Matrix3d e = expm(augmented);
+  const Eigen::Matrix3d e = matrixExponential(augmented);
   transition_ = e.topLeftCorner<2, 2>();
   input_ = e.topRightCorner<2, 1>();
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "deep_ois/core/sim/intended_motion_tracker.h"
 #include "deep_ois/core/sim/ois_model.h"
 
 namespace deep_ois {
@@ -98,35 +99,19 @@ void StabiliserController::advanceHighpass(const Eigen::Vector2d& rate,
 }
 
 void StabiliserController::advanceKalman(const Eigen::Vector2d& rate, double step_s) {
-  // Constant-velocity intended path, white acceleration of unit spectral density q; the shake is
-  // measurement noise of density r = q / wn^4, which makes the steady filter a second-order
-  // tracker of bandwidth wn (a critically damped-like 2nd-order high-pass for the lens).
-  const double wn = 2.0 * kPi * config_.kalman_bandwidth_hz;
-  const double h = step_s;
-  const double measurement_var = 1.0 / std::pow(wn, 4) / h;
-  Eigen::Matrix2d F;
-  F << 1.0, h, 0.0, 1.0;
-  Eigen::Matrix2d Q;
-  Q << h * h * h / 3.0, h * h / 2.0, h * h / 2.0, h;
-  integrated_ += h * rate;
+  // The intended path per axis (intended_motion_tracker.h); a pan beyond kalman_manoeuvre_deg lets
+  // the estimate accelerate more.
+  IntendedMotionTrackerStep step;
+  step.step_s = step_s;
+  step.bandwidth_hz = config_.kalman_bandwidth_hz;
+  step.manoeuvre_rad = config_.kalman_manoeuvre_deg > 0.0 ? config_.kalman_manoeuvre_deg * kPi / 180.0 : 0.0;
+  step.manoeuvre_factor = config_.kalman_manoeuvre_factor;
+  integrated_ += step_s * rate;
   for (int a = 0; a < 2; ++a) {
-    Eigen::Vector2d x = F * intended_.col(a);
-    Eigen::Matrix2d P = F * covariance_[a] * F.transpose() + Q;
-    double innovation = integrated_(a) - x(0);
-    double S = P(0, 0) + measurement_var;
-    if (config_.kalman_manoeuvre_deg > 0.0 &&
-        std::abs(innovation) > config_.kalman_manoeuvre_deg * kPi / 180.0) {
-      // A manoeuvre (a deliberate pan): the path departs from the estimate by more than a shake
-      // would; the intended path is allowed to accelerate more, so the estimate catches up.
-      P += (config_.kalman_manoeuvre_factor - 1.0) * Q;
-      S = P(0, 0) + measurement_var;
-    }
-    const Eigen::Vector2d K = P.col(0) / S;
-    x += K * innovation;
-    P -= K * P.row(0);
-    intended_.col(a) = x;
-    covariance_[a] = 0.5 * (P + P.transpose());
-    theta_(a) = integrated_(a) - x(0);
+    Eigen::Vector2d intended = intended_.col(a);
+    advanceIntendedMotion(step, integrated_(a), intended, covariance_[a]);
+    intended_.col(a) = intended;
+    theta_(a) = integrated_(a) - intended(0);
   }
 }
 

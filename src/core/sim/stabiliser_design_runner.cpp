@@ -9,7 +9,9 @@
 #include <utility>
 #include <vector>
 
+#include "deep_ois/core/common/matrix_exponential.h"
 #include "deep_ois/core/common/portable_random.h"
+#include "deep_ois/core/sim/intended_motion_tracker.h"
 
 namespace deep_ois {
 namespace sim {
@@ -94,28 +96,17 @@ class Estimator {
     return std::exp(-w * T_) * y - std::expm1(-w * T_) / w * u;
   }
 
-  // Constant-velocity intended path under white acceleration (density q), the shake as
-  // measurement noise r = q / wn^4: the steady filter is a second-order tracker of bandwidth wn.
-  // A bandwidth multiplier m scales q by m^4 (the tracker m times faster).
+  // The Kalman estimator (intended_motion_tracker.h); a bandwidth multiplier m scales q by m^4.
   void advanceKalman(int a, double rate, double m) {
-    const double wn = 2.0 * kPi * stage_.corner_hz;
-    const double h = T_;
-    const double measurement_var = 1.0 / std::pow(wn, 4) / h;
-    Eigen::Matrix2d F;
-    F << 1.0, h, 0.0, 1.0;
-    Eigen::Matrix2d Q;
-    Q << h * h * h / 3.0, h * h / 2.0, h * h / 2.0, h;
-    Q *= std::pow(m, 4);
-    integrated_(a) += h * rate;
-    Eigen::Vector2d x = F * intended_.col(a);
-    Eigen::Matrix2d P = F * covariance_[a] * F.transpose() + Q;
-    const double innovation = integrated_(a) - x(0);
-    const Eigen::Vector2d K = P.col(0) / (P(0, 0) + measurement_var);
-    x += K * innovation;
-    P -= K * P.row(0);
-    intended_.col(a) = x;
-    covariance_[a] = 0.5 * (P + P.transpose());
-    theta_(a) = integrated_(a) - x(0);
+    IntendedMotionTrackerStep step;
+    step.step_s = T_;
+    step.bandwidth_hz = stage_.corner_hz;
+    step.process_noise_scale = std::pow(m, 4);
+    integrated_(a) += T_ * rate;
+    Eigen::Vector2d intended = intended_.col(a);
+    advanceIntendedMotion(step, integrated_(a), intended, covariance_[a]);
+    intended_.col(a) = intended;
+    theta_(a) = integrated_(a) - intended(0);
   }
 
   const EstimatorStage& stage_;
@@ -270,21 +261,6 @@ class DesignController {
   Eigen::Vector2d command_ = Eigen::Vector2d::Zero();
 };
 
-// exp(M) of a 3x3 matrix by scaling and squaring with a Taylor series (to double precision).
-Eigen::Matrix3d expm(const Eigen::Matrix3d& M) {
-  const double norm = M.cwiseAbs().rowwise().sum().maxCoeff();
-  int squarings = 0;
-  while (norm / std::ldexp(1.0, squarings) > 0.5) ++squarings;
-  const Eigen::Matrix3d A = M / std::ldexp(1.0, squarings);
-  Eigen::Matrix3d result = Eigen::Matrix3d::Identity(), term = Eigen::Matrix3d::Identity();
-  for (int n = 1; n <= 18; ++n) {
-    term = term * A / n;
-    result += term;
-  }
-  for (int i = 0; i < squarings; ++i) result = result * result;
-  return result;
-}
-
 // One axis of the lens under its position loop, in Hall-reading units (pixels as the loop sees
 // them): linear dynamics discretised exactly for a command held over a physics step, then the slew
 // limit, stiction (stick below the breakaway error, slide against half of it) and the end stops.
@@ -306,7 +282,7 @@ class Actuator {
       // State (x, x' / wn): d/dt = wn [[0, 1], [-1, -2 zeta]] + wn (0, 1) u.
       Eigen::Matrix3d augmented;
       augmented << 0.0, wh, 0.0, -wh, -2.0 * stage.damping * wh, wh, 0.0, 0.0, 0.0;
-      const Eigen::Matrix3d e = expm(augmented);
+      const Eigen::Matrix3d e = matrixExponential(augmented);
       transition_ = e.topLeftCorner<2, 2>();
       input_ = e.topRightCorner<2, 1>();
       natural_rad_s_ = 2.0 * kPi * stage.bandwidth_hz;
