@@ -14,17 +14,12 @@
 #include <string>
 
 #include "run_command.h"
+#include "shared_data.h"
 
 namespace deep_ois {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string sharedData(const std::string& name) {
-  const char* override_dir = std::getenv("DEEP_OIS_SHARED_DATA");
-  const std::string base = override_dir && *override_dir ? override_dir : DEEP_OIS_SHARED_DATA_DIR;
-  return base + "/" + name;
-}
 
 // The held-out "with residual" cell of train_stabiliser's lens-motion table, pixels.
 double heldOutRmsPx(const std::string& report) {

@@ -30,17 +30,12 @@
 #include "deep_ois/ros/bag/phone_logger_import.h"
 #include "deep_ois/ros/bag/phone_recording_bag.h"
 #include "run_command.h"
+#include "shared_data.h"
 
 namespace deep_ois {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string sharedData(const std::string& name) {
-  const char* override_dir = std::getenv("DEEP_OIS_SHARED_DATA");
-  const std::string base = override_dir && *override_dir ? override_dir : DEEP_OIS_SHARED_DATA_DIR;
-  return base + "/" + name;
-}
 
 // ---- A hand-made VideoCaptureData, written field by field. -------------------------------------
 struct Protobuf {
