@@ -365,10 +365,12 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "benchmark_online_learning: %s\n", e.what());
     }
   }
-  std::printf("learner: %zu pairs, %zu windows kept, %zu still, %zu failed, %zu fits (%zu failed), %zu swaps (%zu undone); "
+  std::printf("learner: %zu pairs, %zu windows kept, %zu still, %zu failed, %zu fits (%zu failed), %zu swaps (%zu undone, "
+              "%zu confirmed by the per-pair check, %zu undone by it); %zu windows replayed (not new evidence); "
               "%zu pairs not learned from (over the budget), %zu fits waited for their budget; fell back to the plain gyro on %zu of %zu pairs; CPU %.1f s over %.1f s of replay "
               "(%.0f %% of a core); wall %.1f s%s%s\n",
               s.pairs_submitted, s.windows_kept, s.windows_still, s.windows_failed, s.fits, s.fits_failed, s.swaps, s.swaps_undone,
+              s.swaps_confirmed, s.swaps_undone_by_pairs, s.windows_repeated,
               s.pairs_over_budget, s.fits_delayed_by_budget, path->fallback_pairs, path->pairs, s.cpu_s, path->replay_s + path->last_stamp_s - path->recording_start_s,
               100.0 * s.cpu_s / std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s), wall_s,
               s.last_problem.empty() ? "" : "; last problem: ", s.last_problem.c_str());

@@ -16,6 +16,9 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/ois/stabiliser_model.h"
@@ -198,11 +201,227 @@ TEST(OnlineLearning, AKillDuringAFitKeepsTheLastGoodModelFile) {
   std::filesystem::remove_all(learning_dir, ignored);
 }
 
+// ---- Issue 33: the safety of what is learned (online_learning_rejected_swap, _kill_during_write,
+// _replay tests). ----
+
+// The test's scenario: one of the ~scenario values below, "" for the tests above.
+std::string scenario() {
+  std::string name;
+  ros::NodeHandle("~").param("scenario", name, std::string());
+  return name;
+}
+
+std::string readBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// The model file of ~learning_key under ~learning_dir, written before the pipeline starts: the
+// confirmed model "learned before" for this camera.
+std::string placeConfirmedModel(const StabiliserParameters& parameters, const std::string& name) {
+  ros::NodeHandle nh;
+  std::string dir, key;
+  EXPECT_TRUE(nh.getParam("/deep_ois/compensation/learning_dir", dir));
+  EXPECT_TRUE(nh.getParam("/deep_ois/compensation/learning_key", key));
+  std::filesystem::create_directories(dir);
+  StabiliserModelFile file;
+  file.name = name;
+  file.parameters = parameters;
+  const std::string path = dir + "/" + key + ".yaml";
+  file.save(path);
+  return path;
+}
+
+// The values of the compensation's /diagnostics, as they last came.
+struct DiagnosticsValues {
+  std::mutex mutex;
+  std::map<std::string, std::string> values;
+  std::atomic<bool> fitting{false};
+  ros::Subscriber subscribe(ros::NodeHandle& nh) {
+    return nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+        "/diagnostics", 100, [this](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
+          std::lock_guard<std::mutex> lock(mutex);
+          for (const auto& status : m->status)
+            for (const auto& kv : status.values) {
+              values[kv.key] = kv.value;
+              if (kv.key == "learning" && kv.value == "fitting") fitting = true;
+            }
+        });
+  }
+  std::string get(const std::string& key) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto it = values.find(key);
+    return it == values.end() ? std::string("(never published)") : it->second;
+  }
+  // The count before `word` in "learning data" ("..., 4 fits, ..."), or -1.
+  long countBefore(const std::string& word) {
+    const std::string text = get("learning data");
+    const std::size_t at = text.find(" " + word);
+    if (at == std::string::npos) return -1;
+    std::size_t from = at;
+    while (from > 0 && std::isdigit(static_cast<unsigned char>(text[from - 1]))) --from;
+    return from == at ? -1 : std::stol(text.substr(from, at - from));
+  }
+};
+
+void feedImu(SyntheticOisCamera& camera, const ros::Time& base, sensor_msgs::Imu& imu) {
+  const Eigen::Vector3d w = camera.imuRate((imu.header.stamp - base).toSec());
+  imu.angular_velocity.x = w.x();
+  imu.angular_velocity.y = w.y();
+  imu.angular_velocity.z = w.z();
+}
+
+// A swap the per-pair check finds worse than the model it replaced is undone and never written.
+// The camera starts with a confirmed "no lens motion" model (its file placed before the start); its
+// lens moves (OIS on), so the first fit swaps to a stabiliser; from that fit on the OIS is
+// switched off, so on every pair after the swap the new model is worse than "no lens motion". The
+// file must hold the placed model, byte for byte, at every frame and at the end.
+TEST(OnlineLearning, ARejectedSwapIsUndoneAndNotWritten) {
+  if (scenario() != "rejected_swap") GTEST_SKIP() << "~scenario is not rejected_swap";
+  ros::NodeHandle nh;
+  const std::string path = placeConfirmedModel(noLensMotion(), "no lens motion (confirmed before)");
+  const std::string placed = readBytes(path);
+  double readout_s = 0.0, time_offset_s = 0.0;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", time_offset_s);
+  SyntheticOisCamera ois_on(true, readout_s, time_offset_s), ois_off(false, readout_s, time_offset_s);
+  DiagnosticsValues diagnostics;
+  ros::Subscriber sub = diagnostics.subscribe(nh);
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const ros::Time base = ros::Time::now();
+  bool switched_off = false;
+  std::size_t frames_differing = 0;
+  harness->stream(
+      22.0,
+      [&](live_test::FrameEdit& edit) {
+        switched_off = switched_off || diagnostics.fitting;
+        const double t = (edit.image->header.stamp - base).toSec();
+        (switched_off ? ois_off : ois_on).render(t, *edit.image);
+        if (readBytes(path) != placed) ++frames_differing;
+      },
+      [&](sensor_msgs::Imu& imu) {
+        feedImu(ois_on, base, imu);
+        return true;
+      });
+  ros::WallDuration(1.0).sleep();
+  const std::string confirmation = diagnostics.get("learning: swap confirmation");
+  std::printf("[ measured ] learning data: %s\n[ measured ] swap confirmation: %s\n",
+              diagnostics.get("learning data").c_str(), confirmation.c_str());
+  ASSERT_TRUE(switched_off) << "no fit seen";
+  EXPECT_GE(diagnostics.countBefore("swaps"), 2) << "no swap undone";
+  EXPECT_NE(confirmation.find("worse than the model it replaced"), std::string::npos) << confirmation;
+  EXPECT_EQ(frames_differing, 0u) << "the rejected model was written to " << path;
+  EXPECT_EQ(readBytes(path), placed);
+  EXPECT_TRUE(isNoLensMotion(StabiliserModelFile::load(path).parameters));
+  std::error_code ignored;
+  std::filesystem::remove_all(std::filesystem::path(path).parent_path(), ignored);
+}
+
+// A kill (SIGKILL of the nodelet manager) during the write of a confirmed model keeps the last
+// confirmed file. The camera starts with a confirmed "no lens motion" model; its OIS makes the
+// learner swap and confirm a stabiliser; the write pauses halfway (~learning_test_write_pause,
+// the test hook), and the manager is killed when the partial file is seen.
+TEST(OnlineLearning, AKillDuringAWriteKeepsTheLastConfirmedModel) {
+  if (scenario() != "kill_during_write") GTEST_SKIP() << "~scenario is not kill_during_write";
+  ros::NodeHandle nh;
+  const std::string path = placeConfirmedModel(noLensMotion(), "no lens motion (confirmed before)");
+  const std::string placed = readBytes(path);
+  double readout_s = 0.0, time_offset_s = 0.0;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", time_offset_s);
+  SyntheticOisCamera camera(true, readout_s, time_offset_s);
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const int pid = pidOf("/deep_ois/manager");
+  ASSERT_GT(pid, 0) << "no pid for /deep_ois/manager";
+  const ros::Time base = ros::Time::now();
+  bool killed = false, changed_before_kill = false;
+  std::string partial;
+  harness->stream(
+      24.0,
+      [&](live_test::FrameEdit& edit) {
+        camera.render((edit.image->header.stamp - base).toSec(), *edit.image);
+        if (killed) return;
+        changed_before_kill = changed_before_kill || readBytes(path) != placed;
+        for (const auto& entry : std::filesystem::directory_iterator(std::filesystem::path(path).parent_path()))
+          if (entry.path().filename().string().find(".partial.") != std::string::npos)
+            partial = entry.path().string();
+        if (!partial.empty()) {
+          ::kill(pid, SIGKILL);
+          killed = true;
+        }
+      },
+      [&](sensor_msgs::Imu& imu) {
+        feedImu(camera, base, imu);
+        return true;
+      });
+  ASSERT_TRUE(killed) << "no write of a confirmed model seen (no partial file beside " << path << ")";
+  ros::WallDuration(0.5).sleep();
+  std::printf("[ measured ] killed during the write of %s (partial file of %zu bytes)\n", path.c_str(),
+              static_cast<std::size_t>(std::filesystem::file_size(partial)));
+  EXPECT_FALSE(changed_before_kill) << "the file changed before the confirmed model's write";
+  EXPECT_EQ(readBytes(path), placed) << "the kill did not leave the last confirmed model";
+  EXPECT_TRUE(isNoLensMotion(StabiliserModelFile::load(path).parameters));
+  std::error_code ignored;
+  std::filesystem::remove_all(std::filesystem::path(path).parent_path(), ignored);
+}
+
+// Replaying the same recording is not new evidence: the camera's stream (OIS on, from the shipped
+// model) is sent once, then again with the same stamps (time goes back, as when a bag is played
+// again). The second pass must keep no window and start no fit.
+TEST(OnlineLearning, AReplayIsNotNewEvidence) {
+  if (scenario() != "replay") GTEST_SKIP() << "~scenario is not replay";
+  ros::NodeHandle nh;
+  std::string learning_dir;
+  ASSERT_TRUE(nh.getParam("/deep_ois/compensation/learning_dir", learning_dir));
+  double readout_s = 0.0, time_offset_s = 0.0;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", time_offset_s);
+  DiagnosticsValues diagnostics;
+  ros::Subscriber sub = diagnostics.subscribe(nh);
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const ros::Time base = ros::Time::now();
+  const auto pass = [&](double seconds) {
+    SyntheticOisCamera camera(true, readout_s, time_offset_s);  // the same lens from the same start
+    harness->stream(
+        seconds,
+        [&](live_test::FrameEdit& edit) { camera.render((edit.image->header.stamp - base).toSec(), *edit.image); },
+        [&](sensor_msgs::Imu& imu) {
+          feedImu(camera, base, imu);
+          return true;
+        });
+  };
+  pass(16.0);
+  ros::WallDuration(1.5).sleep();  // the last fit ends and /diagnostics says it
+  const long fits_first = diagnostics.countBefore("fits");
+  const std::string data_first = diagnostics.get("learning data");
+  // Back to the first pass's stamps: the same recording again.
+  harness->shiftStamps(base - ros::Time::now());
+  pass(12.0);
+  ros::WallDuration(1.5).sleep();
+  const std::string data_second = diagnostics.get("learning data");
+  const std::string replayed = diagnostics.get("learning: replayed data");
+  std::printf("[ measured ] after the first pass: %s\n[ measured ] after the replay: %s\n[ measured ] %s\n",
+              data_first.c_str(), data_second.c_str(), replayed.c_str());
+  ASSERT_GE(fits_first, 1) << data_first;
+  EXPECT_EQ(diagnostics.countBefore("fits"), fits_first) << "fits ran on the replay: " << data_second;
+  long windows_replayed = -1;
+  std::sscanf(replayed.c_str(), "%ld windows", &windows_replayed);
+  EXPECT_GE(windows_replayed, 3) << replayed;
+  std::error_code ignored;
+  std::filesystem::remove_all(learning_dir, ignored);
+}
+
 TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   ros::NodeHandle nh, private_nh("~");
   bool kill_during_fit = false;
   private_nh.param("kill_during_fit", kill_during_fit, false);
   if (kill_during_fit) GTEST_SKIP() << "the kill test runs alone";
+  if (!scenario().empty()) GTEST_SKIP() << "~scenario " << scenario() << " runs alone";
   bool ois = true;
   std::string learning_dir;
   ASSERT_TRUE(private_nh.getParam("ois", ois));

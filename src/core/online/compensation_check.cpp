@@ -67,6 +67,48 @@ CompensationCheck checkCompensation(const CameraModel& camera, const std::vector
   return check;
 }
 
+CompensationComparison compareCompensations(const CameraModel& camera, const std::vector<FeatureMatch>& matches,
+                                            const std::vector<std::vector<Eigen::Matrix3d>>& compensations,
+                                            const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                                            const CompensationCheckOptions& options) {
+  for (const auto& homographies : compensations)
+    if (homographies.empty() || homographies.size() != gyro_homographies.size())
+      throw std::invalid_argument("compareCompensations: " + std::to_string(homographies.size()) + " and " +
+                                  std::to_string(gyro_homographies.size()) +
+                                  " gyro homographies (one per row patch, the same count)");
+  const std::string problem = options.validate();
+  if (!problem.empty()) throw std::invalid_argument("compareCompensations: " + problem);
+  const int patches = static_cast<int>(gyro_homographies.size());
+  const std::size_t n = compensations.size();
+  CompensationComparison comparison;
+  comparison.tracks = static_cast<int>(matches.size());
+  std::vector<double> sums(n, 0.0), errors(n + 1);
+  double gyro_sum = 0.0;
+  for (const FeatureMatch& m : matches) {
+    const Eigen::Vector2d a = camera.undistort(Eigen::Vector2d(m.point_a_px.x, m.point_a_px.y));
+    const Eigen::Vector2d b = camera.undistort(Eigen::Vector2d(m.point_b_px.x, m.point_b_px.y));
+    const auto patch = static_cast<std::size_t>(patchIndexOfRow(m.point_a_px.y, camera.height(), patches));
+    bool finite = true;
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k <= n; ++k) {
+      errors[k] = transferError(k < n ? compensations[k][patch] : gyro_homographies[patch], a, b);
+      finite = finite && std::isfinite(errors[k]);
+      best = std::min(best, errors[k]);
+    }
+    if (!finite || best > options.outlier_px) continue;
+    // Capped at the outlier threshold, as in checkCompensation.
+    for (std::size_t k = 0; k < n; ++k) sums[k] += std::min(errors[k], options.outlier_px);
+    gyro_sum += std::min(errors[n], options.outlier_px);
+    ++comparison.inliers;
+  }
+  comparison.usable = comparison.inliers >= options.min_inliers;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t k = 0; k < n; ++k)
+    comparison.residuals_px.push_back(comparison.usable ? sums[k] / comparison.inliers : nan);
+  comparison.gyro_residual_px = comparison.usable ? gyro_sum / comparison.inliers : nan;
+  return comparison;
+}
+
 bool CompensationFallback::update(const CompensationCheck& check) {
   if (!check.usable) return falling_back_;
   const bool worse = check.model_residual_px >

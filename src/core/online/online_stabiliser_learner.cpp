@@ -42,6 +42,10 @@ constexpr double kFitCostMargin = 1.5;
 // 360x270-640x480, 30 and 60 frames/s (0.07-0.17 ms on the development machine).
 // Whatever a fit costs beyond its estimate is a debt, paid back before any other work starts.
 constexpr double kStartFitCpuPerMotionS = 0.4e-3;
+// A window or a pair whose IMU-clock span was learned from for at least this fraction is replayed
+// data (the same recording again, a bag that loops): not new evidence. A live stream never
+// overlaps itself; a replay of a bag overlaps its first pass all but the stamps' jitter.
+constexpr double kRepeatedFraction = 0.5;
 
 double wallNow() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -121,7 +125,7 @@ std::string OnlineLearningOptions::validate() const {
   else if (max_queued_pairs < 1) why << "max_queued_pairs must be at least 1";
   else if (tracking_width_px < 64) why << "tracking_width_px must be at least 64 (got " << tracking_width_px << ")";
   if (!why.str().empty()) return why.str();
-  for (const std::string& problem : {fit.validate(), lens.validate(), check.validate()})
+  for (const std::string& problem : {fit.validate(), lens.validate(), check.validate(), confirmation.validate()})
     if (!problem.empty()) return problem;
   return {};
 }
@@ -145,6 +149,11 @@ OnlineStabiliserLearner::OnlineStabiliserLearner(OnlineLearningOptions options,
   model->held_out_rms_px = model->held_out_rms_without_px = kNaN;
   model->reason = "in use at the start";
   model_ = model;
+  // The model in use at the start is what the file holds (or the ~model file): confirmed already.
+  trials_ = std::make_unique<ConfirmedState<std::shared_ptr<const LearnedStabiliser>>>(
+      model_, [this](const std::shared_ptr<const LearnedStabiliser>& confirmed) { saveModel(*confirmed); },
+      options_.confirmation);
+  status_.confirmation = "no swap on trial";
   bool has_still = false;
   for (const auto& prior : priors_) has_still = has_still || isNoLensMotion(prior.parameters);
   if (!has_still) priors_.push_back({"no lens motion", noLensMotion()});
@@ -243,7 +252,7 @@ bool OnlineStabiliserLearner::waitIdle(double timeout_s) {
     const bool fit_waits_for_caller =
         fit_requested_ && fit_held_ && options_.budget_clock && clockNow() == fit_held_at_s_;
     return stopping_ || (queue_.empty() && !tracking_busy_ && !fitting_ && !confirm_requested_ && !confirming_ &&
-                         (!fit_requested_ || fit_waits_for_caller));
+                         (!fit_requested_ || fit_waits_for_caller || on_trial_));
   });
 }
 
@@ -394,6 +403,9 @@ void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
     if (verdicts_.size() > 1000) verdicts_.erase(verdicts_.begin(), verdicts_.begin() + 500);  // nobody reads them
   }
 
+  // ---- The swap on trial, if any: its model against the one it replaced, on this pair. ----
+  checkTrial(pair);
+
   // ---- The gyro stream, kept for the windows' warm-up. ----
   for (const CameraRateSample& r : pair.rates)
     if (rates_.empty() || r.stamp_s > rates_.back().stamp_s) rates_.push_back(r);
@@ -463,6 +475,11 @@ void OnlineStabiliserLearner::closeWindow() {
     ++count;
   }
   window->motion_rad_s = count ? std::sqrt(sum / count) : 0.0;
+  if (alreadyLearnedFrom(window->start_s, window->end_s)) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.windows_repeated;
+    return;
+  }
   if (count == 0 || window->motion_rad_s < options_.still_rate_rad_s) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++status_.windows_still;
@@ -493,6 +510,19 @@ void OnlineStabiliserLearner::closeWindow() {
     status_.last_problem = std::string("window: ") + e.what();
     return;
   }
+  // Learned from from now on (merged with the spans it touches).
+  std::pair<double, double> span(window->start_s, window->end_s);
+  std::vector<std::pair<double, double>> merged;
+  for (const auto& s : learned_spans_s_) {
+    if (s.second < span.first || s.first > span.second) {
+      merged.push_back(s);
+    } else {
+      span.first = std::min(span.first, s.first);
+      span.second = std::max(span.second, s.second);
+    }
+  }
+  merged.push_back(span);
+  learned_spans_s_ = std::move(merged);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     windows_.push_back(window);
@@ -523,8 +553,9 @@ void OnlineStabiliserLearner::closeWindow() {
         wake_fit_.notify_all();
       }
     }
+    // No fit while a swap is on trial: its verdict comes first (the seconds keep counting).
     if (new_seconds_ >= options_.refit_every_s && total >= options_.held_out_s + options_.min_training_s &&
-        options_.learning) {
+        options_.learning && !on_trial_) {
       fit_requested_ = true;
       wake_fit_.notify_all();
     }
@@ -629,8 +660,15 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     replacement->held_out_rms_px = choice.scores[choice.chosen].rms_px;
     replacement->held_out_rms_without_px = choice.scores[choice.chosen].rms_without_model_px;
     replacement->reason = choice.reason;
+    replacement->training_recordings = training.size();
+    for (const auto& r : training) replacement->training_observations += r.observations.size();
   }
-  if (replacement) saveModel(*replacement, training);
+  // A swap is a trial: in use at once, written only once the per-pair check confirms it.
+  std::unique_lock<std::mutex> trials_lock(trials_mutex_, std::defer_lock);
+  if (replacement) {
+    trials_lock.lock();
+    trials_->startTrial(replacement);
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   ++status_.fits;
   status_.last_choice = choice.reason;
@@ -642,29 +680,123 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     confirm_requested_ = false;
     model_ = replacement;
     ++status_.swaps;
+    on_trial_ = true;
+    fit_requested_ = false;
+    status_.confirmation = "on trial: " + replacement->name + ", 0 of " +
+                           std::to_string(options_.confirmation.pairs) + " pairs checked";
   }
 }
 
-void OnlineStabiliserLearner::saveModel(const LearnedStabiliser& model,
-                                        const std::vector<StabiliserFitRecording>& training) {
+void OnlineStabiliserLearner::saveModel(const LearnedStabiliser& model) const {
   if (options_.model_path.empty()) return;
-  try {
-    StabiliserModelFile file;
-    file.name = options_.model_file_name + ": " + model.name;
-    file.parameters = model.parameters;
-    file.camera = options_.camera;
-    file.training.target = "gyro-anchored lens shift (images), learned online";
-    file.training.recordings = training.size();
-    for (const auto& r : training) file.training.observations += r.observations.size();
-    file.training.rms_px = kNaN;
-    file.training.rms_without_model_px = kNaN;
-    file.training.held_out_rms_px = model.held_out_rms_px;
-    file.training.held_out_rms_without_model_px = model.held_out_rms_without_px;
-    file.save(options_.model_path);  // atomic: written beside it, then renamed
-  } catch (const std::exception& e) {
+  StabiliserModelFile file;
+  file.name = options_.model_file_name + ": " + model.name;
+  file.parameters = model.parameters;
+  file.camera = options_.camera;
+  file.training.target = "gyro-anchored lens shift (images), learned online, confirmed by the per-pair check";
+  file.training.recordings = model.training_recordings;
+  file.training.observations = model.training_observations;
+  file.training.rms_px = kNaN;
+  file.training.rms_without_model_px = kNaN;
+  file.training.held_out_rms_px = model.held_out_rms_px;
+  file.training.held_out_rms_without_model_px = model.held_out_rms_without_px;
+  // The same text as StabiliserModelFile::save, written beside the file and renamed over it.
+  writeFileAtomically(options_.model_path,
+                      "# deep_ois learned stabiliser model (core/ois/stabiliser_model.h): " + file.name + "\n" +
+                          file.toYaml(),
+                      options_.write);
+}
+
+bool OnlineStabiliserLearner::alreadyLearnedFrom(double start_s, double end_s) const {
+  if (!(end_s > start_s)) return false;
+  double overlap_s = 0.0;
+  for (const auto& span : learned_spans_s_)
+    overlap_s += std::max(0.0, std::min(end_s, span.second) - std::max(start_s, span.first));
+  return overlap_s >= kRepeatedFraction * (end_s - start_s);
+}
+
+void OnlineStabiliserLearner::checkTrial(const OnlineFramePair& pair) {
+  const RollingShutterConfig& timing = pair.timing;
+  if (pair.rotations.empty() || pair.gyro_homographies.size() != pair.rotations.size()) return;
+  std::vector<double> times_a, times_b;
+  for (int i = 0; i < timing.patch_count; ++i) {
+    times_a.push_back(patchImuTime(timing, pair.stamp_a_s, i));
+    times_b.push_back(patchImuTime(timing, pair.stamp_b_s, i));
+  }
+  if (times_a.size() != pair.rotations.size()) return;
+  if (alreadyLearnedFrom(times_a.front(), times_b.back())) {
     std::lock_guard<std::mutex> lock(mutex_);
-    ++status_.saves_failed;
-    status_.last_problem = std::string("saving the model: ") + e.what();
+    ++status_.pairs_repeated;  // its verdict would be on data the trial was chosen with
+    return;
+  }
+  std::lock_guard<std::mutex> trials_lock(trials_mutex_);
+  if (!trials_->onTrial()) return;
+  const Eigen::Matrix3d& K = pair.camera.K();
+  if (shadow_trial_ != trials_->trialId() || !shadow_K_.isApprox(K)) {
+    // Both start from a centred lens warmed up on the pair's gyro history, as the output's
+    // compensator does after a swap.
+    shadow_trial_model_ = std::make_unique<StabiliserCompensator>(trials_->inUse()->parameters, K);
+    shadow_replaced_model_ = std::make_unique<StabiliserCompensator>(trials_->replaced()->parameters, K);
+    shadow_trial_ = trials_->trialId();
+    shadow_K_ = K;
+  }
+  std::vector<std::vector<Eigen::Matrix3d>> compensations;
+  for (StabiliserCompensator* shadow : {shadow_trial_model_.get(), shadow_replaced_model_.get()}) {
+    shadow->followTimeline(times_a.front(), times_b.front());
+    shadow->addRates(pair.rates);
+    const StabiliserCompensation c = shadow->compensate(pair.rotations, times_a, times_b);
+    if (!c.ok) return;  // the pair's gyro does not cover it: no verdict
+    compensations.push_back(c.homographies);
+  }
+  const CompensationComparison comparison =
+      compareCompensations(pair.camera, pair.matches, compensations, pair.gyro_homographies, options_.check);
+  if (!comparison.usable) return;
+  const std::shared_ptr<const LearnedStabiliser> trial = trials_->inUse();
+  const auto outcome =
+      trials_->addPair(comparison.residuals_px[0], comparison.residuals_px[1], comparison.gyro_residual_px);
+  const std::string figures = trials_->evidence().summary();
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (outcome.verdict == TrialVerdict::kPending) {
+    status_.confirmation = "on trial: " + trial->name + ", " + std::to_string(trials_->evidence().pairs()) + " of " +
+                           std::to_string(options_.confirmation.pairs) + " pairs checked";
+    return;
+  }
+  // The verdict ends the swap's probation on the lens motions too (one verdict per swap).
+  on_trial_ = false;
+  replaced_.reset();
+  confirm_requested_ = false;
+  switch (outcome.verdict) {
+    case TrialVerdict::kConfirmed:
+      ++status_.swaps_confirmed;
+      if (!outcome.persist_error.empty()) {
+        ++status_.saves_failed;
+        status_.last_problem = "saving the confirmed model: " + outcome.persist_error;
+      } else if (!options_.model_path.empty()) {
+        ++status_.saves;
+      }
+      status_.confirmation = "confirmed " + trial->name + " by the per-pair check (" + figures + ")" +
+                             (options_.model_path.empty() ? "" : outcome.persist_error.empty() ? "; written"
+                                                                                               : "; NOT written");
+      break;
+    case TrialVerdict::kKeptUnconfirmed:
+      ++status_.swaps_kept_unconfirmed;
+      status_.confirmation = "kept " + trial->name + " in use but not written: worse than the plain gyro (" +
+                             figures + ")";
+      break;
+    case TrialVerdict::kUndone: {
+      auto restored = std::make_shared<LearnedStabiliser>(*trials_->inUse());
+      restored->version = model_->version + 1;
+      restored->reason = "the swap to " + trial->name + " undone by the per-pair check (" + figures + ")";
+      model_ = restored;
+      ++status_.swaps;
+      ++status_.swaps_undone;
+      ++status_.swaps_undone_by_pairs;
+      status_.confirmation = "undone " + trial->name + ", not written: worse than the model it replaced (" +
+                             figures + ")";
+      break;
+    }
+    case TrialVerdict::kPending:
+      break;
   }
 }
 
@@ -684,13 +816,19 @@ void OnlineStabiliserLearner::confirmSwap(const std::shared_ptr<const LearnedSta
     restored->held_out_rms_without_px = choice.scores[1].rms_without_model_px;
     restored->reason = "the swap to " + current->name + " undone: " + choice.reason;
   }
-  if (restored) saveModel(*restored, {});
+  // Undone only while the swap is still on trial (the per-pair check may have ended it meanwhile);
+  // nothing is written: the file holds the last confirmed model.
+  std::unique_lock<std::mutex> trials_lock(trials_mutex_);
+  if (restored && !(trials_->onTrial() && trials_->inUse() == current)) restored.reset();
+  if (restored) trials_->undo();
   std::lock_guard<std::mutex> lock(mutex_);
   status_.last_choice = "confirming the last swap: " + choice.reason;
   if (restored) {  // the fit thread is the only one that swaps: model_ is still `current`
     model_ = restored;
     ++status_.swaps;
     ++status_.swaps_undone;
+    on_trial_ = false;
+    status_.confirmation = "undone " + current->name + " on the lens motions after it, not written";
   }
 }
 

@@ -67,6 +67,11 @@ CompensationParameters loadCompensationParameters(const ParameterSource& nh) {
   if (!(p.learning_buffer_s >= 2.0 * p.learning_held_out_s))
     reject(nh, "learning_buffer", "must be at least twice ~learning_held_out (seconds held out and trained on)");
   if (!(p.learning_refit_every_s > 0.0)) reject(nh, "learning_refit_every", "must be > 0 seconds");
+  p.learning_confirm_pairs = nh.param("learning_confirm_pairs", p.learning_confirm_pairs);
+  if (p.learning_confirm_pairs < 1) reject(nh, "learning_confirm_pairs", "must be at least 1 pair");
+  p.learning_test_write_pause_s = nh.param("learning_test_write_pause", p.learning_test_write_pause_s);
+  if (!(p.learning_test_write_pause_s >= 0.0 && p.learning_test_write_pause_s <= 60.0))
+    reject(nh, "learning_test_write_pause", "must be in [0, 60] seconds (a test hook; 0 in normal use)");
   p.fallback_to_gyro = nh.param("fallback_to_gyro", p.fallback_to_gyro);
   return p;
 }

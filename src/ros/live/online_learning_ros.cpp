@@ -89,6 +89,8 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.held_out_s = params_.learning_held_out_s;
   options.min_training_s = params_.learning_held_out_s;
   options.refit_every_s = params_.learning_refit_every_s;
+  options.confirmation.pairs = static_cast<std::size_t>(params_.learning_confirm_pairs);
+  options.write.test_pause_s = params_.learning_test_write_pause_s;
   options.model_path = model_path_;
   options.model_file_name = "learned online for " + model_path_;
   options.camera.width = static_cast<int>(gyro.image_width);
@@ -100,6 +102,11 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.camera.readout_time_s = gyro.readout_time;
   std::error_code ignored;
   fs::create_directories(fs::path(model_path_).parent_path(), ignored);
+  // A process killed while writing leaves its partial file beside the (untouched) model file.
+  const int stale = removeStalePartialFiles(model_path_);
+  if (stale > 0)
+    ROS_INFO_NAMED("compensation", "%s: removed %d partial file(s) beside %s left by a process killed while writing "
+                   "(the file holds the last confirmed model)", log_name_.c_str(), stale, model_path_.c_str());
   ROS_DEBUG_NAMED("compensation", "%s: learning held out %.1f s, buffer %.1f s", log_name_.c_str(),
                   options.held_out_s, options.buffer_s);
   learner_ = std::make_unique<OnlineStabiliserLearner>(options, priors, 0);
@@ -131,10 +138,16 @@ void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensat
   file.parameters = model->parameters;
   compensator.setModel(std::move(file));
   if (version_in_use_ != ~std::uint64_t{0}) {
-    // Once per swap (a swap happens at most once per fit).
-    ROS_INFO_NAMED("compensation", "%s: stabiliser model swapped (version %llu): %s; %s; kept in %s",
-                   log_name_.c_str(), static_cast<unsigned long long>(model->version), model->name.c_str(),
-                   model->reason.c_str(), model_path_.c_str());
+    // Once per swap (a swap happens at most once per fit, an undo at most once per swap). A swap is
+    // on trial: written only once the per-pair check confirms it.
+    const bool trial = learner_->status().confirmation.rfind("on trial", 0) == 0;
+    const std::string kept =
+        trial ? "on trial until the per-pair check confirms it on " + std::to_string(params_.learning_confirm_pairs) +
+                    " pairs (then written to " + model_path_ + ")"
+              : "not written: " + model_path_ + " keeps the last confirmed model";
+    ROS_INFO_NAMED("compensation", "%s: stabiliser model swapped (version %llu): %s; %s; %s", log_name_.c_str(),
+                   static_cast<unsigned long long>(model->version), model->name.c_str(), model->reason.c_str(),
+                   kept.c_str());
   }
   version_in_use_ = model->version;
   updateDiagnostics();
@@ -228,9 +241,29 @@ void OnlineLearningRos::updateDiagnostics() {
                 model->held_out_rms_without_px);
   diagnostics_.setValue("model in use: held-out lens-motion RMS", std::isfinite(model->held_out_rms_px) ? text : "not scored yet");
   diagnostics_.setValue("learning", s.state);
-  std::snprintf(text, sizeof text, "%.1f s kept, %zu windows (%zu still), %zu fits, %zu swaps (%zu undone)",
-                s.buffered_s, s.windows_kept, s.windows_still, s.fits, s.swaps, s.swaps_undone);
+  std::snprintf(text, sizeof text,
+                "%.1f s kept, %zu windows (%zu still), %zu fits, %zu swaps (%zu undone, %zu confirmed)",
+                s.buffered_s, s.windows_kept, s.windows_still, s.fits, s.swaps, s.swaps_undone, s.swaps_confirmed);
   diagnostics_.setValue("learning data", text);
+  diagnostics_.setValue("learning: swap confirmation", s.confirmation);
+  std::snprintf(text, sizeof text, "%zu windows and %zu pairs already learned from: not new evidence",
+                s.windows_repeated, s.pairs_repeated);
+  diagnostics_.setValue("learning: replayed data", text);
+  // Said once each: a verdict on a swap, and data coming in that was already learned from.
+  const std::size_t verdicts = s.swaps_confirmed + s.swaps_undone_by_pairs + s.swaps_kept_unconfirmed;
+  if (verdicts > verdicts_logged_) {
+    ROS_INFO_NAMED("compensation", "%s: %s", log_name_.c_str(), s.confirmation.c_str());
+    verdicts_logged_ = verdicts;
+  }
+  if (s.windows_repeated > repeated_logged_) {
+    if (repeated_logged_ == 0 || s.windows_kept != kept_at_repeated_log_) {
+      ROS_INFO_NAMED("compensation", "%s: the data coming in was already learned from (a recording replayed?): not "
+                     "counted as new evidence for a fit or a swap's confirmation (%zu windows, %zu pairs so far)",
+                     log_name_.c_str(), s.windows_repeated, s.pairs_repeated);
+    }
+    repeated_logged_ = s.windows_repeated;
+    kept_at_repeated_log_ = s.windows_kept;
+  }
   std::snprintf(text, sizeof text, "%.1f %% of the pairs checked (%zu checked, %zu without enough tracks)",
                 s.pairs_checked ? 100.0 * s.pairs_falling_back / s.pairs_checked : 0.0, s.pairs_checked,
                 s.pairs_unusable);

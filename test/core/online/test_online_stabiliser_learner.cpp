@@ -183,7 +183,15 @@ TEST(OnlineStabiliserLearner, LaterFitsOfferTheStructuralVariants) {
   truth.stroke_x_deg = truth.stroke_y_deg = 0.8;
   truth.highpass_corner_hz = 0.3;
   OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
-  feed(learner, makePairs(truth, 19.0, 0.4, 11));
+  // In two parts, as a live camera's pairs come after the first fit: its swap is on trial until
+  // the per-pair check has seen pairs after it, and no fit runs meanwhile.
+  std::vector<OnlineFramePair> pairs = makePairs(truth, 19.0, 0.4, 11), later;
+  while (!pairs.empty() && pairs.back().stamp_a_s > 13.5) {
+    later.insert(later.begin(), std::move(pairs.back()));
+    pairs.pop_back();
+  }
+  feed(learner, std::move(pairs));
+  feed(learner, std::move(later));
   // The second fit may still wait for its credit (the budget clock moves on its own here, and
   // waitIdle counts a fit held for credit as idle).
   for (int k = 0; k < 200 && learner.status().fits < 2; ++k) {
@@ -207,6 +215,8 @@ TEST(OnlineStabiliserLearner, UndoesASwapThatDoesWorseOnTheNextWindows) {
   for (const bool camera_changes : {true, false}) {
     OnlineLearningOptions options = testOptions();
     options.refit_every_s = 11.0;  // one fit, when 12 s of windows are in; no other after it
+    // The lens motions' verdict alone: the per-pair check (which would come first) never decides.
+    options.confirmation.pairs = 1000000;
     OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
     feed(learner, makePairs(ideal(), 13.0, 1.0, 21));
     ASSERT_EQ(learner.status().swaps, 1u) << learner.status().last_choice;
@@ -227,6 +237,86 @@ TEST(OnlineStabiliserLearner, UndoesASwapThatDoesWorseOnTheNextWindows) {
       EXPECT_EQ(model->name.rfind("fit on", 0), 0u) << model->name;
     }
   }
+}
+
+// Issue 33: a swap that the per-pair check finds worse than the model it replaced (the camera's lens
+// stops moving after the swap: the OIS was switched off, and the replaced model is "no lens
+// motion") is undone and never written; on a camera that stays the same the swap is confirmed after
+// confirmation.pairs usable pairs, and only then written.
+TEST(OnlineStabiliserLearner, ASwapThePerPairCheckFindsWorseIsUndoneAndNeverWritten) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("deep_ois_trial_" + std::to_string(::getpid()));
+  for (const bool ois_switched_off : {true, false}) {
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    OnlineLearningOptions options = testOptions();
+    options.refit_every_s = 11.0;  // one fit, when 12 s of windows are in
+    options.model_path = (dir / "camera.yaml").string();
+    OnlineStabiliserLearner learner(options, {{"no lens motion", noLensMotion()}, {"generic", wrongPrior()}}, 0);
+    feed(learner, makePairs(ideal(), 13.0, 1.0, 31));
+    ASSERT_EQ(learner.status().swaps, 1u) << learner.status().last_choice;
+    const std::string trial = learner.model()->name;
+    EXPECT_FALSE(std::filesystem::exists(options.model_path)) << "written before its confirmation";
+    EXPECT_NE(learner.status().confirmation.find("on trial"), std::string::npos) << learner.status().confirmation;
+    StabiliserParameters off = ideal();
+    off.gain.setZero();
+    feed(learner, makePairs(ois_switched_off ? off : ideal(), 3.0, 1.0, 32, 14.0));
+    const OnlineLearningStatus status = learner.status();
+    const auto model = learner.model();
+    std::printf("%s: %s\n", ois_switched_off ? "OIS switched off" : "same camera", status.confirmation.c_str());
+    if (ois_switched_off) {
+      EXPECT_EQ(status.swaps_undone_by_pairs, 1u) << status.confirmation;
+      EXPECT_EQ(status.swaps_confirmed, 0u);
+      EXPECT_TRUE(isNoLensMotion(model->parameters)) << model->name << ": " << model->reason;
+      EXPECT_EQ(model->version, 2u);
+      EXPECT_NE(model->reason.find("undone by the per-pair check"), std::string::npos) << model->reason;
+      EXPECT_FALSE(std::filesystem::exists(options.model_path)) << "a rejected swap was written";
+      EXPECT_EQ(status.saves, 0u);
+    } else {
+      EXPECT_EQ(status.swaps_confirmed, 1u) << status.confirmation;
+      EXPECT_EQ(status.swaps_undone, 0u);
+      EXPECT_EQ(model->name, trial);
+      ASSERT_TRUE(std::filesystem::exists(options.model_path));
+      const StabiliserModelFile written = StabiliserModelFile::load(options.model_path);
+      EXPECT_NEAR(written.parameters.gain(0, 1), model->parameters.gain(0, 1), 1e-9);
+      EXPECT_EQ(status.saves, 1u);
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 33: replaying the same recording again (time goes back to the same stamps) is not new
+// evidence: its windows are not kept, no fit runs on them, and its pairs do not count towards the
+// confirmation of the swap on trial; new data after it does.
+TEST(OnlineStabiliserLearner, ReplayedDataIsNotNewEvidence) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 11.0;  // a fit per 12 s of new windows
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  std::vector<OnlineFramePair> first = makePairs(ideal(), 13.0, 1.0, 41);
+  std::vector<OnlineFramePair> replay;
+  // The pairs of the windows learned from (the last second was in no window when the fit ran).
+  for (const auto& pair : first)
+    if (pair.stamp_b_s <= 12.9) replay.push_back(pair);
+  feed(learner, std::move(first));
+  const OnlineLearningStatus before = learner.status();
+  ASSERT_EQ(before.fits, 1u) << before.last_problem;
+  ASSERT_EQ(before.swaps, 1u) << before.last_choice;
+  learner.restartTimeline();
+  feed(learner, replay);
+  learner.restartTimeline();
+  feed(learner, replay);  // and once more
+  const OnlineLearningStatus after = learner.status();
+  std::printf("replayed twice: %zu windows and %zu pairs already learned from; %s\n", after.windows_repeated,
+              after.pairs_repeated, after.confirmation.c_str());
+  EXPECT_EQ(after.windows_kept, before.windows_kept);
+  EXPECT_GE(after.windows_repeated, 10u);
+  EXPECT_GE(after.pairs_repeated, 2 * replay.size() - 10);
+  EXPECT_EQ(after.fits, 1u);
+  EXPECT_EQ(after.swaps_confirmed, 0u) << after.confirmation;
+  EXPECT_NE(after.confirmation.find("on trial"), std::string::npos) << after.confirmation;
+  // New data: counted.
+  feed(learner, makePairs(ideal(), 3.0, 1.0, 42, 14.0));
+  EXPECT_EQ(learner.status().swaps_confirmed, 1u) << learner.status().confirmation;
 }
 
 TEST(OnlineStabiliserLearner, KeepsAModelThatIsAlreadyRight) {

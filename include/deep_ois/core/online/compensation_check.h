@@ -50,6 +50,24 @@ CompensationCheck checkCompensation(const CameraModel& camera, const std::vector
                                     const std::vector<Eigen::Matrix3d>& gyro_homographies,
                                     const CompensationCheckOptions& options = {});
 
+// The check of several compensations of one pair at once, on one common set of tracks (a track is
+// an outlier when every motion, the plain gyro's included, misses it by more than outlier_px), so
+// that their residuals compare pair by pair: how a swap on trial is judged against the model it
+// replaced (confirmed_state.h).
+struct CompensationComparison {
+  bool usable = false;
+  int tracks = 0;
+  int inliers = 0;
+  std::vector<double> residuals_px;  // per compensation given, mean over the inliers (NaN: unusable)
+  double gyro_residual_px = 0.0;
+};
+
+// Throws std::invalid_argument when a homography list is empty or differs in size from the gyro's.
+CompensationComparison compareCompensations(const CameraModel& camera, const std::vector<FeatureMatch>& matches,
+                                            const std::vector<std::vector<Eigen::Matrix3d>>& compensations,
+                                            const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                                            const CompensationCheckOptions& options = {});
+
 struct CompensationFallbackOptions {
   // The model is worse than the plain gyro on a pair when its residual exceeds the gyro's by this
   // fraction and by margin_px.

@@ -7,8 +7,15 @@
 // chain, its learned residuals and, from the second fit on, its structural variants), and the
 // candidates (those, the priors given at the start, and always "no lens motion") are scored on the newest
 // held-out window (chooseStabiliserModel). The model in use is replaced only by a clearly better
-// one; the swap is atomic (a shared_ptr swapped under a mutex, versioned) and the file written
-// atomically.
+// one; the swap is atomic (a shared_ptr swapped under a mutex, versioned).
+//
+// A swap is a trial (confirmed_state.h): the per-pair check scores the new model, the one it
+// replaced and the plain gyro on the same tracks of the pairs after it; after
+// options.confirmation.pairs usable pairs a model worse than the one it replaced is undone, and
+// only a confirmed model is written to the file (atomically). No fit runs while a swap is on trial.
+// Data already learned from (a replayed recording: windows and pairs whose IMU-clock span was
+// already learned from) is not new evidence: it is neither kept for the fits nor counted for a
+// confirmation.
 //
 // Threads: submit() only moves a pair into a bounded queue (it never waits for tracking or a fit;
 // a full queue drops the pair, counted). A tracking thread tracks, checks and builds the windows;
@@ -44,9 +51,12 @@
 #include "deep_ois/core/camera/camera_model.h"
 #include "deep_ois/core/ground_truth/lens_shift_ground_truth.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
+#include "deep_ois/core/online/atomic_file_write.h"
 #include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/online/confirmed_state.h"
 #include "deep_ois/core/vision/feature_tracker.h"
 
 namespace deep_ois {
@@ -77,9 +87,12 @@ struct OnlineLearningOptions {
   StabiliserChoiceOptions choice;
   CompensationCheckOptions check;
   CompensationFallbackOptions fallback;
-  // Where a model that replaced the one in use is kept (written atomically: a kill during a fit
-  // or a write leaves the previous file); empty = not kept.
+  // When a swap is confirmed or undone by the per-pair check (confirmed_state.h).
+  ConfirmationOptions confirmation;
+  // Where a confirmed model is kept (written atomically: a kill during a fit or a write leaves the
+  // last confirmed file); empty = not kept.
   std::string model_path;
+  AtomicWriteOptions write;  // its test hook slows the write (~learning_test_write_pause)
   std::string model_file_name = "learned online";  // the file's name field
   CameraDescription camera;                         // recorded in the file
 
@@ -118,6 +131,8 @@ struct LearnedStabiliser {
   double held_out_rms_px = 0.0;          // on the held-out window that chose it (NaN: not scored)
   double held_out_rms_without_px = 0.0;  // no lens motion on that window
   std::string reason;                    // the choice's sentence
+  // What it was fitted on (recorded in the file when it is confirmed).
+  std::size_t training_recordings = 0, training_observations = 0;
 };
 
 // The check of one pair, made on the tracking thread.
@@ -141,6 +156,13 @@ struct OnlineLearningStatus {
   // first held_out_s of windows after it); where the model it replaced is clearly better there,
   // that model is restored (counted in swaps too).
   std::size_t swaps_undone = 0;
+  // The per-pair check's verdicts on swaps (confirmed_state.h): confirmed (and written), undone
+  // (counted in swaps_undone too), kept in use but not written (worse than the plain gyro).
+  std::size_t swaps_confirmed = 0, swaps_undone_by_pairs = 0, swaps_kept_unconfirmed = 0;
+  std::size_t saves = 0;  // confirmed models written
+  // Data already learned from (a replayed recording): not kept, not counted for a confirmation.
+  std::size_t windows_repeated = 0, pairs_repeated = 0;
+  std::string confirmation;  // the swap on trial and its pairs so far, or the last verdict
   double buffered_s = 0.0;
   double cpu_s = 0.0;       // thread CPU time spent, seconds
   double wall_s = 0.0;      // since the start
@@ -191,9 +213,14 @@ class OnlineStabiliserLearner {
   // restores the replaced one where it is clearly better (chooseStabiliserModel's margins).
   void confirmSwap(const std::shared_ptr<const LearnedStabiliser>& replaced,
                    const std::vector<std::shared_ptr<const Window>>& fresh);
-  // Writes `model` to options_.model_path (atomic; nothing without a path); a failure is counted
-  // and said in the status.
-  void saveModel(const LearnedStabiliser& model, const std::vector<StabiliserFitRecording>& training);
+  // Writes a confirmed `model` to options_.model_path (atomic; nothing without a path). Throws on
+  // failure (counted by the caller).
+  void saveModel(const LearnedStabiliser& model) const;
+  // Tracking thread: the per-pair check of the swap on trial (its model, the one it replaced and the
+  // plain gyro on the pair's tracks); ends the trial once enough pairs are in.
+  void checkTrial(const OnlineFramePair& pair);
+  // Tracking thread: whether most of [start_s, end_s] (IMU clock) was already learned from.
+  bool alreadyLearnedFrom(double start_s, double end_s) const;
   // Under mutex_ (held by `lock`): blocks until the credit covers the requested fit's expected cost,
   // the request is withdrawn (learning off) or the learner stops; false when stopping.
   bool waitForBudget(std::unique_lock<std::mutex>& lock);
@@ -227,6 +254,7 @@ class OnlineStabiliserLearner {
   double probation_after_s_ = 0.0;
   bool confirm_requested_ = false, confirming_ = false;
   std::shared_ptr<const LearnedStabiliser> model_;
+  bool on_trial_ = false;  // mirrors trials_->onTrial(): no fit starts meanwhile
   std::vector<PairVerdict> verdicts_;
   std::vector<std::shared_ptr<const Window>> windows_;  // oldest first
   double new_seconds_ = 0.0;  // of windows since the last fit
@@ -249,6 +277,18 @@ class OnlineStabiliserLearner {
   std::uint64_t window_timeline_ = 0;
   double window_cpu_s_ = 0.0;       // CPU of the window being tracked so far
   double last_window_cpu_s_ = 0.0;  // CPU of the last window (of the last pair outside windows)
+
+  // The confirm-then-persist rule over the model in use. Its own lock (taken before mutex_, never
+  // after): a confirmed model is written under it, and model() must not wait for a write.
+  mutable std::mutex trials_mutex_;
+  std::unique_ptr<ConfirmedState<std::shared_ptr<const LearnedStabiliser>>> trials_;
+
+  // Tracking thread only: the trial's two models run on the pairs' gyro (as the output's
+  // compensator does), rebuilt per trial and camera; the IMU-clock spans learned from, merged.
+  std::uint64_t shadow_trial_ = ~std::uint64_t{0};
+  Eigen::Matrix3d shadow_K_ = Eigen::Matrix3d::Zero();
+  std::unique_ptr<StabiliserCompensator> shadow_trial_model_, shadow_replaced_model_;
+  std::vector<std::pair<double, double>> learned_spans_s_;
 
   std::thread tracking_thread_, fit_thread_;
 };

@@ -54,6 +54,12 @@ struct CompensationParameters {
   double learning_buffer_s = 40.0;       // ~learning_buffer: seconds of motion-rich windows kept
   double learning_held_out_s = 6.0;      // ~learning_held_out: newest seconds the swap is decided on
   double learning_refit_every_s = 4.0;   // ~learning_refit_every: new seconds between fits
+  // ~learning_confirm_pairs: usable pairs the per-pair check scores a swap on before it is
+  // confirmed (and written) or undone
+  int learning_confirm_pairs = 30;
+  // ~learning_test_write_pause: test hook, seconds the write of a confirmed model pauses halfway
+  // (a test kills the process during it); 0 in normal use
+  double learning_test_write_pause_s = 0.0;
   bool fallback_to_gyro = true;          // ~fallback_to_gyro: publish the plain gyro while the model does worse
 };
 

@@ -73,6 +73,9 @@ class OnlineLearningRos {
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
+  // The learner's verdicts and replayed data already said in the log (each said once).
+  std::size_t verdicts_logged_ = 0;
+  std::size_t repeated_logged_ = 0, kept_at_repeated_log_ = 0;
 };
 
 }  // namespace deep_ois
