@@ -61,8 +61,10 @@ session() {
   wait "$launch_pid" 2>/dev/null || true
   rostopic echo -b "$out/$name.checks.bag" -p /deep_ois/compensation_check >"$out/$name.checks.csv"
   echo "==== $name: $n play(s) ===="
-  # A play starts where the stamps go back.
-  awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) col[$i] = i; next }
+  # In publication order (the recorder's times repeat with every play); a play starts where the
+  # stamps go back.
+  { head -1 "$out/$name.checks.csv"; tail -n +2 "$out/$name.checks.csv" | sort -t, -k2,2n; } >"$out/$name.checks.sorted.csv"
+  awk -F, 'BEGIN { play = 0 } NR == 1 { for (i = 1; i <= NF; ++i) col[$i] = i; next }
     { stamp = $col["field.header.stamp"] / 1e9; if (NR > 2 && stamp < last - 1.0) play++; last = stamp
       n[play]++; if ($col["field.usable"] == 1) { u[play]++; m[play] += $col["field.model_residual"]; g[play] += $col["field.gyro_residual"] }
       if ($col["field.falling_back"] == 1) back[play]++
@@ -70,7 +72,7 @@ session() {
     END { for (p = 0; p <= play; ++p)
       printf "play %d: %d pairs checked, %d usable: mean %.3f px with the model in use, %.3f px with the plain gyro; plain gyro published after %d (%.0f %% of the usable); model versions:%s\n",
         p + 1, n[p], u[p], u[p] ? m[p] / u[p] : 0, u[p] ? g[p] / u[p] : 0, back[p], u[p] ? 100 * back[p] / u[p] : 0, versions[p] }' \
-    "$out/$name.checks.csv"
+    "$out/$name.checks.sorted.csv"
   grep -E "model in use:|stabiliser model swapped|confirmed |undone |kept .* in use but|already learned from|removed .* partial" \
     "$out/$name.log" | sed 's/^\[[^]]*\] *\[[^]]*\]: //' | cut -c1-400 || true
 }

@@ -78,9 +78,12 @@ TEST(ConfirmedState, WithinTheMarginsIsNotWorse) {
   Recorder recorder;
   ConfirmedState<std::string> state("a", recorder.persist(), threePairs());
   state.startTrial("b");
-  // 1.05 * 1.0 + 0.02 = 1.07: 1.06 is not worse.
-  for (int k = 0; k < 3; ++k) state.addPair(1.06, 1.0, 1.0);
+  // 1.0 + 0.01 px: 1.009 is not worse (and 1.02 is: the next test).
+  for (int k = 0; k < 3; ++k) state.addPair(1.009, 1.0, 1.0);
   EXPECT_EQ(recorder.written, std::vector<std::string>{"b"});
+  state.startTrial("c");
+  for (int k = 0; k < 3; ++k) state.addPair(1.02, 1.0, 1.0);
+  EXPECT_EQ(state.inUse(), "b");
 }
 
 TEST(ConfirmedState, BetterThanWhatItReplacedButWorseThanTheGyroIsKeptButNotWritten) {
