@@ -56,7 +56,7 @@ struct CompensationParameters {
   double learning_refit_every_s = 4.0;   // ~learning_refit_every: new seconds between fits
   // ~learning_confirm_pairs: usable pairs the per-pair check scores a swap on before it is
   // confirmed (and written) or undone
-  int learning_confirm_pairs = 30;
+  int learning_confirm_pairs = 60;
   // ~learning_test_write_pause: test hook, seconds the write of a confirmed model pauses halfway
   // (a test kills the process during it); 0 in normal use
   double learning_test_write_pause_s = 0.0;
