@@ -494,6 +494,42 @@ TEST(CalibrationStages, MotionPrerequisitesNameWhatIsMissing) {
   EXPECT_NE(still.unobservable.find("the camera hardly rotates"), std::string::npos) << still.unobservable;
 }
 
+// The refinement and uncertainty stages on their own: from a start 3 ms and a degree off, the
+// refinement converges to the truth and does not move what is held; the uncertainty of a held
+// parameter is zero (no held 1-sigma given) and that of an estimated one is not.
+TEST(CalibrationStages, RefinementConvergesAndHoldsWhatIsHeld) {
+  const SyntheticRecording recording = makeRecording(SyntheticSpec());
+  const CameraImuCalibration& truth = recording.truth;
+  CalibrationOptions options;
+  options.estimate_readout_time = false;
+  options.readout_time_s = truth.readout_time_s;
+  const std::vector<PreparedPair> pairs = preparePairs(recording.data, options.min_tracks_per_pair);
+  const ImuSampleBuffer gyro = bufferOf(recording.data.gyro);
+  ReprojectionProblem problem(pairs, gyro, recording.data.camera.K(), options.interpolation, options.max_imu_gap_s,
+                              options.lens_shift, options.lens_shift_row_order, removesParallax(options));
+  CalibrationState state;
+  state.time_offset_s = truth.time_offset_s + 3e-3;
+  state.readout_time_s = truth.readout_time_s;
+  state.R_cam_imu = expSO3(Eigen::Vector3d(1.0, 0.0, 0.0) * kDeg) * truth.imu_to_camera_rotation;
+  const ActiveParameters active = activeParameters(options);
+  const Refinement refinement = refineCalibration(problem, active, options, 1.0 / 30.0, state);
+  EXPECT_TRUE(refinement.converged);
+  EXPECT_EQ(refinement.weights.size(), problem.trackCount());
+  EXPECT_NEAR(state.time_offset_s, truth.time_offset_s, 0.2e-3);
+  EXPECT_EQ(state.readout_time_s, truth.readout_time_s);
+  EXPECT_LT(rotationAngleBetween(state.R_cam_imu, truth.imu_to_camera_rotation), 0.3 * kDeg);
+  EXPECT_LT((state.bias - truth.gyro_bias_rad_s).norm(), 1e-3);
+
+  const CalibrationUncertainty uncertainty = estimateUncertainty(problem, state, refinement.weights, active, options);
+  EXPECT_LT(uncertainty.median_residual_px, 0.2);
+  EXPECT_LT(uncertainty.median_residual_px, refinement.initial_median_residual_px);
+  EXPECT_EQ(uncertainty.statistical(calibration_parameter::kReadout), 0.0);
+  EXPECT_EQ(uncertainty.reported(calibration_parameter::kReadout), 0.0);
+  EXPECT_GT(uncertainty.statistical(calibration_parameter::kOffset), 0.0);
+  EXPECT_GT(uncertainty.reported(calibration_parameter::kOffset),
+            options.statistical_sigma_factor * uncertainty.statistical(calibration_parameter::kOffset));
+}
+
 // A held value known to +-s (a logged readout) moves the estimated ones: the reported 1-sigma of
 // the time offset takes in (d offset / d readout) s, which a second calibration with the readout
 // held 1 ms further measures directly. The statistical sigma (what the refusals judge) is unchanged.
