@@ -295,7 +295,8 @@ void printRemedy(const Arguments& args, const deep_ois::CalibrationBag& bag,
                  args.out_path.c_str(), joined.c_str(),
                  applied_all ? "" : (file.empty() ? "" : "  (or drop --gyro-config none)"));
   }
-  for (const std::string& m : missing) std::fprintf(stderr, "  remedy: or hold it: %s\n", m.c_str());
+  for (const std::string& m : missing)
+    std::fprintf(stderr, "  remedy: %s %s\n", flags.empty() ? "hold" : "or hold", m.c_str());
   // What no file states (the time offset), or what is refused with every stated value held: the
   // recording is too weak, and only another recording helps.
   std::vector<std::string> motion;
@@ -310,16 +311,17 @@ void printRemedy(const Arguments& args, const deep_ois::CalibrationBag& bag,
   if (result.refused.gyro_bias && !stated.gyro_bias_rad_s)
     motion.push_back("more seconds of turning, for the bias (or --no-bias when the gyro is already bias-corrected)");
   if (!motion.empty()) {
+    // (After a flag to hold, recording again is the alternative.)
     const std::vector<double>& stamps = bag.data.frame_stamps_s;
     const double seconds = stamps.size() > 1 ? stamps.back() - stamps.front() : 0.0;
     std::string joined;
     for (std::size_t i = 0; i < motion.size(); ++i) joined += (i ? "; " : "") + motion[i];
     std::fprintf(stderr,
-                 "  remedy: record again (this recording: %.1f s of frames, gyro RMS %.3f %.3f %.3f rad/s about its "
+                 "  remedy: %srecord again (this recording: %.1f s of frames, gyro RMS %.3f %.3f %.3f rad/s about its "
                  "principal axes): 10 s or more of brisk turns, about 0.4 rad/s each, facing a scene 4 m away or "
                  "more, with %s (docs/calibration.md, the calibration protocol)\n",
-                 seconds, result.rate_rms_rad_s(0), result.rate_rms_rad_s(1), result.rate_rms_rad_s(2),
-                 joined.c_str());
+                 flags.empty() && missing.empty() ? "" : "or ", seconds, result.rate_rms_rad_s(0),
+                 result.rate_rms_rad_s(1), result.rate_rms_rad_s(2), joined.c_str());
   }
 }
 
@@ -481,7 +483,13 @@ int main(int argc, char** argv) {
   Arguments args;
   if (const std::optional<int> status = parseArguments(argc, argv, &args)) return *status;
   try {
-    readPriors(args);
+    try {
+      readPriors(args);
+    } catch (const std::exception& e) {
+      // With --gyro-config none the file beside the bag only names values in a remedy.
+      if (args.apply_priors) throw;
+      args.priors = deep_ois::CalibrationPriors();
+    }
     double reading_s = 0.0;
     const deep_ois::CalibrationBag bag = readBag(args, &reading_s);
     if (args.rotation_text == "tf") {
