@@ -4,13 +4,17 @@
 // Flags: --help.
 //
 // --readout / --time-offset / --rotation hold that quantity at the given value instead of
-// estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. --ois on removes a
+// estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. The recording's
+// gyro flow parameters (--gyro-config; by default the OUT.gyro_flow.yaml convert_recording writes
+// beside the bag) give the logged readout, the mount and the bias as priors: each is held, with its
+// 1-sigma, only when the recording cannot determine it (core/calibration/calibration_priors.h). --ois on removes a
 // per-frame lens shift (for cameras with an optical image stabilizer); such a camera needs the
 // calibration protocol recording (docs/calibration.md, "Recording (the calibration protocol)": 10 s
 // or more of brisk turns about all three axes, roll included, facing a scene 4 m away or more).
 // Exit status: 0 written, 1 refused (motion too weak; nothing written) or failed, 2 usage.
 #include <Eigen/Geometry>
 #include <chrono>
+#include <fstream>
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
@@ -21,11 +25,13 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/calibration/calibration_priors.h"
 #include "deep_ois/core/calibration/calibration_yaml.h"
 #include "deep_ois/core/calibration/lens_shift_log_calibration.h"
 #include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/ros/bag/bag_frame_reader.h"
 #include "deep_ois/ros/bag/calibration_bag_reader.h"
+#include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/progress_bar.h"
 
@@ -39,6 +45,10 @@ constexpr char kDescription[] =
     "sequence (no target). Writes the gyro flow nodelet's parameters and prints the equivalent "
     "static transform. --readout / --time-offset / --rotation hold that quantity at the given "
     "value instead of estimating it (tf = the bag's /tf_static); --no-bias holds the bias at zero. "
+    "The recording's gyro flow parameters (--gyro-config, by default the OUT.gyro_flow.yaml that "
+    "convert_recording writes beside the bag) give the logged readout, the mount and the gyro bias "
+    "as priors: each is held at its stated value only when the recording cannot determine it, and "
+    "the output says which values came from that file and which from the data. "
     "--ois on removes a per-frame lens shift (for cameras with an optical image stabilizer); such "
     "a camera needs the calibration protocol recording (docs/calibration.md, \"Recording (the "
     "calibration protocol)\": 10 s or more of brisk turns about all three axes, roll included, "
@@ -46,6 +56,12 @@ constexpr char kDescription[] =
 
 struct Arguments {
   std::string bag_path, out_path, rotation_text, ois = "off";
+  // --gyro-config as given ("none" = no priors), and the file the priors are read from (with
+  // "none", the file beside the bag, read only to name its values in a refusal's remedy).
+  std::string gyro_config, gyro_config_used;
+  bool apply_priors = true;
+  double prior_mount_sigma_deg = 1.0;
+  deep_ois::CalibrationPriors priors;
   bool quiet = false, no_bias = false, lens_shift = false;
   deep_ois::LensShiftLogCalibrationOptions lens_options;
   deep_ois::CalibrationBagOptions bag_options;
@@ -99,6 +115,20 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
           ""))
       ->type_name("tf|r00,r01,...,r22");
   app.add_flag("--no-bias", args->no_bias, "hold the gyro bias at zero");
+  app.add_option("--gyro-config", args->gyro_config,
+                 "the recording's gyro flow parameters (readout_time, imu_to_camera_rotation, gyro_bias): "
+                 "priors, held only when the recording cannot determine them; none = no priors")
+      ->default_str("IN.gyro_flow.yaml beside the bag, when it exists")
+      ->type_name("FILE|none");
+  command_line
+      .addNumber("--prior-readout-sigma", args->priors.readout_time_sigma_s,
+                 "1-sigma of the gyro config's readout, seconds (default: the readout's acceptance limit)")
+      ->type_name("SECONDS");
+  command_line
+      .addNumber("--prior-mount-sigma", args->prior_mount_sigma_deg,
+                 "1-sigma of the gyro config's mount per camera axis, degrees")
+      ->capture_default_str()
+      ->type_name("DEGREES");
   app.add_flag("--lens-shift", args->lens_shift,
                "also estimate the camera's lens-shift log convention (clock offset, scale, axis "
                "swap, signs) against the images; the bag needs the log (docs/lens_shift_logs.md)");
@@ -138,7 +168,50 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
   }
   const std::string problem = options.validate();
   if (!problem.empty()) return command_line.usageError(problem);
+  args->priors.rotation_sigma_rad = args->prior_mount_sigma_deg / kRadToDeg;
+  args->apply_priors = args->gyro_config != "none";
+  if (args->gyro_config.empty() || args->gyro_config == "none") {
+    const std::string& bag = args->bag_path;
+    const std::string beside =
+        (bag.size() > 4 && bag.compare(bag.size() - 4, 4, ".bag") == 0 ? bag.substr(0, bag.size() - 4) : bag) +
+        ".gyro_flow.yaml";
+    if (std::ifstream(beside).good()) args->gyro_config_used = beside;
+  } else if (args->gyro_config != "none") {
+    if (!std::ifstream(args->gyro_config).good())
+      return command_line.usageError("--gyro-config " + args->gyro_config + ": cannot read the file");
+    args->gyro_config_used = args->gyro_config;
+  }
+  const std::string priors_problem = args->priors.validate();
+  if (!priors_problem.empty()) return command_line.usageError(priors_problem);
   return std::nullopt;
+}
+
+// The priors the gyro config states (nothing without one). Throws naming the file and key.
+void readPriors(Arguments& args) {
+  if (args.gyro_config_used.empty()) return;
+  const deep_ois::YamlParameters yaml(args.gyro_config_used);
+  deep_ois::CalibrationPriors& priors = args.priors;
+  priors.source = args.gyro_config_used;
+  double readout_s = 0.0;
+  if (yaml.get("readout_time", readout_s)) priors.readout_time_s = readout_s;
+  std::vector<double> rotation;
+  if (yaml.get("imu_to_camera_rotation", rotation) && !rotation.empty()) {
+    if (rotation.size() != 9)
+      throw std::invalid_argument(yaml.describe("imu_to_camera_rotation") + ": needs 9 numbers (row-major R_cam_imu)");
+    Eigen::Matrix3d R;
+    for (int i = 0; i < 9; ++i) R(i / 3, i % 3) = rotation[static_cast<std::size_t>(i)];
+    priors.imu_to_camera_rotation = R;
+  }
+  // The bias the gyro flow would subtract with this file: none unless it says so (a phone
+  // logger's gyro already has the phone's drift estimate removed).
+  std::vector<double> bias;
+  priors.gyro_bias_rad_s = Eigen::Vector3d::Zero();
+  if (yaml.get("gyro_bias", bias) && !bias.empty()) {
+    if (bias.size() != 3) throw std::invalid_argument(yaml.describe("gyro_bias") + ": needs 3 numbers (rad/s)");
+    priors.gyro_bias_rad_s = Eigen::Vector3d(bias[0], bias[1], bias[2]);
+  }
+  const std::string problem = priors.validate();
+  if (!problem.empty()) throw std::invalid_argument(args.gyro_config_used + ": " + problem);
 }
 
 // The frames tracked and the gyro, with a progress bar; `reading_s` the time it took.
@@ -158,10 +231,105 @@ deep_ois::CalibrationBag readBag(const Arguments& args, double* reading_s) {
   return bag;
 }
 
+std::string rotationFlag(const Eigen::Matrix3d& R) {
+  std::ostringstream flag;
+  flag << std::setprecision(9) << "--rotation ";
+  for (int i = 0; i < 9; ++i) flag << (i ? "," : "") << (std::abs(R(i / 3, i % 3)) < 1e-12 ? 0.0 : R(i / 3, i % 3));
+  return flag.str();
+}
+
+// Where a printed value came from.
+std::string sourceText(deep_ois::CalibrationValueSource source, const std::string& flag, const Arguments& args) {
+  switch (source) {
+    case deep_ois::CalibrationValueSource::kData: return " (from the data)";
+    case deep_ois::CalibrationValueSource::kPrior: return " (from " + args.gyro_config_used + ", held)";
+    case deep_ois::CalibrationValueSource::kCaller: return " (held: " + flag + ")";
+  }
+  return "";
+}
+
+// What would let a refused calibration through: the flags that hold the values the gyro config
+// states (or, without one, which values to find), and the motion to record when the data is too
+// weak for what no file states.
+void printRemedy(const Arguments& args, const deep_ois::CalibrationBag& bag,
+                 const deep_ois::PriorCalibration& calibration) {
+  const deep_ois::CalibrationResult& result = calibration.result;
+  const deep_ois::CalibrationOptions& options = calibration.options;
+  const deep_ois::CalibrationPriors& stated = args.priors;
+  const std::string file = args.gyro_config_used.empty() ? "" : args.gyro_config_used;
+  std::vector<std::string> flags, missing;
+  std::ostringstream flag;
+  flag << std::setprecision(9);
+  if (result.refused.readout_time && options.estimate_readout_time) {
+    if (stated.readout_time_s) {
+      flag << "--readout " << *stated.readout_time_s;
+      flags.push_back(flag.str());
+    } else {
+      missing.push_back("--readout SECONDS (the sensor's rolling-shutter readout; convert_recording writes a phone "
+                        "logger's to OUT.gyro_flow.yaml, which calibrate reads with --gyro-config)");
+    }
+  }
+  if (result.refused.rotation && options.estimate_rotation) {
+    if (stated.imu_to_camera_rotation) {
+      flags.push_back(rotationFlag(*stated.imu_to_camera_rotation));
+    } else if (result.nearest_permutation_index >= 0 || result.coarse_permutation_index >= 0) {
+      const int index = result.nearest_permutation_index >= 0 ? result.nearest_permutation_index
+                                                              : result.coarse_permutation_index;
+      missing.push_back(rotationFlag(deep_ois::signedAxisPermutations()[static_cast<std::size_t>(index)]) +
+                        " (the axis permutation the recording's search picks, if the IMU is mounted along the "
+                        "camera's axes)");
+    } else {
+      missing.push_back("--rotation r00,...,r22 (R_cam_imu, e.g. from CAD or a recording with more rotation)");
+    }
+  }
+  if (result.refused.gyro_bias && options.estimate_gyro_bias && stated.gyro_bias_rad_s) {
+    flags.push_back(stated.gyro_bias_rad_s->isZero() ? std::string("--no-bias")
+                                                     : "--no-bias (and gyro_bias as " + file + " states)");
+  }
+  const bool applied_all = args.apply_priors && !file.empty();
+  if (!flags.empty()) {
+    std::string joined;
+    for (const std::string& f : flags) joined += " " + f;
+    std::fprintf(stderr, "  remedy: hold %s:\n    rosrun deep_ois calibrate --bag %s --out %s%s%s\n",
+                 file.empty() ? "what you know" : ("what " + file + " states").c_str(), args.bag_path.c_str(),
+                 args.out_path.c_str(), joined.c_str(),
+                 applied_all ? "" : (file.empty() ? "" : "  (or drop --gyro-config none)"));
+  }
+  for (const std::string& m : missing)
+    std::fprintf(stderr, "  remedy: %s %s\n", flags.empty() ? "hold" : "or hold", m.c_str());
+  // What no file states (the time offset), or what is refused with every stated value held: the
+  // recording is too weak, and only another recording helps.
+  std::vector<std::string> motion;
+  if (result.refused.motion) motion.push_back("turns about all three camera axes (none of this one's is enough)");
+  if (result.refused.time_offset)
+    motion.push_back("rates that change within fractions of a second, for the time offset (back-and-forth turns, "
+                     "a few per second, about any axis)");
+  if (result.refused.readout_time && !stated.readout_time_s)
+    motion.push_back("vertical image motion, for the readout (tilt about the camera x axis, roll about the lens)");
+  if (result.refused.rotation && !stated.imu_to_camera_rotation)
+    motion.push_back("turns about all three camera axes, for the mount");
+  if (result.refused.gyro_bias && !stated.gyro_bias_rad_s)
+    motion.push_back("more seconds of turning, for the bias (or --no-bias when the gyro is already bias-corrected)");
+  if (!motion.empty()) {
+    // (After a flag to hold, recording again is the alternative.)
+    const std::vector<double>& stamps = bag.data.frame_stamps_s;
+    const double seconds = stamps.size() > 1 ? stamps.back() - stamps.front() : 0.0;
+    std::string joined;
+    for (std::size_t i = 0; i < motion.size(); ++i) joined += (i ? "; " : "") + motion[i];
+    std::fprintf(stderr,
+                 "  remedy: %srecord again (this recording: %.1f s of frames, gyro RMS %.3f %.3f %.3f rad/s about its "
+                 "principal axes): 10 s or more of brisk turns, about 0.4 rad/s each, facing a scene 4 m away or "
+                 "more, with %s (docs/calibration.md, the calibration protocol)\n",
+                 flags.empty() && missing.empty() ? "" : "or ", seconds, result.rate_rms_rad_s(0),
+                 result.rate_rms_rad_s(1), result.rate_rms_rad_s(2), joined.c_str());
+  }
+}
+
 // Only the refusal and the figures that led to it: a refused estimate's values (placeholders when
 // the refinement never ran) are not results.
 void printRefusal(const Arguments& args, const deep_ois::CalibrationBag& bag,
-                  const deep_ois::CalibrationResult& result) {
+                  const deep_ois::PriorCalibration& calibration) {
+  const deep_ois::CalibrationResult& result = calibration.result;
   std::fprintf(stderr, "calibrate: refused, %s not written:\n", args.out_path.c_str());
   for (const std::string& refusal : result.refusals) std::fprintf(stderr, "  - %s\n", refusal.c_str());
   std::fprintf(stderr, "  figures: %s: %zu frames, %zu frame pairs tracked", args.bag_path.c_str(), bag.frames,
@@ -179,17 +347,25 @@ void printRefusal(const Arguments& args, const deep_ois::CalibrationBag& bag,
   }
   std::fprintf(stderr, "\n");
   for (const std::string& note : result.notes) std::fprintf(stderr, "  note: %s\n", note.c_str());
+  for (const std::string& decision : calibration.decisions) std::fprintf(stderr, "  prior: %s\n", decision.c_str());
+  printRemedy(args, bag, calibration);
 }
 
-// The estimate, its 1-sigma and how it was reached.
+// The estimate, its 1-sigma, where each value came from and how it was reached.
 void printCalibration(const Arguments& args, const deep_ois::CalibrationBag& bag,
-                      const deep_ois::CalibrationResult& result, double reading_s) {
+                      const deep_ois::PriorCalibration& calibration, double reading_s) {
+  const deep_ois::CalibrationResult& result = calibration.result;
   const deep_ois::CalibrationOptions& options = args.options;
   const deep_ois::CameraImuCalibration& c = result.calibration;
   std::printf(
       "calibrate: %s: %zu frames, %d of %zu pairs used, %d tracks; lens shift handling %s\n",
       args.bag_path.c_str(), bag.frames, result.pairs_used, bag.data.pairs.size(), result.tracks_used,
       deep_ois::toString(options.lens_shift));
+  if (!args.gyro_config_used.empty() && args.apply_priors) {
+    std::printf("  priors from %s:%s%s%s (each held only when the data cannot determine it)\n",
+                args.gyro_config_used.c_str(), args.priors.readout_time_s ? " readout" : "",
+                args.priors.imu_to_camera_rotation ? " mount" : "", args.priors.gyro_bias_rad_s ? " gyro bias" : "");
+  }
   std::printf("  gyro RMS about its principal axes: %.3f %.3f %.3f rad/s\n",
               result.rate_rms_rad_s(0), result.rate_rms_rad_s(1), result.rate_rms_rad_s(2));
   std::printf("  coarse stage: time offset %.1f ms, mount %s; median residual %.3f px\n",
@@ -202,25 +378,27 @@ void printCalibration(const Arguments& args, const deep_ois::CalibrationBag& bag
               result.converged ? "converged" : "iteration cap reached, NOT converged", result.median_residual_px,
               100.0 * result.inlier_fraction);
   // The 1-sigma printed is the honest one (statistical, inflated, plus the systematic part that
-  // every recording shares); the statistical part in brackets is what the refusals judge.
+  // every recording shares, plus what the held values' own 1-sigma moves it by); the statistical
+  // part in brackets is what the refusals judge.
   std::printf("  time offset     %+9.3f ms  +- %.3f ms (statistical %.3f)%s\n", c.time_offset_s * 1e3,
               c.time_offset_sigma_s * 1e3, result.statistical.time_offset_s * 1e3,
-              options.estimate_time_offset ? "" : " (held)");
+              sourceText(calibration.time_offset, "--time-offset", args).c_str());
   std::printf("  readout time    %9.3f ms  +- %.3f ms (statistical %.3f)%s\n", c.readout_time_s * 1e3,
               c.readout_time_sigma_s * 1e3, result.statistical.readout_time_s * 1e3,
-              options.estimate_readout_time ? "" : " (held)");
+              sourceText(calibration.readout_time, "--readout", args).c_str());
   std::printf("  gyro bias       [%+.5f %+.5f %+.5f] rad/s  +- %.5f%s\n", c.gyro_bias_rad_s(0),
               c.gyro_bias_rad_s(1), c.gyro_bias_rad_s(2), c.gyro_bias_sigma_rad_s.maxCoeff(),
-              options.estimate_gyro_bias ? "" : " (held)");
+              sourceText(calibration.gyro_bias, "--no-bias", args).c_str());
   std::printf("  R_cam_imu       +- (%.3f %.3f %.3f) deg about camera x y z (statistical %.3f %.3f %.3f)%s\n",
               c.rotation_sigma_rad(0) * kRadToDeg, c.rotation_sigma_rad(1) * kRadToDeg,
               c.rotation_sigma_rad(2) * kRadToDeg, result.statistical.rotation_rad(0) * kRadToDeg,
               result.statistical.rotation_rad(1) * kRadToDeg, result.statistical.rotation_rad(2) * kRadToDeg,
-              options.estimate_rotation ? "" : " (held)");
+              sourceText(calibration.rotation, "--rotation", args).c_str());
   // A readout this close to 0 is usually a global shutter, whose readout is known: estimated
   // from a recording with little motion, the offset and readout can slide together along
   // their ridge by a millisecond at a 1-sigma of 0.2-0.3 ms (docs/calibration_uncertainty.md).
   for (const std::string& note : result.notes) std::printf("  note: %s\n", note.c_str());
+  for (const std::string& decision : calibration.decisions) std::printf("  prior: %s\n", decision.c_str());
   printMatrix(c.imu_to_camera_rotation);
   if (result.nearest_permutation_index >= 0) {
     std::printf("  the mount is %.2f deg from the nearest axis permutation (#%d)\n", result.mount_from_permutation_deg,
@@ -232,8 +410,8 @@ void printCalibration(const Arguments& args, const deep_ois::CalibrationBag& bag
         deep_ois::rotationAngleBetween(*bag.tf_imu_to_camera_rotation, c.imu_to_camera_rotation) *
             kRadToDeg);
   }
-  std::printf("  time: %.2f s reading and tracking (%.2f s KLT), %.2f s estimating\n", reading_s,
-              bag.tracking_seconds, result.seconds);
+  std::printf("  time: %.2f s reading and tracking (%.2f s KLT), %.2f s estimating (%d calibrations)\n", reading_s,
+              bag.tracking_seconds, calibration.seconds, calibration.calibrations);
 }
 
 // --lens-shift: the log's convention against the images, as YAML lines to append; nothing when
@@ -268,8 +446,26 @@ std::optional<std::string> calibrateLensLog(const Arguments& args, const deep_oi
 
 // The gyro flow parameters file, and the static transform that says the same mount.
 void writeCalibration(const Arguments& args, const deep_ois::CalibrationBag& bag,
-                      const deep_ois::CalibrationResult& result, const std::string& lens_yaml) {
+                      const deep_ois::PriorCalibration& calibration, const std::string& lens_yaml) {
+  const deep_ois::CalibrationResult& result = calibration.result;
   deep_ois::CalibrationProvenance provenance;
+  // Which value came from where, by parameter name.
+  std::string from_data, from_file, held;
+  auto add = [&](deep_ois::CalibrationValueSource source, const char* name) {
+    std::string& list = source == deep_ois::CalibrationValueSource::kData    ? from_data
+                        : source == deep_ois::CalibrationValueSource::kPrior ? from_file
+                                                                              : held;
+    list += (list.empty() ? "" : ", ") + std::string(name);
+  };
+  add(calibration.time_offset, "time_offset");
+  add(calibration.readout_time, "readout_time");
+  add(calibration.gyro_bias, "gyro_bias");
+  add(calibration.rotation, "imu_to_camera_rotation");
+  if (!from_data.empty()) provenance.notes.push_back("from the data: " + from_data);
+  if (!from_file.empty())
+    provenance.notes.push_back("from " + args.gyro_config_used + " (the recording cannot determine them): " + from_file);
+  if (!held.empty()) provenance.notes.push_back("held by the command line: " + held);
+  for (const std::string& decision : calibration.decisions) provenance.notes.push_back(decision);
   provenance.source = args.bag_path;
   provenance.imu_frame_id = bag.imu_frame_id;
   provenance.camera_frame_id = bag.camera_frame_id;
@@ -287,6 +483,13 @@ int main(int argc, char** argv) {
   Arguments args;
   if (const std::optional<int> status = parseArguments(argc, argv, &args)) return *status;
   try {
+    try {
+      readPriors(args);
+    } catch (const std::exception& e) {
+      // With --gyro-config none the file beside the bag only names values in a remedy.
+      if (args.apply_priors) throw;
+      args.priors = deep_ois::CalibrationPriors();
+    }
     double reading_s = 0.0;
     const deep_ois::CalibrationBag bag = readBag(args, &reading_s);
     if (args.rotation_text == "tf") {
@@ -296,19 +499,21 @@ int main(int argc, char** argv) {
       }
       args.options.imu_to_camera_rotation = *bag.tf_imu_to_camera_rotation;
     }
-    const deep_ois::CalibrationResult result = deep_ois::calibrateCameraImu(bag.data, args.options);
+    const deep_ois::PriorCalibration calibration = deep_ois::calibrateWithPriors(
+        bag.data, args.options, args.apply_priors ? args.priors : deep_ois::CalibrationPriors());
+    const deep_ois::CalibrationResult& result = calibration.result;
     if (!result.ok()) {
-      printRefusal(args, bag, result);
+      printRefusal(args, bag, calibration);
       return 1;
     }
-    printCalibration(args, bag, result, reading_s);
+    printCalibration(args, bag, calibration, reading_s);
     std::string lens_yaml;
     if (args.lens_shift) {
       const std::optional<std::string> lens = calibrateLensLog(args, bag, result.calibration);
       if (!lens) return 1;
       lens_yaml = *lens;
     }
-    writeCalibration(args, bag, result, lens_yaml);
+    writeCalibration(args, bag, calibration, lens_yaml);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "calibrate: %s\n", e.what());

@@ -48,6 +48,7 @@ std::string calibrationYaml(const CalibrationResult& result, const CalibrationPr
       << " ms, rotation (" << c.rotation_sigma_rad(0) * kRadToDeg << ", " << c.rotation_sigma_rad(1) * kRadToDeg
       << ", " << c.rotation_sigma_rad(2) * kRadToDeg << ") deg about camera x, y, z, bias " << std::scientific
       << std::setprecision(1) << c.gyro_bias_sigma_rad_s.maxCoeff() << " rad/s\n";
+  for (const std::string& note : provenance.notes) out << "# " << note << "\n";
   if (!result.ok()) out << "# REFUSED (do not use): " << result.reason() << "\n";
   out << std::setprecision(15) << std::defaultfloat;
   out << "# Seconds from the start of readout of the first row to that of the last row.\n"

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "deep_ois/core/calibration/camera_imu_calibration.h"
 
@@ -16,6 +17,8 @@ struct CalibrationProvenance {
   std::string imu_frame_id;      // for the static transform line
   std::string camera_frame_id;
   LensShiftHandling lens_shift = LensShiftHandling::kNone;
+  // Further comment lines, e.g. which values came from the data and which from the metadata.
+  std::vector<std::string> notes;
 };
 
 // The YAML text: the four parameters, with the uncertainties, diagnostics and the static

@@ -11,7 +11,7 @@
 // Every point has its own capture times, so the residual is exact for any rolling shutter, not a
 // per-patch approximation.
 //
-// Stages:
+// Stages (camera_imu_calibration_stages.h, the model in calibration_reprojection_problem.h):
 //  1. Coarse, global (camera_imu_coarse_alignment.h): a rotation fitted to each pair's tracks is
 //     compared with the gyro rotation over a grid of time offsets and all 24 signed axis
 //     permutations; the best cell, refined by Procrustes, starts stage 2. No initial guess needed.
@@ -92,6 +92,14 @@ struct CalibrationOptions {
   double readout_time_s = -1.0;
   Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();  // IMU frame
   Eigen::Matrix3d imu_to_camera_rotation = Eigen::Matrix3d::Identity();  // R_cam_imu
+  // 1-sigma of each held value (0 = exact; ignored while the quantity is estimated): a value
+  // known to within +-s, e.g. a phone's logged readout. The held quantity reports it as its
+  // 1-sigma, and every estimated quantity adds in quadrature what s moves it by (to first order,
+  // through the normal equations). It does not enter the statistical sigma the refusals judge.
+  double held_time_offset_sigma_s = 0.0;
+  double held_readout_time_sigma_s = 0.0;
+  double held_gyro_bias_sigma_rad_s = 0.0;  // per IMU axis
+  double held_rotation_sigma_rad = 0.0;     // per camera axis
 
   LensShiftHandling lens_shift = LensShiftHandling::kNone;
   // Remove the parallax of camera translation (fixed lens only): per pair a translation direction
@@ -175,9 +183,10 @@ struct CameraImuCalibration {
   double readout_time_s = 0.0;
   Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();               // IMU frame
   Eigen::Matrix3d imu_to_camera_rotation = Eigen::Matrix3d::Identity();  // R_cam_imu
-  // 1-sigma uncertainties (0 for a held quantity): the statistical one (CalibrationResult::
-  // statistical) inflated and the systematic one added in quadrature (CalibrationOptions::
-  // statistical_sigma_factor). On the simulator benchmark they cover the actual error of >= 90 %
+  // 1-sigma uncertainties (a held quantity: CalibrationOptions::held_*_sigma, 0 by default): the
+  // statistical one (CalibrationResult::statistical) inflated, the systematic one and what the
+  // held values' 1-sigma move it by added in quadrature (CalibrationOptions::
+  // statistical_sigma_factor, held_*_sigma). On the simulator benchmark they cover the actual error of >= 90 %
   // of the estimates, per quantity. The rotation's
   // is about the camera's x, y, z axes (a small rotation exp(e) R_cam_imu with e in the camera
   // frame).
@@ -196,6 +205,14 @@ struct CalibrationResult {
   CalibrationStatus status = CalibrationStatus::kOk;
   // One sentence per refused quantity: what is missing and what to do about it.
   std::vector<std::string> refusals;
+  // Which quantities the refusals name, for a caller that can hold one at a known value.
+  struct Refused {
+    bool motion = false;  // too little motion for any quantity
+    bool time_offset = false;
+    bool readout_time = false;
+    bool gyro_bias = false;
+    bool rotation = false;  // its 1-sigma, rotation about one axis only, or a mount off its permutation
+  } refused;
   // Sentences on how the reported intervals were formed beyond the usual (e.g. the readout bound).
   std::vector<std::string> notes;
   // The estimate (filled even when refused, for diagnosis; do not use a refused quantity).
