@@ -116,8 +116,11 @@ Replay replay(const deep_ois::sim::SyntheticTrackRecording& recording, deep_ois:
   return out;
 }
 
+double g_cpu_share = deep_ois::OnlineCalibrationOptions().cpu_share;
+
 deep_ois::OnlineCalibrationOptions onlineOptions(bool ois, bool mount_known) {
   deep_ois::OnlineCalibrationOptions options;
+  options.cpu_share = g_cpu_share;
   options.lens_shift = ois ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
   options.estimate_rotation = !mount_known;
   return options;
@@ -166,11 +169,12 @@ void wrongStartScenario(const std::string& label, const deep_ois::sim::Synthetic
     }
   });
   const deep_ois::OnlineCalibrationStatus& status = estimator.status();
-  std::printf("\n%s: state %s, %zu fits (%zu rejected, %zu needing motion), %zu swaps (%zu refinements), %zu "
-              "jumps; CPU %.1f %% of one core (%.1f s over %.0f s); estimate offset %.3f +- %.3f ms, readout %.3f "
-              "+- %.3f ms\n",
+  std::printf("\n%s: state %s, %zu fits (%zu rejected, %zu needing motion, %zu waited for the budget), %zu swaps "
+              "(%zu refinements), %zu jumps; CPU %.1f %% of one core (%.1f s over %.0f s); estimate offset %.3f +- "
+              "%.3f ms, readout %.3f +- %.3f ms\n",
               label.c_str(), status.state.c_str(), status.fits, status.fits_rejected, status.fits_needing_motion,
-              status.swaps, status.refinements, status.jumps, 100.0 * result.cpu_s / recording.pairs.back().stamp_b_s,
+              status.fits_over_budget, status.swaps, status.refinements, status.jumps,
+              100.0 * result.cpu_s / recording.pairs.back().stamp_b_s,
               result.cpu_s, recording.pairs.back().stamp_b_s, status.estimate.time_offset_s * 1e3,
               status.estimate.time_offset_sigma_s * 1e3, status.estimate.readout_time_s * 1e3,
               status.estimate.readout_time_sigma_s * 1e3);
@@ -205,6 +209,8 @@ int main(int argc, char** argv) {
   app.add_option("--ois", ois, "on, off or both")->capture_default_str()->check(deep_ois::oneOf({"on", "off", "both"}));
   command_line.addNumber("--duration", duration_s, "seconds per recording")->check(deep_ois::atLeast(10.0));
   command_line.addNumber("--window", window_s, "seconds per row of the wrong-start table")->check(deep_ois::atLeast(1.0));
+  command_line.addNumber("--cpu-share", g_cpu_share, "the calibration's CPU budget, share of one core on the stream's clock (0: none)")
+      ->check(deep_ois::atLeast(0.0));
   command_line.addNumber("--seed", seed, "the first recording's seed (+1 per camera)");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 

@@ -8,6 +8,7 @@
 #include <map>
 #include <sstream>
 #include <stdexcept>
+#include <time.h>
 
 #include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/core/common/so3_and_statistics.h"
@@ -21,6 +22,12 @@ constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 // Seconds of gyro kept before the oldest buffered pair (the coarse search and the integrator's
 // start need some on both sides).
 constexpr double kGyroMarginS = 0.3;
+
+double threadCpuS() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
 
 std::string milliseconds(double seconds) {
   std::ostringstream out;
@@ -59,6 +66,8 @@ std::string OnlineCalibrationOptions::validate() const {
              !std::isfinite(offset_random_walk_s_per_sqrt_s + rate_random_walk_per_sqrt_s + initial_rate_sigma +
                             readout_drift_s_per_s + bias_drift_rad_s_per_s)) {
     why << "the random walks, initial_rate_sigma and the *_drift_*_per_s rates must be finite and >= 0";
+  } else if (!(cpu_share >= 0.0 && cpu_share <= 1.0)) {
+    why << "cpu_share must be in [0, 1] (got " << cpu_share << ")";
   } else if (rotation_every < 1) {
     why << "rotation_every must be at least 1 (got " << rotation_every << ")";
   } else if (!(refine_sigmas > 0.0)) {
@@ -108,7 +117,14 @@ void OnlineCalibrationEstimator::addGyro(const ImuSample& sample) {
 void OnlineCalibrationEstimator::addPair(OnlineCalibrationPair pair) {
   if (!std::isfinite(pair.stamp_a_s) || !std::isfinite(pair.stamp_b_s) || !(pair.stamp_b_s > pair.stamp_a_s)) return;
   if (pair.stamp_a_s < last_pair_stamp_s_) return;
-  if (last_pair_stamp_s_ > -1e299) new_pairs_s_ += pair.stamp_b_s - std::max(last_pair_stamp_s_, pair.stamp_a_s);
+  if (last_pair_stamp_s_ > -1e299) {
+    const double elapsed_s = pair.stamp_b_s - std::max(last_pair_stamp_s_, pair.stamp_a_s);
+    new_pairs_s_ += elapsed_s;
+    status_.stream_s += elapsed_s;
+    if (options_.cpu_share > 0.0) {
+      credit_s_ = std::min(credit_s_ + options_.cpu_share * elapsed_s, options_.cpu_share * 10.0);
+    }
+  }
   last_pair_stamp_s_ = pair.stamp_b_s;
   ++status_.pairs;
   const int limit = options_.max_tracks_per_pair;
@@ -150,14 +166,32 @@ bool OnlineCalibrationEstimator::due() const {
   const double needed_s = last_pair_stamp_s_ + status_.estimate.time_offset_s + options_.first_search_s + 0.05;
   if (gyroEnd() < needed_s) return false;
   if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) return true;
-  return new_pairs_s_ >= options_.refit_every_s;
+  return new_pairs_s_ >= options_.refit_every_s && withinBudget();
+}
+
+bool OnlineCalibrationEstimator::withinBudget() const {
+  return !(options_.cpu_share > 0.0) || credit_s_ >= last_work_cpu_s_;
 }
 
 bool OnlineCalibrationEstimator::update() {
+  if (new_pairs_s_ >= options_.refit_every_s && !withinBudget() && !budget_said_) {
+    ++status_.fits_over_budget;
+    budget_said_ = true;  // counted once per delayed fit
+  }
   if (!due()) return false;
   const std::uint64_t before = status_.version;
+  const double started = threadCpuS();
   if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) scoreCandidate();
-  if (new_pairs_s_ >= options_.refit_every_s) fit();
+  bool fitted = false;
+  if (new_pairs_s_ >= options_.refit_every_s && withinBudget()) {
+    fit();
+    fitted = true;
+    budget_said_ = false;
+  }
+  const double cpu_s = threadCpuS() - started;
+  status_.cpu_s += cpu_s;
+  if (options_.cpu_share > 0.0) credit_s_ -= cpu_s;
+  if (fitted) last_work_cpu_s_ = cpu_s;
   return status_.version != before;
 }
 
@@ -260,7 +294,7 @@ void OnlineCalibrationEstimator::fit() {
     status_.last_reason = std::string("needs motion: ") + error.what();
     return;
   }
-  status_.last_fit_cpu_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  status_.last_fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   for (const std::string& refusal : result.refusals) {
     if (refusal.rfind("motion:", 0) == 0) {
       ++status_.fits_needing_motion;

@@ -51,6 +51,11 @@ struct OnlineCalibrationOptions {
   double refit_every_s = 1.5;  // seconds of new pairs between fits
   double held_out_s = 1.5;     // seconds of pairs after a fit's window on which its candidate is scored
   int max_tracks_per_pair = 60;  // more tracks per pair are thinned evenly (cost)
+  // CPU budget, share of one core on the stream's clock (the pairs' stamps): a credit accrues at
+  // this share and each fit or score is charged its thread CPU time; a fit starts only when the
+  // credit covers what the last one cost (else it waits for later pairs: fits_over_budget). The
+  // credit saved is capped at 10 s of the share. 0 = no budget.
+  double cpu_share = 0.12;
   // The mount is unknown (search the 24 signed axis permutations until it is found) or held at
   // the starting calibration's rotation.
   bool estimate_rotation = true;
@@ -113,10 +118,13 @@ struct OnlineCalibrationStatus {
   int mount_permutation_index = -1;
   std::size_t pairs = 0, pairs_without_tracks = 0;
   std::size_t fits = 0, fits_needing_motion = 0, fits_rejected = 0, jumps = 0;
+  std::size_t fits_over_budget = 0;  // times a due fit waited for its CPU credit
+  double cpu_s = 0.0;                // thread CPU time of fits and scores so far, seconds
+  double stream_s = 0.0;             // seconds of pairs seen (the budget's clock)
   std::size_t candidates_scored = 0;
   std::size_t swaps = 0;        // in_use replaced (refinements included)
   std::size_t refinements = 0;  // of which: not clearly better, no worse, and outside the 3-sigma
-  double last_fit_cpu_s = 0.0;  // wall time of the last window's calibration, seconds
+  double last_fit_seconds = 0.0;  // wall time of the last window's calibration, seconds
   double held_out_in_use_px = 0.0, held_out_candidate_px = 0.0;  // the last comparison
   std::string last_reason;  // one sentence: what the last fit or comparison found
 };
@@ -169,6 +177,7 @@ class OnlineCalibrationEstimator {
   bool fuse(Filter& filter, double value, double sigma, double drift_per_s, double stamp_s, bool* jumped) const;
   CalibrationData windowData(double begin_s, double end_s, double offset_s) const;
   double gyroEnd() const;
+  bool withinBudget() const;
 
   OnlineCalibrationOptions options_;
   CameraModel camera_;
@@ -188,6 +197,9 @@ class OnlineCalibrationEstimator {
   CameraImuCalibration candidate_;
   double candidate_after_s_ = 0.0;
   OnlineCalibrationStatus status_;
+  double credit_s_ = 0.0;          // CPU seconds the budget allows now
+  double last_work_cpu_s_ = 0.0;   // what the last fit cost
+  bool budget_said_ = false;       // the due fit waiting for credit was counted
 };
 
 }  // namespace deep_ois
