@@ -2,6 +2,7 @@
 // offset, readout, bias and mount, a wrong start, drift, a jump, a still and a textureless camera.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <functional>
 #include <iostream>
@@ -9,6 +10,9 @@
 #include "deep_ois/core/calibration/rotation_alignment.h"
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/online/online_calibration_estimator.h"
+#include "deep_ois/core/online/online_calibration_feed.h"
+#include "deep_ois/core/online/online_stabiliser_learner.h"
+#include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/sim/synthetic_track_recording.h"
 
 namespace deep_ois {
@@ -291,6 +295,61 @@ TEST(OnlineCalibrationEstimator, StaysWithinItsCpuShare) {
   EXPECT_GT(status.fits, 0u);
   EXPECT_LT(status.cpu_s, online.cpu_share * status.stream_s + 0.5);
   EXPECT_LT(worst_excess_s, 0.5);  // one fit at most (a fit costs 0.1-0.4 s here)
+}
+
+// The live path: the learner's tracking thread hands every tracked pair to the estimator
+// (OnlineLearningOptions::on_tracked_pair + feedTrackedPair), the gyro as the gyro flow sends it
+// (camera frame, rotated with the wrong mount in use, IMU clock), all within the learner's budget.
+TEST(OnlineCalibrationEstimator, RunsOnTheLearnersTrackingThread) {
+  sim::SyntheticTrackOptions options;
+  options.duration_s = 20.0;
+  options.seed = 8;
+  const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(false), options);
+  const CameraImuCalibration start = wrongStart(recording);
+  OnlineCalibrationEstimator estimator(unbudgeted(), recording.camera, start);
+  std::atomic<double> clock_s{0.0};
+  OnlineLearningOptions learning;
+  learning.learning = false;  // checks only: the calibration is what runs here
+  learning.cpu_share = 1.0;
+  learning.budget_clock = [&clock_s] { return clock_s.load(); };
+  learning.on_tracked_pair = [&estimator](const OnlineFramePair& pair) { feedTrackedPair(pair, estimator); };
+  OnlineStabiliserLearner learner(learning, {{"no lens motion", noLensMotion()}}, 0);
+  std::size_t next_gyro = 0;
+  std::vector<CameraRateSample> recent;
+  for (const sim::SyntheticTrackPair& synthetic : recording.pairs) {
+    OnlineFramePair pair;
+    pair.stamp_a_s = synthetic.stamp_a_s;
+    pair.stamp_b_s = synthetic.stamp_b_s;
+    pair.timing.time_offset_s = start.time_offset_s;
+    pair.timing.readout_time_s = start.readout_time_s;
+    pair.timing.imu_to_camera_rotation = start.imu_to_camera_rotation;
+    pair.camera = recording.camera;
+    // The gyro flow's rates: raw samples rotated by the rotation in use, up to 0.2 s past frame b.
+    const double until_s = synthetic.stamp_b_s + recording.time_offset_s(synthetic.stamp_b_s) + 0.2;
+    while (next_gyro < recording.gyro.size() && recording.gyro[next_gyro].stamp_s <= until_s) {
+      const ImuSample& sample = recording.gyro[next_gyro++];
+      recent.push_back({sample.stamp_s, start.imu_to_camera_rotation * sample.angular_velocity_rad_s});
+    }
+    if (recent.size() > 400) recent.erase(recent.begin(), recent.end() - 400);
+    pair.rates = recent;
+    pair.matches = synthetic.matches;
+    pair.tracked = true;
+    clock_s = synthetic.stamp_b_s;
+    ASSERT_TRUE(learner.submit(std::move(pair)));
+    ASSERT_TRUE(learner.waitIdle(30.0));
+  }
+  const OnlineLearningStatus learning_status = learner.status();
+  const OnlineCalibrationStatus& status = estimator.status();
+  const CameraImuCalibration truth = truthAt(recording, 0.0);
+  say("through the learner, 20 s", status, truth);
+  std::cout << "[ measured ] learner: " << learning_status.pairs_submitted << " pairs submitted, "
+            << learning_status.pairs_over_budget << " skipped over budget, CPU " << learning_status.cpu_s << " s\n";
+  EXPECT_GT(status.pairs, recording.pairs.size() / 2);
+  EXPECT_EQ(status.mount_permutation_index, nearestSignedAxisPermutation(truth.imu_to_camera_rotation));
+  EXPECT_NEAR(status.in_use.time_offset_s, truth.time_offset_s, 0.75e-3);
+  EXPECT_NEAR(status.in_use.readout_time_s, truth.readout_time_s, 1e-3);
+  // The calibration's CPU is the learner's: charged to its budget with the tracking.
+  EXPECT_GE(learning_status.cpu_s, 0.8 * status.cpu_s);
 }
 
 TEST(OnlineCalibrationEstimator, BadInputIsNamed) {
