@@ -185,7 +185,7 @@ void wrongStartScenario(const std::string& label, const deep_ois::sim::Synthetic
 int main(int argc, char** argv) {
   deep_ois::ToolCommandLine command_line(
       "benchmark_online_calibration",
-      "Runs the live pipeline's online camera-IMU calibration on simulated hand-held recordings "
+      "Runs the online camera-IMU calibration (OnlineCalibrationEstimator) on simulated hand-held recordings "
       "(tracks from the simulator's geometry, no rendering) of several cameras, OIS on and off: from "
       "a wrong start (offset +15 ms, readout -8 ms, bias unknown, a wrong axis permutation) the "
       "calibration error and the alignment gap closed per window; a still camera; an offset drifting "
