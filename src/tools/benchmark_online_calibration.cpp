@@ -1,5 +1,5 @@
-// The online camera-IMU calibration (core/online/online_calibration_estimator.h, the class the
-// compensation nodelet runs) on simulated hand-held recordings of several cameras, OIS on and off,
+// The online camera-IMU calibration (core/online/online_calibration_estimator.h; the learner can
+// run it on its tracking thread, the compensation nodelet does not yet) on simulated hand-held recordings of several cameras, OIS on and off,
 // as point tracks from the simulator's geometry (no rendering; core/sim/synthetic_track_recording.h):
 //
 //   wrong-start: offset off by 15 ms, readout off by 8 ms, bias unknown, the mount a wrong axis
