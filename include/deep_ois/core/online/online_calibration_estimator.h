@@ -12,9 +12,9 @@
 //    there is one residual and one cost for both. The coarse search spans `first_search_s` around
 //    the calibration in use until a fit is accepted, then `search_s` around the estimate.
 //  - Each window's estimate is a measurement with its reported 1-sigma. A random-walk filter per
-//    quantity (offset, readout, bias per axis) fuses them: the variance grows by
-//    (drift rate x elapsed)^2 between windows, so old windows are forgotten at the pace a real
-//    offset drifts. A window that disagrees with the filter by more than `jump_sigmas` (offset or
+//    quantity (readout, bias per axis; the offset's below) fuses them: the variance grows by
+//    (drift rate x elapsed)^2 between windows, so old windows are forgotten at the pace the
+//    quantity may drift. A window that disagrees with the filter by more than `jump_sigmas` (offset or
 //    readout) is a jump (a camera app restarted): the filter restarts from that window.
 //  - The mount is searched over the 24 signed axis permutations until two consecutive accepted
 //    windows find the same permutation; from then on a window finding another permutation is not
@@ -173,7 +173,8 @@ class OnlineCalibrationEstimator {
   bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate) const;
   void fit();
   void scoreCandidate();
-  // Returns false and says why when the window is inconsistent with the filter (a jump).
+  // Kalman update of a random-walk filter; with `jumped`, a value further than jump_sigmas combined
+  // sigmas sets *jumped and changes nothing (returns false).
   bool fuse(Filter& filter, double value, double sigma, double drift_per_s, double stamp_s, bool* jumped) const;
   CalibrationData windowData(double begin_s, double end_s, double offset_s) const;
   double gyroEnd() const;
