@@ -37,6 +37,7 @@ set(NUMERIC_train_stabiliser "--iterations;3.5")
 set(NUMERIC_lens_log_fit "--split;6s")
 set(NUMERIC_predict_lens "--warm-up;1s")
 set(NUMERIC_benchmark_online_learning "--window;10s")
+set(NUMERIC_benchmark_online_calibration "--window;10s")
 
 set(failures "")
 set(checked 0)

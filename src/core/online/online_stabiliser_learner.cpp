@@ -388,6 +388,7 @@ void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
     }
     pair.tracked = true;
   }
+  if (options_.on_tracked_pair) options_.on_tracked_pair(pair);
 
   // ---- The check of the compensation published for this pair. ----
   if (!pair.model_homographies.empty()) {

@@ -61,6 +61,8 @@
 
 namespace deep_ois {
 
+struct OnlineFramePair;
+
 struct OnlineLearningOptions {
   bool learning = true;        // false: pairs are still checked (residual, fallback), nothing is fitted
   double window_s = 2.0;       // seconds of consecutive pairs per lens-trajectory estimate
@@ -95,6 +97,10 @@ struct OnlineLearningOptions {
   AtomicWriteOptions write;  // its test hook slows the write (~learning_test_write_pause)
   std::string model_file_name = "learned online";  // the file's name field
   CameraDescription camera;                         // recorded in the file
+  // Called on the tracking thread with every pair once its tracks are made (before its check),
+  // e.g. to feed the online calibration (online_calibration_feed.h). Its CPU time is charged to
+  // the budget above, with the tracking's. Must not throw; empty = none.
+  std::function<void(const OnlineFramePair&)> on_tracked_pair;
 
   // The fit's defaults, cheaper than train_stabiliser's (fewer pan-detection thresholds and
   // fewer iterations; the elliptic stroke variant stays): it runs every few seconds in the background.

@@ -1,0 +1,206 @@
+// Online camera-IMU calibration while the live pipeline runs: from the point tracks between
+// consecutive frames (the ones the online learner's per-pair check already follows) and the gyro
+// stream, the time offset, the rolling-shutter readout time, the gyro bias and, when it is not
+// known, the mount (a signed axis permutation plus a small rotation) are estimated, each with its
+// 1-sigma, tracked through drift and jumps, and a new calibration is offered for use only when it
+// is confidently better on pairs it was not fitted on.
+//
+// How:
+//  - Every `refit_every_s` of new pairs, the newest `window_s` of pairs are calibrated by the
+//    offline estimator itself (calibrateCameraImu: coarse offset x permutation search, the
+//    Levenberg-Marquardt refinement on the per-track reprojection residual, its uncertainty), so
+//    there is one residual and one cost for both. The coarse search spans `first_search_s` around
+//    the calibration in use until a fit is accepted, then `search_s` around the estimate.
+//  - Each window's estimate is a measurement with its reported 1-sigma. A random-walk filter per
+//    quantity (readout, bias per axis; the offset's below) fuses them: the variance grows by
+//    (drift rate x elapsed)^2 between windows, so old windows are forgotten at the pace the
+//    quantity may drift. A window that disagrees with the filter by more than `jump_sigmas` (offset or
+//    readout) is a jump (a camera app restarted): the filter restarts from that window.
+//  - The mount is searched over the 24 signed axis permutations until two consecutive accepted
+//    windows find the same permutation; from then on a window finding another permutation is not
+//    used, and the small rotation about the permutation is fused like the other quantities.
+//  - The offset's filter also holds its drift rate (a constant-velocity model), and the estimate
+//    is that filter carried to the newest pair: a steady drift is followed without lag.
+//  - A candidate (the filtered estimate after a fit) waits for `held_out_s` of pairs after its
+//    window and is scored there against the calibration in use: the mean track residual over the
+//    tracks that either explains (within `outlier_px`). It replaces the calibration in use only when
+//    lower by the stabiliser model swap's margins (StabiliserChoiceOptions: 5 % and 0.005 px).
+//  - A window where the camera hardly rotates, or with too few tracked pairs (no texture), changes
+//    nothing and says "needs motion".
+//
+// Not thread-safe: one caller (the learner's background thread, a replay) feeds and updates it.
+// Pure Eigen + OpenCV: no ROS.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/calibration/camera_imu_calibration.h"
+#include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/gyro/imu_sample_buffer.h"
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
+#include "deep_ois/core/vision/feature_tracker.h"
+
+namespace deep_ois {
+
+struct OnlineCalibrationOptions {
+  double window_s = 3.0;       // seconds of pairs per fit
+  double refit_every_s = 1.5;  // seconds of new pairs between fits
+  double held_out_s = 1.5;     // seconds of pairs after a fit's window on which its candidate is scored
+  int max_tracks_per_pair = 60;  // more tracks per pair are thinned evenly (cost)
+  // CPU budget, share of one core on the stream's clock (the pairs' stamps): a credit accrues at
+  // this share and each fit or score is charged its thread CPU time; a fit starts only when the
+  // credit covers what the last one cost (else it waits for later pairs: fits_over_budget). The
+  // credit saved is capped at 10 s of the share. 0 = no budget.
+  double cpu_share = 0.12;
+  // The mount is unknown (search the 24 signed axis permutations until it is found) or held at
+  // the starting calibration's rotation.
+  bool estimate_rotation = true;
+  int rotation_every = 4;  // once the mount is found, its rotation is refined on every n-th window
+  bool estimate_gyro_bias = true;
+  // OIS: the calibration's per-frame lens shift (kPerFrameShift) keeps the lens from absorbing
+  // the timing; kNone for a fixed lens or for tracks from which the lens motion was removed.
+  LensShiftHandling lens_shift = LensShiftHandling::kNone;
+  // Coarse offset search half-width around the estimate: before the first accepted fit, and after.
+  double first_search_s = 0.1;
+  double search_s = 0.03;
+  // The offset's filter holds the offset and its drift rate: the offset walks by
+  // offset_random_walk_s_per_sqrt_s (s per sqrt(s)) and the rate by rate_random_walk_per_sqrt_s
+  // (s/s per sqrt(s)); the rate starts at 0 with initial_rate_sigma (s/s: 1e-4 = 6 ms a minute).
+  double offset_random_walk_s_per_sqrt_s = 3e-5;
+  double rate_random_walk_per_sqrt_s = 1.5e-5;
+  double initial_rate_sigma = 1e-4;
+  // How fast the readout and the bias may drift (their filters' random walk), per second.
+  double readout_drift_s_per_s = 2e-5;
+  double bias_drift_rad_s_per_s = 2e-4;
+  // A window whose offset or readout is further than this many combined sigmas from the filter
+  // restarts it (a jump).
+  double jump_sigmas = 5.0;
+  // A window's estimate counts only when its reported 1-sigma is below these (the window
+  // determines it at all); the filter then narrows it further.
+  double max_offset_sigma_s = 2e-3;
+  double max_readout_sigma_s = 3e-3;
+  double max_bias_sigma_rad_s = 0.01;
+  double max_rotation_sigma_rad = 2.0 * 3.14159265358979323846 / 180.0;
+  // The held-out score: tracks off by more than this under both calibrations are outliers.
+  double outlier_px = 2.0;
+  // The margins of a swap (the stabiliser model choice's: min_relative_improvement,
+  // min_improvement_px).
+  StabiliserChoiceOptions margins;
+  bool refine_when_not_worse = true;
+  double refine_sigmas = 2.0;
+  // The per-window calibration (its estimate_* flags, offsets and refusal limits are set per fit;
+  // iterations, robust loss and track requirements are taken from here).
+  CalibrationOptions calibration = defaultWindowCalibration();
+
+  static CalibrationOptions defaultWindowCalibration();
+  std::string validate() const;  // empty when usable, else a sentence naming the bad field
+};
+
+// One frame pair's tracks: camera-clock stamps of both frames' first rows, raw pixels a -> b.
+struct OnlineCalibrationPair {
+  double stamp_a_s = 0.0;
+  double stamp_b_s = 0.0;
+  std::vector<FeatureMatch> matches;
+};
+
+struct OnlineCalibrationStatus {
+  // "needs motion" (the last window could not say anything), "converging" (no fit accepted yet),
+  // "tracking" (the estimate follows the windows), "jump" (the last window restarted the filter).
+  std::string state = "converging";
+  CameraImuCalibration estimate;  // the filtered estimate with its 1-sigmas
+  CameraImuCalibration in_use;    // the calibration offered for use (the start until a swap)
+  std::uint64_t version = 0;      // +1 per swap of in_use
+  bool mount_found = false;       // the permutation was confirmed (or held from the start)
+  int mount_permutation_index = -1;
+  std::size_t pairs = 0, pairs_without_tracks = 0;
+  std::size_t fits = 0, fits_needing_motion = 0, fits_rejected = 0, jumps = 0;
+  std::size_t fits_over_budget = 0;  // times a due fit waited for its CPU credit
+  double cpu_s = 0.0;                // thread CPU time of fits and scores so far, seconds
+  double stream_s = 0.0;             // seconds of pairs seen (the budget's clock)
+  std::size_t candidates_scored = 0;
+  std::size_t swaps = 0;        // in_use replaced (refinements included)
+  std::size_t refinements = 0;  // of which: not clearly better, no worse, and outside the 3-sigma
+  double last_fit_seconds = 0.0;  // wall time of the last window's calibration, seconds
+  double held_out_in_use_px = 0.0, held_out_candidate_px = 0.0;  // the last comparison
+  std::string last_reason;  // one sentence: what the last fit or comparison found
+};
+
+class OnlineCalibrationEstimator {
+ public:
+  // `start`: the calibration in use (time offset added to camera stamps gives IMU time; readout;
+  // bias in the IMU frame; R_cam_imu). Throws std::invalid_argument for bad options or camera.
+  OnlineCalibrationEstimator(OnlineCalibrationOptions options, CameraModel camera, CameraImuCalibration start);
+
+  // IMU frame, IMU clock, raw (bias not removed). Older or equal stamps than the last are ignored.
+  void addGyro(const ImuSample& sample);
+  // Pairs in stamp order; a pair older than the last is ignored (use restartTimeline on a loop).
+  void addPair(OnlineCalibrationPair pair);
+  // Scores a waiting candidate when its held-out pairs are in, and fits the newest window when
+  // refit_every_s of new pairs came in since the last fit. True when in_use changed.
+  bool update();
+  // Whether update() would do work now (a fit or a score is due).
+  bool due() const;
+  const OnlineCalibrationStatus& status() const { return status_; }
+  // Time went back: the buffered pairs and gyro belong to the other timeline and are dropped; the
+  // estimate and the calibration in use stay.
+  void restartTimeline();
+
+  // The held-out score: mean |x_b - predicted| over the tracks of `pairs` that either calibration
+  // explains within outlier_px, for both (pixels); NaN when no pair is covered by the gyro.
+  void scorePair(const std::vector<OnlineCalibrationPair>& pairs, const CameraImuCalibration& a,
+                 const CameraImuCalibration& b, double* a_px, double* b_px, int* tracks) const;
+
+ private:
+  struct Filter {
+    bool initialised = false;
+    double value = 0.0, variance = 0.0, stamp_s = 0.0;
+  };
+  // The offset and its drift rate (s/s), at stamp_s.
+  struct OffsetFilter {
+    bool initialised = false;
+    Eigen::Vector2d state = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+    double stamp_s = 0.0;
+  };
+  // Predicts `filter` to stamp_s (state and covariance).
+  void predictOffset(const OffsetFilter& filter, double stamp_s, Eigen::Vector2d* state,
+                     Eigen::Matrix2d* covariance) const;
+  // Whether the candidate differs from the calibration in use by more than refine_sigmas.
+  bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate) const;
+  void fit();
+  void scoreCandidate();
+  // Kalman update of a random-walk filter; with `jumped`, a value further than jump_sigmas combined
+  // sigmas sets *jumped and changes nothing (returns false).
+  bool fuse(Filter& filter, double value, double sigma, double drift_per_s, double stamp_s, bool* jumped) const;
+  CalibrationData windowData(double begin_s, double end_s, double offset_s) const;
+  double gyroEnd() const;
+  bool withinBudget() const;
+
+  OnlineCalibrationOptions options_;
+  CameraModel camera_;
+  std::deque<OnlineCalibrationPair> pairs_;  // oldest first, window_s + held_out_s kept
+  std::deque<ImuSample> gyro_;
+  double new_pairs_s_ = 0.0;  // of pairs since the last fit
+  double last_pair_stamp_s_ = -1e300;
+  OffsetFilter offset_;
+  Filter readout_;
+  Filter bias_[3];
+  Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d rotation_variance_ = Eigen::Vector3d::Zero();  // rad^2 per camera axis, once fused
+  int last_permutation_ = -1;  // of the last accepted window while the mount is searched
+  bool any_accepted_ = false;
+  // The candidate waiting for its held-out pairs (after candidate_after_s_, camera clock).
+  bool candidate_waiting_ = false;
+  CameraImuCalibration candidate_;
+  double candidate_after_s_ = 0.0;
+  OnlineCalibrationStatus status_;
+  double credit_s_ = 0.0;          // CPU seconds the budget allows now
+  double last_work_cpu_s_ = 0.0;   // what the last fit cost
+  bool budget_said_ = false;       // the due fit waiting for credit was counted
+};
+
+}  // namespace deep_ois
