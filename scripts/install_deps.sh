@@ -37,8 +37,6 @@ packages=(
   python3-diagnostic-msgs python3-rosgraph-msgs python3-rosmsg python3-rospy
   # maths, vision, tests
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
-  # the stabiliser fit's nonlinear least squares (Ceres 2.1)
-  libceres-dev
   # the tools: flag parsing, the evaluation JSON, the data-set SHA-256
   libcli11-dev nlohmann-json3-dev libssl-dev
   # the tools' PNG charts (scripts/plot_csv.py over the CSVs they write) and the figures of docs/

@@ -10,8 +10,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <ceres/ceres.h>
-
 #include "deep_ois/core/ois/camera_rate_cursor.h"
 
 namespace deep_ois {
@@ -66,69 +64,31 @@ constexpr Bounds kReleaseHz{0.05, 100.0};
 constexpr Bounds kExcursionCentring{1e-3, 100.0};
 constexpr Bounds kActuatorCoupling{-0.5, 0.5};
 
-// The physical parameters the solver moves, in the units it moves them in: the positive ones as
-// logarithms (their scales differ by orders of magnitude), the sensor lag in milliseconds. One
-// named Ceres parameter block each, with the fit's bounds set on it.
-struct PhysicalBlock {
-  const char* name;
-  int offset, size;  // in the vector of all blocks (kSlotCount values)
-  bool logarithmic;
-  Bounds bounds;  // natural units (the lag in ms): a logarithmic block's bounds are their logs
-  double difference_step;  // of the forward difference, in the block's units
-};
-enum BlockIndex { kGainBlock, kCornerBlock, kActuatorBlock, kDampingBlock, kLagBlock, kStrokeBlock, kExcursionBlock, kCouplingBlock, kReleaseBlock };
-constexpr double kUnbounded = std::numeric_limits<double>::infinity();
-constexpr PhysicalBlock kBlocks[] = {
-    {"gain", 0, 4, false, {-kUnbounded, kUnbounded}, 1e-4},
-    {"highpass_corner_hz", 4, 1, true, kCornerHz, 1e-3},
-    {"actuator_natural_hz", 5, 1, true, kActuatorHz, 1e-3},
-    {"actuator_damping", 6, 1, true, kDamping, 1e-3},
-    {"sensor_lag_ms", 7, 1, false, kLagMs, 1e-2},
-    {"stroke_deg", 8, 2, true, kStrokeDeg, 1e-3},
-    {"excursion_centring", 10, 1, true, kExcursionCentring, 1e-3},
-    {"actuator_coupling", 11, 2, false, kActuatorCoupling, 1e-4},
-    {"pan_release_corner_hz", 13, 1, true, kReleaseHz, 1e-3},
-};
-constexpr int kBlockCount = sizeof(kBlocks) / sizeof(kBlocks[0]);
-constexpr int kSlotCount = 14;
-using Slots = Eigen::Matrix<double, kSlotCount, 1>;
-
-// Which of the physical parameters a solve moves: the chain's always; the pan release corner, the
-// excursion-dependent re-centring and the actuator coupling only where the model has them.
-struct FreeParameters {
-  bool pan = false;        // pan_release_corner_hz
-  bool excursion = false;  // excursion_centring
-  bool coupling = false;   // actuator_coupling
-  bool isFree(int block) const {
-    return (block != kReleaseBlock || pan) && (block != kExcursionBlock || excursion) &&
-           (block != kCouplingBlock || coupling);
+// The physical parameters the Levenberg-Marquardt step moves, as an unconstrained vector.
+struct ParameterPacking {
+  bool pan = false;  // pan_release_corner_hz is free
+  bool excursion = false;  // excursion_centring is free (slot 10)
+  bool coupling = false;   // actuator_coupling is free (slots 11, 12)
+  int size() const { return 13 + (pan ? 1 : 0); }
+  // Slots whose column stays zero (the parameter is not free).
+  bool fixed(int slot) const {
+    return (slot == 10 && !excursion) || ((slot == 11 || slot == 12) && !coupling);
   }
 
-  // The blocks' values of p (a fixed block's value is not used: 0).
-  Slots read(const StabiliserParameters& p) const {
-    Slots x;
+  Eigen::VectorXd pack(const StabiliserParameters& p) const {
+    Eigen::VectorXd x(size());
     x << p.gain(0, 0), p.gain(0, 1), p.gain(1, 0), p.gain(1, 1), std::log(p.highpass_corner_hz),
         std::log(p.actuator_natural_hz), std::log(p.actuator_damping), 1000.0 * p.sensor_lag_s,
         std::log(p.stroke_x_deg), std::log(p.stroke_y_deg), 0.0, p.actuator_coupling.x(),
-        p.actuator_coupling.y(), 0.0;
-    if (excursion)
-      x(kBlocks[kExcursionBlock].offset) = std::log(std::clamp(
-          p.excursion_centring, kExcursionCentring.lower, kExcursionCentring.upper));
-    if (pan) x(kBlocks[kReleaseBlock].offset) = std::log(p.pan_release_corner_hz);
+        p.actuator_coupling.y();
+    // Slot 10: the excursion-dependent re-centring when it is free (else unused, its column zero).
+    x(10) = excursion ? std::log(std::clamp(p.excursion_centring, kExcursionCentring.lower,
+                                            kExcursionCentring.upper))
+                      : 0.0;
+    if (pan) x(13) = std::log(p.pan_release_corner_hz);
     return x;
   }
-  // x kept within the bounds (the start of a solve can lie outside them).
-  Slots bounded(Slots x) const {
-    for (const PhysicalBlock& block : kBlocks) {
-      const double lower = block.logarithmic ? std::log(block.bounds.lower) : block.bounds.lower;
-      const double upper = block.logarithmic ? std::log(block.bounds.upper) : block.bounds.upper;
-      for (int k = 0; k < block.size; ++k)
-        x(block.offset + k) = std::clamp(x(block.offset + k), lower, upper);
-    }
-    return x;
-  }
-  // p with the free blocks' values of x (clamped to the bounds).
-  StabiliserParameters write(const Slots& x, StabiliserParameters p) const {
+  StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
     p.gain << x(0), x(1), x(2), x(3);
     p.highpass_corner_hz = std::clamp(std::exp(x(4)), kCornerHz.lower, kCornerHz.upper);
     p.actuator_natural_hz = std::clamp(std::exp(x(5)), kActuatorHz.lower, kActuatorHz.upper);
@@ -181,6 +141,17 @@ Residuals residualsOf(const StabiliserParameters& parameters,
   return result;
 }
 
+// Huber weights per observation (applied to both of its components), threshold in pixels.
+Eigen::VectorXd huberWeights(const Eigen::VectorXd& residuals, double huber_px) {
+  Eigen::VectorXd weights(residuals.size());
+  for (long k = 0; k + 1 < residuals.size(); k += 2) {
+    const double norm = std::hypot(residuals(k), residuals(k + 1));
+    const double w = norm <= huber_px ? 1.0 : huber_px / norm;
+    weights(k) = weights(k + 1) = w;
+  }
+  return weights;
+}
+
 double weightedRms(const Eigen::VectorXd& residuals, const Eigen::VectorXd& weights) {
   if (residuals.size() == 0) return kNaN;
   return std::sqrt(2.0 * residuals.cwiseAbs2().cwiseProduct(weights).sum() / weights.sum());
@@ -196,184 +167,66 @@ double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
   return cost;
 }
 
-// The lens motions of every usable observation for given values of the physical blocks, and
-// their forward-difference Jacobian, computed once per point for all observations (a run of the
-// predictor over every recording per value): each observation's Ceres residual block reads its
-// two rows. The Jacobian's step is each block's difference_step, backwards on the upper bound.
-class ChainEvaluation {
- public:
-  ChainEvaluation(const StabiliserParameters& start, const FreeParameters& free,
-                  const std::vector<StabiliserFitRecording>& recordings,
-                  const StabiliserFitOptions& options)
-      : start_(start), free_(free), recordings_(recordings), options_(options) {}
-
-  // The weighted residuals at x (2 per observation); nullptr when the observations the model
-  // covers are not the `expected` ones (the step is then refused).
-  const Eigen::VectorXd* residualsAt(const Slots& x, long expected) {
-    if (!has_residuals_ || x != residuals_at_) {
-      has_residuals_ = true;
-      residuals_at_ = x;
-      residuals_ = residualsOf(free_.write(x, start_), recordings_, options_).values;
+// Levenberg-Marquardt with a forward-difference Jacobian and Huber reweighting per iteration.
+// `rms_history`, when given, gets the RMS residual (pixels) after every accepted step.
+StabiliserParameters levenbergMarquardt(StabiliserParameters start, const ParameterPacking& packing,
+                                        const std::vector<StabiliserFitRecording>& recordings,
+                                        const StabiliserFitOptions& options, int iterations,
+                                        double* final_cost, std::vector<double>* rms_history = nullptr) {
+  Eigen::VectorXd x = packing.pack(start);
+  Residuals current = residualsOf(packing.unpack(x, start), recordings, options);
+  double cost = huberCost(current.values, options.huber_px);
+  double lambda = 1e-2;
+  const std::vector<double> deltas = {1e-4, 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3,
+                                      1e-2, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-3};
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    const long n = current.values.size();
+    Eigen::MatrixXd J(n, packing.size());
+    for (int j = 0; j < packing.size(); ++j) {
+      if (packing.fixed(j)) {
+        J.col(j).setZero();
+        continue;
+      }
+      Eigen::VectorXd moved = x;
+      moved(j) += deltas[static_cast<std::size_t>(j)];
+      const Residuals shifted = residualsOf(packing.unpack(moved, start), recordings, options);
+      if (shifted.values.size() != n) return packing.unpack(x, start);  // coverage changed
+      J.col(j) = (shifted.values - current.values) / deltas[static_cast<std::size_t>(j)];
     }
-    return residuals_.size() == expected ? &residuals_ : nullptr;
-  }
-  const Eigen::MatrixXd* jacobianAt(const Slots& x, long expected) {
-    if (has_jacobian_ && x == jacobian_at_) return jacobian_ok_ ? &jacobian_ : nullptr;
-    has_jacobian_ = true;
-    jacobian_at_ = x;
-    jacobian_ok_ = false;
-    const Eigen::VectorXd* at = residualsAt(x, expected);
-    if (!at) return nullptr;
-    const Eigen::VectorXd values = *at;
-    jacobian_.setZero(expected, kSlotCount);
-    for (int b = 0; b < kBlockCount; ++b) {
-      if (!free_.isFree(b)) continue;
-      const PhysicalBlock& block = kBlocks[b];
-      const double upper = block.logarithmic ? std::log(block.bounds.upper) : block.bounds.upper;
-      for (int k = 0; k < block.size; ++k) {
-        const int slot = block.offset + k;
-        Slots moved = x;
-        const double step = x(slot) + block.difference_step > upper ? -block.difference_step
-                                                                    : block.difference_step;
-        moved(slot) += step;
-        const Eigen::VectorXd shifted =
-            residualsOf(free_.write(moved, start_), recordings_, options_).values;
-        if (shifted.size() != expected) return nullptr;  // coverage changed
-        jacobian_.col(slot) = (shifted - values) / step;
+    const Eigen::VectorXd w = huberWeights(current.values, options.huber_px);
+    const Eigen::MatrixXd A = J.transpose() * w.asDiagonal() * J;
+    const Eigen::VectorXd g = J.transpose() * w.cwiseProduct(current.values);
+    bool improved = false;
+    for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
+      Eigen::MatrixXd damped = A;
+      for (int j = 0; j < packing.size(); ++j) damped(j, j) += lambda * (A(j, j) + 1e-9);
+      const Eigen::VectorXd step = damped.ldlt().solve(-g);
+      const Eigen::VectorXd candidate = x + step;
+      const Residuals trial = residualsOf(packing.unpack(candidate, start), recordings, options);
+      if (trial.values.size() != n) {
+        lambda *= 10.0;
+        continue;
+      }
+      const double trial_cost = huberCost(trial.values, options.huber_px);
+      if (trial_cost < cost) {
+        x = packing.pack(packing.unpack(candidate, start));  // keep within the clamps
+        current = residualsOf(packing.unpack(x, start), recordings, options);
+        const double relative = (cost - trial_cost) / std::max(cost, 1e-12);
+        cost = huberCost(current.values, options.huber_px);
+        if (rms_history) {
+          rms_history->push_back(weightedRms(current.values, Eigen::VectorXd::Ones(current.values.size())));
+        }
+        lambda = std::max(lambda / 3.0, 1e-7);
+        improved = true;
+        if (relative < 1e-6) iteration = iterations;  // converged
+      } else {
+        lambda *= 10.0;
       }
     }
-    jacobian_ok_ = true;
-    return &jacobian_;
+    if (!improved) break;
   }
-
- private:
-  StabiliserParameters start_;
-  FreeParameters free_;
-  const std::vector<StabiliserFitRecording>& recordings_;
-  const StabiliserFitOptions& options_;
-  bool has_residuals_ = false, has_jacobian_ = false, jacobian_ok_ = false;
-  Slots residuals_at_, jacobian_at_;
-  Eigen::VectorXd residuals_;
-  Eigen::MatrixXd jacobian_;
-};
-
-// One observation's lens-motion residual (pixels x sqrt(weight), 2 values) over the physical
-// blocks, in kBlocks' order; the Huber loss is set on it.
-class ObservationResidual : public ceres::CostFunction {
- public:
-  ObservationResidual(ChainEvaluation* chain, long observation, long observations)
-      : chain_(chain), row_(2 * observation), rows_(2 * observations) {
-    set_num_residuals(2);
-    for (const PhysicalBlock& block : kBlocks) mutable_parameter_block_sizes()->push_back(block.size);
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    Slots x;
-    for (int b = 0; b < kBlockCount; ++b)
-      for (int k = 0; k < kBlocks[b].size; ++k) x(kBlocks[b].offset + k) = parameters[b][k];
-    const Eigen::VectorXd* values = chain_->residualsAt(x, rows_);
-    if (!values) return false;
-    residuals[0] = (*values)(row_);
-    residuals[1] = (*values)(row_ + 1);
-    if (!jacobians) return true;
-    const Eigen::MatrixXd* jacobian = chain_->jacobianAt(x, rows_);
-    if (!jacobian) return false;
-    for (int b = 0; b < kBlockCount; ++b) {
-      if (!jacobians[b]) continue;  // a block held constant
-      const int size = kBlocks[b].size;
-      for (int r = 0; r < 2; ++r)
-        for (int k = 0; k < size; ++k)
-          jacobians[b][r * size + k] = (*jacobian)(row_ + r, kBlocks[b].offset + k);
-    }
-    return true;
-  }
-
- private:
-  ChainEvaluation* chain_;
-  long row_, rows_;
-};
-
-// After every accepted step: the RMS residual there (the fit's loss curve).
-class RmsHistory : public ceres::IterationCallback {
- public:
-  RmsHistory(ChainEvaluation* chain, const Slots* x, long rows, std::vector<double>* history)
-      : chain_(chain), x_(x), rows_(rows), history_(history) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
-    if (summary.iteration > 0 && summary.step_is_successful) {
-      if (const Eigen::VectorXd* values = chain_->residualsAt(*x_, rows_))
-        history_->push_back(weightedRms(*values, Eigen::VectorXd::Ones(values->size())));
-    }
-    return ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  ChainEvaluation* chain_;
-  const Slots* x_;
-  long rows_;
-  std::vector<double>* history_;
-};
-
-// The physical parameters of `start` that `free` names refined by Ceres' Levenberg-Marquardt: one
-// residual block per usable observation with the Huber loss (threshold options.huber_px), the
-// fit's bounds on the parameter blocks, at most `iterations` iterations. `final_cost` gets the
-// Huber cost at the result; `rms_history`, when given, the RMS residual (pixels) after every
-// accepted step.
-StabiliserParameters solvePhysical(const StabiliserParameters& start, const FreeParameters& free,
-                                   const std::vector<StabiliserFitRecording>& recordings,
-                                   const StabiliserFitOptions& options, int iterations,
-                                   double* final_cost, std::vector<double>* rms_history = nullptr) {
-  Slots x = free.bounded(free.read(start));
-  ChainEvaluation chain(start, free, recordings, options);
-  const Eigen::VectorXd initial = residualsOf(free.write(x, start), recordings, options).values;
-  const double initial_cost = huberCost(initial, options.huber_px);
-  const long rows = initial.size();
-  if (rows == 0) {
-    if (final_cost) *final_cost = initial_cost;
-    return free.write(x, start);
-  }
-  ceres::Problem::Options problem_options;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  ceres::HuberLoss huber(options.huber_px);
-  std::vector<double*> blocks;
-  for (const PhysicalBlock& block : kBlocks) blocks.push_back(x.data() + block.offset);
-  for (long k = 0; k < rows / 2; ++k)
-    problem.AddResidualBlock(new ObservationResidual(&chain, k, rows / 2), &huber, blocks);
-  for (int b = 0; b < kBlockCount; ++b) {
-    const PhysicalBlock& block = kBlocks[b];
-    if (!free.isFree(b)) {
-      problem.SetParameterBlockConstant(blocks[static_cast<std::size_t>(b)]);
-      continue;
-    }
-    if (!std::isfinite(block.bounds.lower)) continue;
-    for (int k = 0; k < block.size; ++k) {
-      problem.SetParameterLowerBound(blocks[static_cast<std::size_t>(b)], k,
-                                     block.logarithmic ? std::log(block.bounds.lower) : block.bounds.lower);
-      problem.SetParameterUpperBound(blocks[static_cast<std::size_t>(b)], k,
-                                     block.logarithmic ? std::log(block.bounds.upper) : block.bounds.upper);
-    }
-  }
-  ceres::Solver::Options solver;
-  solver.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  solver.linear_solver_type = ceres::DENSE_QR;
-  solver.max_num_iterations = iterations;
-  solver.function_tolerance = 1e-6;  // a relative decrease of the cost below this: converged
-  solver.initial_trust_region_radius = 1e2;
-  solver.num_threads = 1;  // the online learner fits within a CPU budget on one core
-  solver.logging_type = ceres::SILENT;
-  RmsHistory history(&chain, &x, rows, rms_history);
-  if (rms_history) {
-    solver.update_state_every_iteration = true;  // the callback reads x
-    solver.callbacks.push_back(&history);
-  }
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver, &problem, &summary);
-  if (!summary.IsSolutionUsable()) {
-    if (final_cost) *final_cost = initial_cost;
-    return free.write(free.bounded(free.read(start)), start);
-  }
-  if (final_cost) *final_cost = summary.final_cost;
-  return free.write(x, start);
+  if (final_cost) *final_cost = cost;
+  return packing.unpack(x, start);
 }
 
 // The residual bank's features at time t: the leaky integrals of the pan/tilt rate, advanced
@@ -889,7 +742,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   // it per axis (a cost evaluation each) and let the full refinement below move it.
   {
     double cost = 0.0;
-    best = solvePhysical(best, FreeParameters{}, recordings, physical_options,
+    best = levenbergMarquardt(best, ParameterPacking{}, recordings, physical_options,
                               std::max(1, options.iterations / 3), &cost, &result.rms_history);
     std::ostringstream line;
     line << "first refinement: corner " << best.highpass_corner_hz << " Hz, cost " << cost;
@@ -933,7 +786,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     return line.str();
   };
   double refined_cost = 0.0;
-  StabiliserParameters refined = solvePhysical(best, FreeParameters{}, recordings,
+  StabiliserParameters refined = levenbergMarquardt(best, ParameterPacking{}, recordings,
                                                     physical_options, options.iterations,
                                                     &refined_cost, &result.rms_history);
   log(describe(refined, refined_cost));
@@ -948,10 +801,10 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
       StabiliserParameters candidate = refined;
       candidate.pan_detection_rate_rad_s = threshold;
       candidate.circular_stroke = circular;
-      FreeParameters packing;
+      ParameterPacking packing;
       packing.pan = threshold > 0.0;
       double cost = 0.0;
-      candidate = solvePhysical(candidate, packing, recordings, physical_options,
+      candidate = levenbergMarquardt(candidate, packing, recordings, physical_options,
                                      short_iterations, &cost);
       log(describe(candidate, cost));
       if (cost < variant_cost) {
@@ -963,9 +816,9 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   }
   // A variant must earn its extra mechanism: at least 1 % lower cost than the plain model.
   if (variant_cost < 0.99 * refined_cost) {
-    FreeParameters packing;
+    ParameterPacking packing;
     packing.pan = variant_best.pan_detection_rate_rad_s > 0.0;
-    refined = solvePhysical(variant_best, packing, recordings, physical_options,
+    refined = levenbergMarquardt(variant_best, packing, recordings, physical_options,
                                  options.iterations, &refined_cost, &result.rms_history);
     log("refined: " + describe(refined, refined_cost));
   }
@@ -1010,7 +863,7 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
   start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;
   // The coupling starts at none: the chain itself, its gain then mapping into the stroke's axes.
   start.actuator_coupling.setZero();
-  FreeParameters packing;
+  ParameterPacking packing;
   packing.pan = start.pan_detection_rate_rad_s > 0.0;
   packing.excursion = structure.excursion_centring;
   packing.coupling = structure.actuator_coupling;
@@ -1033,7 +886,7 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
     start = scanned;
   }
   double refined_cost = 0.0;
-  const StabiliserParameters refined = solvePhysical(
+  const StabiliserParameters refined = levenbergMarquardt(
       start, packing, recordings, options, options.iterations, &refined_cost, &result.rms_history);
   std::ostringstream line;
   line << "structure: " << (refined.soft_stroke ? "soft stroke, " : "")

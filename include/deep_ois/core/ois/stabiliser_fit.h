@@ -6,7 +6,7 @@
 // change s(t_b) - s(t_a) (to first order), so that is what the images measure well and what the
 // compensation needs.
 //
-// The fit: Ceres' Levenberg-Marquardt with a Huber loss over the physical parameters (gain matrix,
+// The fit: Levenberg-Marquardt with Huber weights over the physical parameters (gain matrix,
 // centring corner, actuator, sensor lag, stroke), the rate at which pan detection lets go chosen
 // from a grid (its hysteresis makes the cost step-like in the threshold), then a ridge fit of the
 // linear residual bank on what remains. Pure C++/Eigen: no ROS.
