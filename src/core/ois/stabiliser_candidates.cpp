@@ -8,6 +8,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/ois/stabiliser_choice_rule.h"
+#include "deep_ois/core/ois/stabiliser_model_choice.h"
+
 namespace deep_ois {
 StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
                                           const std::vector<StabiliserFitRecording>& recordings,
@@ -70,53 +73,92 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
   return fitted;
 }
 
+const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptions() {
+  // One mechanism or one feature set more per row, simplest first. The structural rows are the
+  // chain itself with another mechanism (an integrator held at the end stop; a re-centring that
+  // grows with the excursion; the stroke in the actuator's axes with their coupling after it; a
+  // soft stroke instead of an end stop), refitted from the fitted chain's parameters; the learned
+  // rows add dynamics on top of the fitted chain (with its linear bank when it has one): a
+  // higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
+  using S = StabiliserStructure;
+  static const std::vector<StabiliserCandidateDescription> table = {
+      {"", S{}, false, "", 1},
+      {"linear residual", S{}, true, "", 2},
+      {"anti-windup integrator", S{true, false, false, false}, true, "", 3},
+      {"excursion-dependent re-centring", S{false, true, false, false}, true, "", 4},
+      {"anti-windup integrator + excursion-dependent re-centring", S{true, true, false, false}, true, "", 5},
+      {"stroke in the actuator's axes + actuator coupling", S{false, false, true, false}, true, "", 6},
+      {"soft stroke", S{false, false, false, true}, true, "", 7},
+      {"soft stroke + excursion-dependent re-centring", S{false, true, false, true}, true, "", 8},
+      {"learned rate filter", S{}, true, "rate_bank_v1", 9},
+      {"nonlinear residual", S{}, true, "excursion_v1", 10},
+      {"nonlinear residual + learned rate filter", S{}, true, "excursion_rate_v1", 11},
+  };
+  return table;
+}
+
+namespace {
+
+bool sameStructure(const StabiliserStructure& a, const StabiliserStructure& b) {
+  return a.anti_windup == b.anti_windup && a.excursion_centring == b.excursion_centring &&
+         a.actuator_coupling == b.actuator_coupling && a.soft_stroke == b.soft_stroke;
+}
+
+}  // namespace
+
+bool StabiliserCandidateDescription::structural() const {
+  return !sameStructure(structure, StabiliserStructure{});
+}
+
+int stabiliserComplexity(const StabiliserParameters& parameters) {
+  if (isNoLensMotion(parameters)) return 0;
+  const StabiliserStructure structure{parameters.anti_windup, parameters.excursion_centring > 0.0,
+                                      !parameters.actuator_coupling.isZero(0.0), parameters.soft_stroke};
+  const bool linear = parameters.residual.size() != 0;
+  int most = 0;
+  for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions()) {
+    most = std::max(most, d.complexity);
+    // A refitted structure keeps its bank only when the bank helps: either way it is that row.
+    if (sameStructure(d.structure, structure) && d.feature_set == parameters.nonlinear_features &&
+        (d.structural() || d.linear_residual == linear || !d.feature_set.empty()))
+      return d.complexity;
+  }
+  return most + 1;  // a composition no row describes (a hand-written file): after every row
+}
+
 std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
                                                  const std::vector<StabiliserFitRecording>& training,
                                                  const StabiliserFitOptions& options,
                                                  const StabiliserCandidateKinds& kinds) {
   std::vector<ModelCandidate> candidates;
-  candidates.push_back({"physical", fit.parameters.physicalChain()});
   const bool has_linear = fit.parameters.residual.size() != 0;
-  if (has_linear) candidates.push_back({"physical + linear residual", fit.parameters});
-  // The chain with a better structure (one mechanism or one parameter more each): an integrator
-  // held at the end stop (anti-windup), a re-centring that grows with the excursion, both; the
-  // stroke in the actuator's axes with their coupling after it; a soft stroke instead of an end
-  // stop, alone and with the excursion-dependent re-centring. Each refitted from the chain's
-  // parameters.
-  if (kinds.structural) {
-    StabiliserFitOptions refit_options = options;
-    if (kinds.structural_iterations > 0) refit_options.iterations = kinds.structural_iterations;
-    for (const auto& [structure, what] :
-         {std::pair<StabiliserStructure, std::string>{{true, false, false}, "anti-windup integrator"},
-          {{false, true, false}, "excursion-dependent re-centring"},
-          {{true, true, false}, "anti-windup integrator + excursion-dependent re-centring"},
-          {{false, false, true}, "stroke in the actuator's axes + actuator coupling"},
-          {{false, false, false, true}, "soft stroke"},
-          {{false, true, false, true}, "soft stroke + excursion-dependent re-centring"}}) {
-      try {
-        const StabiliserFitResult refit = refitStabiliserStructure(fit.parameters, structure, training, refit_options);
+  StabiliserFitOptions refit_options = options;
+  if (kinds.structural_iterations > 0) refit_options.iterations = kinds.structural_iterations;
+  std::vector<StabiliserCandidateDescription> rows = stabiliserCandidateDescriptions();
+  std::stable_sort(rows.begin(), rows.end(),
+                   [](const auto& a, const auto& b) { return a.complexity < b.complexity; });
+  for (const StabiliserCandidateDescription& row : rows) {
+    if (row.structural() && !kinds.structural) continue;
+    if (!row.feature_set.empty() && !kinds.learned_features) continue;
+    try {
+      if (row.structural()) {
+        const StabiliserFitResult refit =
+            refitStabiliserStructure(fit.parameters, row.structure, training, refit_options);
         candidates.push_back(
-            {std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") + ", " + what,
+            {std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") + ", " +
+                 row.name,
              refit.parameters});
-      } catch (const std::invalid_argument&) {
-        // No usable lens motion: the simpler candidates stand.
+      } else if (!row.feature_set.empty()) {
+        const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
+        candidates.push_back({prefix + row.name + " (" + row.feature_set + ")",
+                              fitNonlinearResidual(fit.parameters, training, options, row.feature_set)});
+      } else if (row.linear_residual) {
+        if (has_linear) candidates.push_back({"physical + " + row.name, fit.parameters});
+      } else {
+        candidates.push_back({"physical", fit.parameters.physicalChain()});
       }
-    }
-  }
-  // Learned dynamics on top of the chain (with its linear bank when it has one), simplest first:
-  // a higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
-  if (kinds.learned_features) {
-    const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
-    for (const auto& [set, what] :
-         {std::pair<std::string, std::string>{"rate_bank_v1", "learned rate filter"},
-          {"excursion_v1", "nonlinear residual"},
-          {"excursion_rate_v1", "nonlinear residual + learned rate filter"}}) {
-      try {
-        candidates.push_back(
-            {prefix + what + " (" + set + ")", fitNonlinearResidual(fit.parameters, training, options, set)});
-      } catch (const std::invalid_argument&) {
-        // No usable lens motion for the residual: the simpler candidates stand.
-      }
+    } catch (const std::invalid_argument&) {
+      // No usable lens motion for the refit or the residual: the simpler candidates stand.
     }
   }
   return candidates;
@@ -125,7 +167,8 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
 StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
                                      const std::vector<StabiliserFitRecording>& training,
                                      const std::vector<StabiliserFitRecording>& held_out,
-                                     const StabiliserFitOptions& options, double simpler_within) {
+                                     const StabiliserFitOptions& options,
+                                     const StabiliserChoiceOptions& choice) {
   StabiliserSelection selection;
   for (ModelCandidate& built : stabiliserCandidates(fit, training, options)) {
     StabiliserCandidate candidate;
@@ -136,31 +179,26 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
     selection.candidates.push_back(std::move(candidate));
   }
   const bool by_held_out = !held_out.empty() && selection.candidates.front().held_out.observations > 0;
-  auto key = [&](const StabiliserCandidate& c) {
-    const double v = by_held_out ? c.held_out.rms_px : c.training.rms_px;
-    return std::isfinite(v) ? v : std::numeric_limits<double>::infinity();
-  };
-  std::size_t best = 0;
-  for (std::size_t k = 1; k < selection.candidates.size(); ++k)
-    if (key(selection.candidates[k]) < key(selection.candidates[best])) best = k;
-  // The simplest candidate within simpler_within of the best.
-  std::size_t kept = best;
-  for (std::size_t k = 0; k < best; ++k) {
-    if (key(selection.candidates[k]) <= (1.0 + simpler_within) * key(selection.candidates[best])) {
-      kept = k;
-      break;
-    }
+  std::vector<RankedScore> scores;
+  for (const StabiliserCandidate& c : selection.candidates) {
+    RankedScore score;
+    score.rms_px = by_held_out ? c.held_out.rms_px : c.training.rms_px;
+    score.complexity = stabiliserComplexity(c.parameters);
+    score.no_lens_motion = isNoLensMotion(c.parameters);
+    scores.push_back(score);
   }
+  const StabiliserRuling ruling = applyStabiliserChoiceRule(scores, kNoIncumbent, choice);
+  const std::size_t kept = ruling.chosen, best = ruling.lowest;
   selection.kept = kept;
+  auto key = [&](std::size_t k) { return scores[k].rms_px; };
   std::ostringstream why;
   why.precision(4);
   why << (by_held_out ? "held-out" : "training (no held-out recordings, so no test of "
                                      "generalisation)")
-      << " lens-motion RMS " << key(selection.candidates[kept]) << " px";
+      << " lens-motion RMS " << key(kept) << " px";
   if (kept != best) {
-    why << ", within " << 100.0 * simpler_within << " % of the best ('"
-        << selection.candidates[best].name << "', " << key(selection.candidates[best])
-        << " px) and simpler";
+    why << ", within " << 100.0 * choice.simpler_within << " % of the best ('"
+        << selection.candidates[best].name << "', " << key(best) << " px) and simpler";
   } else if (selection.candidates.size() > 1) {
     why << ", the lowest of " << selection.candidates.size() << " candidates";
   }

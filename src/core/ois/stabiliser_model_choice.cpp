@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/ois/stabiliser_choice_rule.h"
+
 namespace deep_ois {
 
 bool isNoLensMotion(const StabiliserParameters& parameters) {
@@ -40,54 +42,52 @@ StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candid
                                        const std::vector<StabiliserFitRecording>& held_out,
                                        const StabiliserChoiceOptions& options) {
   if (candidates.empty()) throw std::invalid_argument("chooseStabiliserModel: no candidate");
-  if (incumbent >= candidates.size())
+  if (incumbent != kNoIncumbent && incumbent >= candidates.size())
     throw std::invalid_argument("chooseStabiliserModel: incumbent " + std::to_string(incumbent) +
                                 " of " + std::to_string(candidates.size()) + " candidates");
   StabiliserChoice choice;
-  choice.chosen = incumbent;
   StabiliserFitOptions scoring;
   scoring.step_s = options.step_s;
   scoring.warm_up_s = options.warm_up_s;
-  for (const auto& candidate : candidates)
+  std::vector<RankedScore> ranked;
+  for (const auto& candidate : candidates) {
     choice.scores.push_back(scoreStabiliser(candidate.parameters, held_out, scoring));
+    RankedScore score;
+    score.rms_px = choice.scores.back().observations > 0 ? choice.scores.back().rms_px
+                                                         : std::numeric_limits<double>::quiet_NaN();
+    score.complexity = stabiliserComplexity(candidate.parameters);
+    score.no_lens_motion = isNoLensMotion(candidate.parameters);
+    ranked.push_back(score);
+  }
+  const StabiliserRuling ruling = applyStabiliserChoiceRule(ranked, incumbent, options);
+  choice.chosen = ruling.chosen;
+  choice.replaced_incumbent = ruling.replaced_incumbent;
   std::ostringstream why;
   why.precision(3);
   why << "held-out lens motion RMS:";
   for (std::size_t c = 0; c < candidates.size(); ++c)
     why << (c ? "," : "") << " " << candidates[c].name << " " << std::fixed << choice.scores[c].rms_px << " px";
-  const double kept = choice.scores[incumbent].rms_px;
-  if (choice.scores[incumbent].observations == 0 || !std::isfinite(kept)) {
-    why << "; nothing held out to score: " << candidates[incumbent].name << " kept";
-    choice.reason = why.str();
-    return choice;
-  }
-  std::size_t best = incumbent;
-  for (std::size_t c = 0; c < candidates.size(); ++c) {
-    if (std::isfinite(choice.scores[c].rms_px) && choice.scores[c].rms_px < choice.scores[best].rms_px) best = c;
-  }
-  auto clearlyBelow = [&options](double score, double reference) {
-    return score < std::min(reference * (1.0 - options.min_relative_improvement),
-                            reference - options.min_improvement_px);
-  };
-  // The simplest explanation when the data cannot tell: "no lens motion" is preferred to a
-  // candidate that is not clearly better than it (a fit on an OIS-off camera's noise).
-  for (std::size_t c = 0; c < candidates.size(); ++c) {
-    if (c != best && isNoLensMotion(candidates[c].parameters) && std::isfinite(choice.scores[c].rms_px) &&
-        !clearlyBelow(choice.scores[best].rms_px, choice.scores[c].rms_px)) {
-      best = c;
+  const std::string& chosen = candidates[ruling.chosen].name;
+  using Why = StabiliserRuling::Why;
+  switch (ruling.why) {
+    case Why::kNothingScored:
+      why << "; nothing held out to score: " << chosen << " kept";
       break;
-    }
-  }
-  const double needed = std::min(kept * (1.0 - options.min_relative_improvement), kept - options.min_improvement_px);
-  if (best != incumbent && choice.scores[best].rms_px < needed) {
-    choice.chosen = best;
-    choice.replaced_incumbent = true;
-    why << "; " << candidates[best].name << " replaces " << candidates[incumbent].name;
-  } else if (best != incumbent) {
-    why << "; " << candidates[incumbent].name << " kept: " << candidates[best].name << " is not better by "
-        << 100.0 * options.min_relative_improvement << " % and " << options.min_improvement_px << " px";
-  } else {
-    why << "; " << candidates[incumbent].name << " kept (the best)";
+    case Why::kReplacesIncumbent:
+      why << "; " << chosen << " replaces " << candidates[incumbent].name;
+      break;
+    case Why::kIncumbentKept:
+    case Why::kNoLensMotion:
+      why << "; " << chosen << " kept: " << candidates[ruling.passed_over].name << " is not better by "
+          << 100.0 * options.min_relative_improvement << " % and " << options.min_improvement_px << " px";
+      break;
+    case Why::kSimplerWithin:
+      why << "; " << chosen << " kept: within " << 100.0 * options.simpler_within << " % of the best ("
+          << candidates[ruling.lowest].name << ") and simpler";
+      break;
+    case Why::kLowest:
+      why << "; " << chosen << " kept (the best)";
+      break;
   }
   choice.reason = why.str();
   return choice;

@@ -2,7 +2,8 @@
 // core/ois/stabiliser_fit.h is the prior and the fallback; learned dynamics on top of it are
 // candidates, each scored on the held-out recordings, and the best is kept.
 //
-// Candidates (cheap enough for the live budget: microseconds per frame at the gyro rate):
+// Candidates, described as data (stabiliserCandidateDescriptions; cheap enough for the live
+// budget: microseconds per frame at the gyro rate):
 //  - "physical": the fitted chain alone;
 //  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
 //    returns);
@@ -22,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 
 namespace deep_ois {
@@ -41,18 +43,47 @@ struct ModelCandidate {
   StabiliserParameters parameters;
 };
 
-// Which candidates stabiliserCandidates builds besides the physical chain and its linear bank.
+// A candidate described as data: one row of the table stabiliserCandidates builds from.
+struct StabiliserCandidateDescription {
+  // What it adds to the chain, for its name ("anti-windup integrator"); "" for the chain itself.
+  std::string name;
+  // The chain's mechanisms: any set = the chain refitted with them (refitStabiliserStructure,
+  // which fits its own linear bank and keeps it where it helps).
+  StabiliserStructure structure;
+  // The fitted chain's linear residual bank (the row is left out when the fit has none).
+  bool linear_residual = false;
+  // The learned residual on top of the fitted chain, ridge-fitted ("" none; nonlinearFeatureCount).
+  std::string feature_set;
+  // Simplest first: the choice rule keeps the simpler of two candidates within its margin
+  // (stabiliser_choice_rule.h). "No lens motion" is 0.
+  int complexity = 0;
+
+  bool structural() const;  // any mechanism of `structure` set
+};
+
+// The candidate table, simplest first: the chain, its linear bank, the six structural variants,
+// the three learned feature sets (the names and what each adds: docs/stabiliser_model.md).
+const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptions();
+
+// A model's place in the table's simplicity order, read from its parameters: 0 for "no lens
+// motion", the complexity of the row that describes it (its structure, feature set and linear
+// bank), and after every row for a composition no row describes (a hand-written file). So a model
+// from anywhere (a prior, the model in use) is ranked as the candidates are.
+int stabiliserComplexity(const StabiliserParameters& parameters);
+
+// Which rows stabiliserCandidates builds besides the physical chain and its linear bank.
 struct StabiliserCandidateKinds {
   bool structural = true;        // the refitted structural variants (an LM refit each)
-  // Levenberg-Marquardt iterations of each structural refit (0: the fit options' iterations). The
+  // Solver iterations of each structural refit (0: the fit options' iterations). The
   // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
   int structural_iterations = 0;
   bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
 };
 
-// The candidates built from a physical fit (a fitStabiliser result), simplest first, unscored:
-// "physical", "physical + linear residual" (when the fit has a bank), then the kinds asked for.
-// A variant whose refit finds no usable lens motion is left out (the simpler ones stand).
+// The candidates built from a physical fit (a fitStabiliser result), one per row of the table in
+// its order (simplest first), unscored: "physical", "physical + linear residual" (when the fit has
+// a bank), then the kinds asked for. A row whose refit or residual finds no usable lens motion is
+// left out (the simpler ones stand).
 std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
                                                  const std::vector<StabiliserFitRecording>& training,
                                                  const StabiliserFitOptions& options,
@@ -72,13 +103,14 @@ struct StabiliserSelection {
   std::string figures;  // the figures that chose it ("held-out lens-motion RMS 0.41 px, ...")
 };
 
-// Builds (stabiliserCandidates, every kind) and scores the candidates from the physical fit. Kept: the lowest held-out RMS (the
-// training RMS when there are no held-out recordings: then said in the reason), unless a simpler
-// candidate is within `simpler_within` (relative) of it, which is kept instead.
+// Builds (stabiliserCandidates, every kind) and scores the candidates from the physical fit, and
+// keeps one by the choice rule (stabiliser_choice_rule.h, no incumbent) on their held-out RMS (the
+// training RMS when there are no held-out recordings: then said in the reason): the simplest
+// within choice.simpler_within of the lowest.
 StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
                                      const std::vector<StabiliserFitRecording>& training,
                                      const std::vector<StabiliserFitRecording>& held_out,
                                      const StabiliserFitOptions& options,
-                                     double simpler_within = 0.01);
+                                     const StabiliserChoiceOptions& choice = {});
 
 }  // namespace deep_ois

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "deep_ois/core/ois/stabiliser_candidates.h"
+#include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 
 namespace deep_ois {
@@ -32,16 +33,6 @@ void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings
                            double held_out_fraction, std::vector<StabiliserFitRecording>* training,
                            std::vector<StabiliserFitRecording>* held_out);
 
-struct StabiliserChoiceOptions {
-  // A candidate replaces the incumbent only when its held-out RMS is below the incumbent's by this
-  // fraction (it must be clearly better: the held-out window is small and noisy).
-  double min_relative_improvement = 0.05;
-  // ... and by at least this much, pixels (below the tracker's noise nothing is measured).
-  double min_improvement_px = 0.005;
-  double step_s = 1e-3;
-  double warm_up_s = 1.0;
-};
-
 struct StabiliserChoice {
   std::size_t chosen = 0;            // index into the candidates
   bool replaced_incumbent = false;   // chosen != incumbent
@@ -49,9 +40,11 @@ struct StabiliserChoice {
   std::string reason;                // one sentence: the scores and why this one
 };
 
-// Scores every candidate on `held_out` and keeps `incumbent` unless the best other candidate is
-// better by the options' margins. With nothing to score (no held-out observation) the incumbent
-// stays. Throws std::invalid_argument for an empty candidate list or an incumbent out of range.
+// Scores every candidate on `held_out` and applies the choice rule (stabiliser_choice_rule.h; each
+// candidate ranked by stabiliserComplexity): the simplest within the margin of the lowest RMS, "no
+// lens motion" unless that is clearly better, and `incumbent` (kNoIncumbent: none) unless that is
+// clearly better than it. With nothing to score (no held-out observation) the incumbent stays.
+// Throws std::invalid_argument for an empty candidate list or an incumbent out of range.
 StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candidates,
                                        std::size_t incumbent,
                                        const std::vector<StabiliserFitRecording>& held_out,
