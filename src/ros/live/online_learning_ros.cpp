@@ -90,6 +90,22 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.min_training_s = params_.learning_held_out_s;
   options.refit_every_s = params_.learning_refit_every_s;
   options.model_path = model_path_;
+  // The generic lens dynamics, adapted in the background like the chain's candidates (fewer
+  // iterations: each is a few passes over the buffer's gyro).
+  const std::string package = ros::package::getPath("deep_ois");
+  const std::string network_path = params_.learning_lens_dynamics.empty()
+                                       ? (package.empty() ? "" : package + "/models/lens_dynamics_generic.yaml")
+                                       : params_.learning_lens_dynamics;
+  if (!network_path.empty() && network_path != "none") {
+    try {
+      options.candidate_kinds.lens_dynamics =
+          std::make_shared<const LensDynamicsNetwork>(LensDynamicsNetwork::load(network_path));
+      options.candidate_kinds.lens_dynamics_iterations = 6;
+    } catch (const std::exception& e) {
+      ROS_WARN_NAMED("compensation", "%s: ~learning_lens_dynamics: %s; learning without the generic lens "
+                     "dynamics", log_name_.c_str(), e.what());
+    }
+  }
   options.model_file_name = "learned online for " + model_path_;
   options.camera.width = static_cast<int>(gyro.image_width);
   options.camera.height = static_cast<int>(gyro.image_height);

@@ -19,9 +19,11 @@
 // Pure C++/Eigen: no ROS.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/ois/lens_dynamics_network.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 
 namespace deep_ois {
@@ -48,6 +50,11 @@ struct StabiliserCandidateKinds {
   // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
   int structural_iterations = 0;
   bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
+  // The generic learned lens dynamics (core/ois/lens_dynamics_network.h), pretrained on generated
+  // designs: adapted to the camera (its conditioning vector; then with a 2x2 map of its lens too),
+  // the chain off. Null: not a candidate.
+  std::shared_ptr<const LensDynamicsNetwork> lens_dynamics;
+  int lens_dynamics_iterations = 12;  // Levenberg-Marquardt iterations of each adaptation
 };
 
 // The candidates built from a physical fit (a fitStabiliser result), simplest first, unscored:
@@ -72,13 +79,14 @@ struct StabiliserSelection {
   std::string figures;  // the figures that chose it ("held-out lens-motion RMS 0.41 px, ...")
 };
 
-// Builds (stabiliserCandidates, every kind) and scores the candidates from the physical fit. Kept: the lowest held-out RMS (the
+// Builds (stabiliserCandidates, `kinds`) and scores the candidates from the physical fit. Kept: the lowest held-out RMS (the
 // training RMS when there are no held-out recordings: then said in the reason), unless a simpler
 // candidate is within `simpler_within` (relative) of it, which is kept instead.
 StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
                                      const std::vector<StabiliserFitRecording>& training,
                                      const std::vector<StabiliserFitRecording>& held_out,
                                      const StabiliserFitOptions& options,
-                                     double simpler_within = 0.01);
+                                     double simpler_within = 0.01,
+                                     const StabiliserCandidateKinds& kinds = {});
 
 }  // namespace deep_ois
