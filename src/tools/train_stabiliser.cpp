@@ -275,6 +275,9 @@ Findings reviewKept(const Arguments& args, const FitStage& stage,
   Findings findings;
   findings.calibration_suspect = recordings_suspect;
   if (choice.keptNoLensMotion()) return findings;
+  // The generic lens dynamics replaces the chain: the chain's review (its gain, bounds and timing
+  // check) describes a model that was not written.
+  if (choice.keptParameters().learned_dynamics.active()) return findings;
   findings.on_bound = stage.fit.review.on_bound;
   findings.implausible = deep_ois::reviewStabiliserFit(choice.keptParameters(), args.lens_target).implausible;
   findings.timing = stage.fit.review.timing;
@@ -359,6 +362,19 @@ void printReport(const Arguments& args, const deep_ois::StabiliserModelFile& mod
   if (choice.keptNoLensMotion()) {
     // The chain's other fields mean nothing at gain 0 (and the fit's bounds are not this model's).
     std::printf("Parameters: gain 0, the lens does not move (the compensation is the plain gyro).\n\n");
+  } else if (p.learned_dynamics.active()) {
+    const auto& learned = p.learned_dynamics;
+    const auto& made = learned.network->provenance;
+    std::printf("Parameters: the generic lens dynamics (the chain off): a %d-state network pretrained on %u "
+                "generated designs (seeds %u-%u of %s, %llu iterations), adapted to this camera: "
+                "conditioning [",
+                learned.network->hidden_size, made.designs, made.design_seed_begin,
+                made.design_seed_end > 0 ? made.design_seed_end - 1 : 0, made.generator.c_str(),
+                static_cast<unsigned long long>(made.iterations));
+    for (long k = 0; k < learned.conditioning.size(); ++k)
+      std::printf("%s%.3f", k ? " " : "", learned.conditioning(k));
+    std::printf("], lens map [%.3f %.3f; %.3f %.3f]\n\n", learned.output_map(0, 0), learned.output_map(0, 1),
+                learned.output_map(1, 0), learned.output_map(1, 1));
   } else {
     std::printf("%s\n", deep_ois::stabiliserParameterTable(p, stage.fit.review).c_str());
     std::printf("Nonlinear residual (learned on the chain's state): %s\n\n",

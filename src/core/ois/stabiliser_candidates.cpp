@@ -126,21 +126,21 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
   if (kinds.lens_dynamics) {
     LensDynamicsAdaptationOptions adaptation;
     adaptation.iterations = kinds.lens_dynamics_iterations;
-    for (const bool map : {false, true}) {
-      adaptation.fit_output_map = map;
-      try {
-        const StabiliserParameters adapted =
-            adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
-        candidates.push_back({map ? "generic lens dynamics, adapted + lens map"
-                                  : "generic lens dynamics, adapted",
-                              adapted});
-        // Then its output layer refitted to the camera (a linear map from the network's state).
-        if (map)
-          candidates.push_back({"generic lens dynamics, adapted + output layer refitted",
-                                refitLensDynamicsOutput(adapted, training, options)});
-      } catch (const std::invalid_argument&) {
-        // No usable lens motion: the simpler candidates stand.
+    try {
+      adaptation.fit_output_map = false;
+      StabiliserParameters adapted =
+          adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
+      candidates.push_back({"generic lens dynamics, adapted", adapted});
+      if (kinds.lens_dynamics_map) {
+        adaptation.fit_output_map = true;
+        adapted = adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
+        candidates.push_back({"generic lens dynamics, adapted + lens map", adapted});
       }
+      // Then its output layer refitted to the camera (a linear map from the network's state).
+      candidates.push_back({"generic lens dynamics, adapted + output layer refitted",
+                            refitLensDynamicsOutput(adapted, training, options)});
+    } catch (const std::invalid_argument&) {
+      // No usable lens motion: the simpler candidates stand.
     }
   }
   return candidates;

@@ -98,9 +98,8 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
                                        : params_.learning_lens_dynamics;
   if (!network_path.empty() && network_path != "none") {
     try {
-      options.candidate_kinds.lens_dynamics =
-          std::make_shared<const LensDynamicsNetwork>(LensDynamicsNetwork::load(network_path));
-      options.candidate_kinds.lens_dynamics_iterations = 6;
+      options.useLensDynamics(
+          std::make_shared<const LensDynamicsNetwork>(LensDynamicsNetwork::load(network_path)));
     } catch (const std::exception& e) {
       ROS_WARN_NAMED("compensation", "%s: ~learning_lens_dynamics: %s; learning without the generic lens "
                      "dynamics", log_name_.c_str(), e.what());

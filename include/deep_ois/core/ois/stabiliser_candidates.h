@@ -55,6 +55,9 @@ struct StabiliserCandidateKinds {
   // the chain off. Null: not a candidate.
   std::shared_ptr<const LensDynamicsNetwork> lens_dynamics;
   int lens_dynamics_iterations = 12;  // Levenberg-Marquardt iterations of each adaptation
+  // The adaptation with the lens map too (a second adaptation: about as costly as the first); the
+  // output layer is then refitted on it (one pass), else on the conditioning's.
+  bool lens_dynamics_map = true;
 };
 
 // The candidates built from a physical fit (a fitStabiliser result), simplest first, unscored:
