@@ -1,5 +1,7 @@
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 
+#include "deep_ois/core/ois/lens_dynamics_adaptation.h"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -161,6 +163,28 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
       // No usable lens motion for the refit or the residual: the simpler candidates stand.
     }
   }
+  // The generic learned lens dynamics, adapted to this camera: its conditioning vector, then with
+  // the map of its lens (scale and axes) as well.
+  if (kinds.lens_dynamics) {
+    LensDynamicsAdaptationOptions adaptation;
+    adaptation.iterations = kinds.lens_dynamics_iterations;
+    try {
+      adaptation.fit_output_map = false;
+      StabiliserParameters adapted =
+          adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
+      candidates.push_back({"generic lens dynamics, adapted", adapted});
+      if (kinds.lens_dynamics_map) {
+        adaptation.fit_output_map = true;
+        adapted = adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
+        candidates.push_back({"generic lens dynamics, adapted + lens map", adapted});
+      }
+      // Then its output layer refitted to the camera (a linear map from the network's state).
+      candidates.push_back({"generic lens dynamics, adapted + output layer refitted",
+                            refitLensDynamicsOutput(adapted, training, options)});
+    } catch (const std::invalid_argument&) {
+      // No usable lens motion: the simpler candidates stand.
+    }
+  }
   return candidates;
 }
 
@@ -168,9 +192,10 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
                                      const std::vector<StabiliserFitRecording>& training,
                                      const std::vector<StabiliserFitRecording>& held_out,
                                      const StabiliserFitOptions& options,
-                                     const StabiliserChoiceOptions& choice) {
+                                     const StabiliserChoiceOptions& choice,
+                                     const StabiliserCandidateKinds& kinds) {
   StabiliserSelection selection;
-  for (ModelCandidate& built : stabiliserCandidates(fit, training, options)) {
+  for (ModelCandidate& built : stabiliserCandidates(fit, training, options, kinds)) {
     StabiliserCandidate candidate;
     candidate.name = std::move(built.name);
     candidate.parameters = std::move(built.parameters);

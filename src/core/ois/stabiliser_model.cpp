@@ -76,6 +76,7 @@ StabiliserParameters StabiliserParameters::physicalChain() const {
   chain.residual.resize(0, 0);
   chain.nonlinear_features.clear();
   chain.nonlinear_residual.resize(0, 0);
+  chain.learned_dynamics = LearnedLensDynamics();
   return chain;
 }
 
@@ -126,6 +127,15 @@ std::string StabiliserParameters::validate() const {
               !nonlinear_residual.allFinite())) {
     why << "nonlinear_residual: must be a finite 2 x " << nonlinearFeatureCount(nonlinear_features)
         << " matrix for nonlinear_features '" << nonlinear_features << "'";
+  } else if (learned_dynamics.active() && !learned_dynamics.network->validate().empty()) {
+    why << "learned_dynamics.network: " << learned_dynamics.network->validate();
+  } else if (learned_dynamics.active() &&
+             (learned_dynamics.conditioning.size() != learned_dynamics.network->conditioning_size ||
+              !learned_dynamics.conditioning.allFinite())) {
+    why << "learned_dynamics.conditioning: must be " << learned_dynamics.network->conditioning_size
+        << " finite values (the network's conditioning_size)";
+  } else if (learned_dynamics.active() && !learned_dynamics.output_map.allFinite()) {
+    why << "learned_dynamics.output_map: must be finite";
   } else {
     for (double tau : residual_time_constants_s) {
       if (!positive(tau)) {
@@ -199,6 +209,18 @@ LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, d
   const double lag_steps = parameters_.sensor_lag_s / step_s;
   lag_steps_ = static_cast<std::size_t>(std::floor(lag_steps));
   lag_fraction_ = lag_steps - static_cast<double>(lag_steps_);
+  if (parameters_.learned_dynamics.active()) {
+    // The network reads the rate at its own step times: a whole number of internal steps.
+    const double network_step_s = parameters_.learned_dynamics.network->step_s;
+    learned_every_steps_ = std::llround(network_step_s / step_s);
+    if (learned_every_steps_ < 1 ||
+        std::abs(static_cast<double>(learned_every_steps_) * step_s - network_step_s) > 1e-9)
+      throw std::invalid_argument("stabiliser model: the learned dynamics' step (" +
+                                  std::to_string(network_step_s) +
+                                  " s) must be a whole number of the predictor's steps (" +
+                                  std::to_string(step_s) + " s)");
+    learned_.emplace(parameters_.learned_dynamics.network, parameters_.learned_dynamics.conditioning);
+  }
   reset();
   resets_ = 0;
 }
@@ -220,6 +242,15 @@ void LensShiftPredictor::reset() {
   rate_bank_state_.assign(rate_bank_decay_.size(), Eigen::Vector2d::Zero());
   if (features_.size() > 0) features_.setZero();
   feature_history_.clear();
+  if (learned_) learned_->reset();
+  learned_last_.setZero();
+  learned_before_.setZero();
+  if (learned_) {
+    const bool skip = parameters_.learned_dynamics.network->w_skip.size() != 0;
+    hidden_last_ = hidden_before_ = Eigen::VectorXd::Zero(
+        learned_->state().size() + (skip ? learned_->inputs().size() : 0));
+  }
+  learned_history_.clear();
   ++resets_;
 }
 
@@ -239,6 +270,7 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
     clock_s_ = sample.stamp_s;
     shifts_.push_back(Eigen::Vector2d::Zero());
     if (record_features_) feature_history_.push_back(features_);
+    if (record_learned_ && learned_) learned_history_.push_back(hidden_last_);
     return true;
   }
   // Internal steps up to the new sample, the rate interpolated at each step's middle.
@@ -246,14 +278,17 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
   while (clock_s_ + step_s_ <= sample.stamp_s + 1e-12) {
     const double middle = clock_s_ + 0.5 * step_s_;
     const double alpha = std::clamp((middle - last_stamp_s_) / span, 0.0, 1.0);
-    step((1.0 - alpha) * last_rate_ + alpha * sample.rate_rad_s);
+    const double end_alpha = std::clamp((clock_s_ + step_s_ - last_stamp_s_) / span, 0.0, 1.0);
+    step((1.0 - alpha) * last_rate_ + alpha * sample.rate_rad_s,
+         (1.0 - end_alpha) * last_rate_ + end_alpha * sample.rate_rad_s);
   }
   last_stamp_s_ = sample.stamp_s;
   last_rate_ = sample.rate_rad_s;
   return true;
 }
 
-void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
+void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s,
+                              const Eigen::Vector3d& end_rate_rad_s) {
   const StabiliserParameters& p = parameters_;
   const Eigen::Vector2d pan_tilt = rate_rad_s.head<2>();
   if (p.pan_detection_rate_rad_s > 0.0) {
@@ -339,6 +374,29 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s) {
   }
   // From an integer step count: summing step_s_ on epoch-sized stamps would drift (ulp ~ 2e-7 s).
   ++steps_;
+  if (learned_) {
+    // The network steps at start + n * its step (reading the rate there); in between, its lens is
+    // extrapolated from its last two outputs.
+    const long long since = steps_ % learned_every_steps_;
+    if (since == 0) {
+      learned_before_ = learned_last_;
+      learned_last_ = p.learned_dynamics.output_map * learned_->step(end_rate_rad_s);
+      if (record_learned_) {
+        // The state the layer reads: the hidden vector, then the skip path's inputs.
+        hidden_before_ = hidden_last_;
+        const bool skip = p.learned_dynamics.network->w_skip.size() != 0;
+        hidden_last_.resize(learned_->state().size() + (skip ? learned_->inputs().size() : 0));
+        hidden_last_.head(learned_->state().size()) = learned_->state();
+        if (skip) hidden_last_.tail(learned_->inputs().size()) = learned_->inputs();
+      }
+    }
+    const double fraction = static_cast<double>(since) / static_cast<double>(learned_every_steps_);
+    shift += focal_px_ * (learned_last_ + fraction * (learned_last_ - learned_before_));
+    if (record_learned_) {
+      learned_history_.push_back(hidden_last_ + fraction * (hidden_last_ - hidden_before_));
+      while (learned_history_.size() > history_steps_) learned_history_.pop_front();
+    }
+  }
   clock_s_ = start_s_ + static_cast<double>(steps_) * step_s_;
   shifts_.push_back(shift);
   while (shifts_.size() > history_steps_) shifts_.pop_front();
@@ -352,6 +410,12 @@ Eigen::VectorXd LensShiftPredictor::featuresAt(double t_s) const {
   if (feature_history_.empty()) return features_;
   const double last = static_cast<double>(feature_history_.size() - 1);
   return interpolateOnUniformGrid(feature_history_, last - (clock_s_ - t_s) / step_s_);
+}
+
+Eigen::VectorXd LensShiftPredictor::learnedStateAt(double t_s) const {
+  if (learned_history_.empty()) return hidden_last_;
+  const double last = static_cast<double>(learned_history_.size() - 1);
+  return interpolateOnUniformGrid(learned_history_, last - (clock_s_ - t_s) / step_s_);
 }
 
 bool LensShiftPredictor::covers(double t_s) const {

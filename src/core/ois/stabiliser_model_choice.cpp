@@ -13,7 +13,8 @@ namespace deep_ois {
 bool isNoLensMotion(const StabiliserParameters& parameters) {
   return parameters.gain.isZero(0.0) &&
          (parameters.residual.size() == 0 || parameters.residual.isZero(0.0)) &&
-         (parameters.nonlinear_residual.size() == 0 || parameters.nonlinear_residual.isZero(0.0));
+         (parameters.nonlinear_residual.size() == 0 || parameters.nonlinear_residual.isZero(0.0)) &&
+         !parameters.learned_dynamics.active();  // the generic lens dynamics runs with the chain off
 }
 
 void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,

@@ -116,6 +116,20 @@ std::string StabiliserModelFile::toYaml() const {
         nonlinear.push_back(p.nonlinear_residual(r, c));
     out << YAML::Key << "nonlinear_residual" << YAML::Value << YAML::Flow << nonlinear;
   }
+  if (p.learned_dynamics.active()) {
+    // Optional: the generic learned stage, its network embedded (the file stands alone).
+    const LearnedLensDynamics& learned = p.learned_dynamics;
+    out << YAML::Key << "learned_dynamics" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "conditioning" << YAML::Value << YAML::Flow
+        << std::vector<double>(learned.conditioning.data(),
+                               learned.conditioning.data() + learned.conditioning.size());
+    out << YAML::Key << "output_map" << YAML::Value << YAML::Flow
+        << std::vector<double>{learned.output_map(0, 0), learned.output_map(0, 1),
+                               learned.output_map(1, 0), learned.output_map(1, 1)};
+    out << YAML::Key << "network" << YAML::Value;
+    writeLensDynamicsNetwork(out, *learned.network);
+    out << YAML::EndMap;
+  }
   out << YAML::EndMap;
   writeCameraDescription(out, camera);
   const StabiliserTrainingRecord& t = training;
@@ -200,6 +214,22 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   for (long r = 0; r < p.nonlinear_residual.rows(); ++r)
     for (long c = 0; c < m; ++c)
       p.nonlinear_residual(r, c) = nonlinear[static_cast<std::size_t>(r * m + c)];
+  if (s["learned_dynamics"]) {
+    const YAML::Node learned = s["learned_dynamics"];
+    try {
+      p.learned_dynamics.network =
+          std::make_shared<const LensDynamicsNetwork>(readLensDynamicsNetwork(learned["network"]));
+    } catch (const LensDynamicsNetworkError& e) {
+      throw StabiliserModelFileError(std::string("field 'learned_dynamics.network': ") + e.what());
+    }
+    const auto conditioning = required<std::vector<double>>(learned, "conditioning");
+    p.learned_dynamics.conditioning =
+        Eigen::Map<const Eigen::VectorXd>(conditioning.data(), static_cast<long>(conditioning.size()));
+    const auto map = optional<std::vector<double>>(learned, "output_map", {1.0, 0.0, 0.0, 1.0});
+    if (map.size() != 4)
+      throw StabiliserModelFileError("field 'learned_dynamics.output_map' must have 4 values");
+    p.learned_dynamics.output_map << map[0], map[1], map[2], map[3];
+  }
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
   try {

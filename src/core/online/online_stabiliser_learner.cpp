@@ -97,6 +97,12 @@ StabiliserCandidateKinds OnlineLearningOptions::onlineCandidateKinds() {
   return kinds;
 }
 
+void OnlineLearningOptions::useLensDynamics(std::shared_ptr<const LensDynamicsNetwork> network) {
+  candidate_kinds.lens_dynamics = std::move(network);
+  candidate_kinds.lens_dynamics_iterations = 5;
+  candidate_kinds.lens_dynamics_map = false;
+}
+
 CornerDetectorOptions OnlineLearningOptions::learningCorners() {
   CornerDetectorOptions corners;
   corners.min_corners_per_cell = 4;

@@ -92,6 +92,21 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.confirmation.pairs = static_cast<std::size_t>(params_.learning_confirm_pairs);
   options.write.test_pause_s = params_.learning_test_write_pause_s;
   options.model_path = model_path_;
+  // The generic lens dynamics, adapted in the background like the chain's candidates (fewer
+  // iterations: each is a few passes over the buffer's gyro).
+  const std::string package = ros::package::getPath("deep_ois");
+  const std::string network_path = params_.learning_lens_dynamics.empty()
+                                       ? (package.empty() ? "" : package + "/models/lens_dynamics_generic.yaml")
+                                       : params_.learning_lens_dynamics;
+  if (!network_path.empty() && network_path != "none") {
+    try {
+      options.useLensDynamics(
+          std::make_shared<const LensDynamicsNetwork>(LensDynamicsNetwork::load(network_path)));
+    } catch (const std::exception& e) {
+      ROS_WARN_NAMED("compensation", "%s: ~learning_lens_dynamics: %s; learning without the generic lens "
+                     "dynamics", log_name_.c_str(), e.what());
+    }
+  }
   options.model_file_name = "learned online for " + model_path_;
   options.camera.width = static_cast<int>(gyro.image_width);
   options.camera.height = static_cast<int>(gyro.image_height);

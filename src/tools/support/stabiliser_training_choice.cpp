@@ -36,9 +36,10 @@ StabiliserTrainingChoice chooseTrainedStabiliser(const StabiliserFitResult& fit,
                                                  const std::vector<StabiliserFitRecording>& training,
                                                  const std::vector<StabiliserFitRecording>& held_out,
                                                  const StabiliserFitOptions& options,
-                                                 const std::string& forced_candidate) {
+                                                 const std::string& forced_candidate,
+                                                 const StabiliserCandidateKinds& kinds) {
   StabiliserTrainingChoice choice;
-  choice.selection = selectStabiliser(fit, training, held_out, options);
+  choice.selection = selectStabiliser(fit, training, held_out, options, {}, kinds);
   choice.candidate = choice.selection.kept;
   if (!forced_candidate.empty()) {
     const auto& candidates = choice.selection.candidates;

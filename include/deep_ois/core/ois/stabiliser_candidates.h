@@ -20,9 +20,11 @@
 // Pure C++/Eigen: no ROS.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/ois/lens_dynamics_network.h"
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 
@@ -78,6 +80,14 @@ struct StabiliserCandidateKinds {
   // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
   int structural_iterations = 0;
   bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
+  // The generic learned lens dynamics (core/ois/lens_dynamics_network.h), pretrained on generated
+  // designs: adapted to the camera (its conditioning vector; then with a 2x2 map of its lens too),
+  // the chain off. Null: not a candidate.
+  std::shared_ptr<const LensDynamicsNetwork> lens_dynamics;
+  int lens_dynamics_iterations = 12;  // Levenberg-Marquardt iterations of each adaptation
+  // The adaptation with the lens map too (a second adaptation: about as costly as the first); the
+  // output layer is then refitted on it (one pass), else on the conditioning's.
+  bool lens_dynamics_map = true;
 };
 
 // The candidates built from a physical fit (a fitStabiliser result), one per row of the table in
@@ -103,7 +113,7 @@ struct StabiliserSelection {
   std::string figures;  // the figures that chose it ("held-out lens-motion RMS 0.41 px, ...")
 };
 
-// Builds (stabiliserCandidates, every kind) and scores the candidates from the physical fit, and
+// Builds (stabiliserCandidates, `kinds`) and scores the candidates from the physical fit, and
 // keeps one by the choice rule (stabiliser_choice_rule.h, no incumbent) on their held-out RMS (the
 // training RMS when there are no held-out recordings: then said in the reason): the simplest
 // within choice.simpler_within of the lowest.
@@ -111,6 +121,7 @@ StabiliserSelection selectStabiliser(const StabiliserFitResult& fit,
                                      const std::vector<StabiliserFitRecording>& training,
                                      const std::vector<StabiliserFitRecording>& held_out,
                                      const StabiliserFitOptions& options,
-                                     const StabiliserChoiceOptions& choice = {});
+                                     const StabiliserChoiceOptions& choice = {},
+                                     const StabiliserCandidateKinds& kinds = {});
 
 }  // namespace deep_ois

@@ -17,12 +17,30 @@
 
 #include <Eigen/Core>
 #include <deque>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "deep_ois/core/ois/lens_actuator.h"
+#include "deep_ois/core/ois/lens_dynamics_network.h"
 
 namespace deep_ois {
+
+// The learned stage: a generic lens dynamics network (core/ois/lens_dynamics_network.h), pretrained
+// on generated stabiliser designs, conditioned on this camera's vector. Its lens (focal-length
+// units, through output_map) is added to the chain's; a model of it alone has the chain switched
+// off (noLensMotion()'s gain 0). It runs at the network's step; between its steps the lens is
+// extrapolated from its last two outputs (the predictor answers at any time up to its newest
+// gyro sample, as the chain does).
+struct LearnedLensDynamics {
+  std::shared_ptr<const LensDynamicsNetwork> network;  // null: no learned stage
+  Eigen::VectorXd conditioning;                        // network->conditioning_size values
+  // Applied to the network's lens (a camera whose lens moves on another scale, or whose axes are
+  // turned against the designs'); the identity unless the adaptation fitted it.
+  Eigen::Matrix2d output_map = Eigen::Matrix2d::Identity();
+  bool active() const { return network != nullptr; }
+};
 
 struct StabiliserParameters {
   // Commanded shift = focal_px * gain * (tan theta_x, tan theta_y) for the high-passed pan/tilt
@@ -77,10 +95,12 @@ struct StabiliserParameters {
   // fits them in one solve. Names the set so a file states which functions its numbers weigh.
   std::string nonlinear_features;
   Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
+  LearnedLensDynamics learned_dynamics;
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
-  // The chain alone: these parameters without the linear residual bank and the learned residual
+  // The chain alone: these parameters without the linear residual bank, the learned residual and
+  // the learned dynamics
   // (the "physical" candidate, and the start of a structural refit).
   StabiliserParameters physicalChain() const;
 };
@@ -126,11 +146,18 @@ class LensShiftPredictor {
   // model must name a feature set) and answers them like lensShiftAt (focal-length units).
   void recordFeatures() { record_features_ = true; }
   Eigen::VectorXd featuresAt(double t_s) const;
+  // Keeps the learned stage's state (the network's hidden vector and, with a skip path, its
+  // inputs; extrapolated between its steps as its lens is) of every retained step, and answers it like lensShiftAt: the features a refit
+  // of the network's output layer regresses on (core/ois/lens_dynamics_adaptation.h).
+  void recordLearnedState() { record_learned_ = true; }
+  Eigen::VectorXd learnedStateAt(double t_s) const;
 
   double max_gap_s = 0.1;
 
  private:
-  void step(const Eigen::Vector3d& rate_rad_s);
+  // One internal step: the rate at its middle (the chain) and at its end (the learned stage, which
+  // reads the rate at its own step times).
+  void step(const Eigen::Vector3d& rate_rad_s, const Eigen::Vector3d& end_rate_rad_s);
 
   StabiliserParameters parameters_;
   double focal_px_;
@@ -172,6 +199,14 @@ class LensShiftPredictor {
   Eigen::Matrix2d inverse_gain_ = Eigen::Matrix2d::Zero();
   double excursion_sq_ = 0.0;  // e^2 of the last step's command (excursion_centring)
   std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
+  // The learned stage: its runner, updated every learned_every_steps_ internal steps, and its last
+  // two outputs (focal units, through the output map) for the steps in between.
+  std::optional<LensDynamicsRunner> learned_;
+  long long learned_every_steps_ = 0;
+  Eigen::Vector2d learned_last_ = Eigen::Vector2d::Zero(), learned_before_ = Eigen::Vector2d::Zero();
+  bool record_learned_ = false;
+  Eigen::VectorXd hidden_last_, hidden_before_;
+  std::deque<Eigen::VectorXd> learned_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };
 

@@ -36,7 +36,8 @@ StabiliserTrainingChoice chooseTrainedStabiliser(const StabiliserFitResult& fit,
                                                  const std::vector<StabiliserFitRecording>& training,
                                                  const std::vector<StabiliserFitRecording>& held_out,
                                                  const StabiliserFitOptions& options,
-                                                 const std::string& forced_candidate = "");
+                                                 const std::string& forced_candidate = "",
+                                                 const StabiliserCandidateKinds& kinds = {});
 
 // One paragraph: the model written and why, with the figures that decided it ("kept 'no lens
 // motion' (the plain gyro): the best candidate, 'physical', does not predict the lens motion

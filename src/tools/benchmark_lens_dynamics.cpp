@@ -1,0 +1,244 @@
+// Benchmarks the stabiliser model on generated stabiliser designs at the level of the lens: per
+// design, train_stabiliser's fit and candidate choice (the physical chain, its learned variants and
+// the generic lens dynamics adapted to the design) on 6 training traces, the choice on a 7th, then
+// the lens-motion error on 2 evaluation traces, beside no lens motion (the plain gyro) and the
+// design's own controller on the camera's gyro (the oracle). No image is rendered: the lens motions
+// are the simulator's truth plus the images' measurement noise, so it runs over many designs in
+// minutes (flags: `benchmark_lens_dynamics --help`, docs/stabiliser_model.md).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/lens_dynamics_adaptation.h"
+#include "deep_ois/core/ois/stabiliser_candidates.h"
+#include "deep_ois/core/sim/design_generator.h"
+#include "deep_ois/core/sim/design_traces.h"
+#include "deep_ois/tools/support/command_line.h"
+
+namespace {
+
+using deep_ois::CameraRateSample;
+using deep_ois::StabiliserFitRecording;
+namespace sim = deep_ois::sim;
+
+struct Settings {
+  double focal_px = 257.0;  // the RE camera
+  double frame_rate_hz = 30.0;
+  double readout_s = 0.022;
+  int patches = 8;
+  double duration_s = 5.0;
+  double noise_px = 0.1;  // the images' lens-motion noise (the tracker's, gyro-anchored)
+};
+
+Eigen::Vector2d lensAt(const std::vector<CameraRateSample>& gyro, const std::vector<Eigen::Vector2d>& lens,
+                       double t) {
+  auto it = std::lower_bound(gyro.begin(), gyro.end(), t,
+                             [](const CameraRateSample& s, double v) { return s.stamp_s < v; });
+  if (it == gyro.begin()) return lens.front();
+  if (it == gyro.end()) return lens.back();
+  const std::size_t j = static_cast<std::size_t>(it - gyro.begin());
+  const double alpha = (t - gyro[j - 1].stamp_s) / (gyro[j].stamp_s - gyro[j - 1].stamp_s);
+  return (1.0 - alpha) * lens[j - 1] + alpha * lens[j];
+}
+
+// A recording of one trace: the camera's gyro and the lens motion of every frame pair and row
+// patch (frames from 1 s, when the model's warm-up is over), from `lens` plus noise.
+StabiliserFitRecording recordingOf(const sim::DesignTrace& trace, const std::vector<Eigen::Vector2d>& lens,
+                                   const Settings& s, double noise_px, std::uint32_t noise_seed) {
+  StabiliserFitRecording r;
+  r.name = "design " + std::to_string(trace.design_seed) + " motion " + std::to_string(trace.motion_seed);
+  r.focal_px = s.focal_px;
+  r.rates = trace.gyro;
+  std::mt19937 rng(noise_seed);
+  std::normal_distribution<double> noise(0.0, noise_px > 0.0 ? noise_px : 1.0);
+  const double end = trace.gyro.back().stamp_s - s.readout_s - 1.0 / s.frame_rate_hz;
+  for (double t = 1.0; t < end; t += 1.0 / s.frame_rate_hz) {
+    for (int p = 0; p < s.patches; ++p) {
+      deep_ois::LensMotionObservation o;
+      o.readout_fraction = (p + 0.5) / s.patches;
+      o.t_a_s = t + o.readout_fraction * s.readout_s;
+      o.t_b_s = o.t_a_s + 1.0 / s.frame_rate_hz;
+      o.motion_px = lensAt(trace.gyro, lens, o.t_b_s) - lensAt(trace.gyro, lens, o.t_a_s);
+      if (noise_px > 0.0) o.motion_px += Eigen::Vector2d(noise(rng), noise(rng));
+      r.observations.push_back(o);
+    }
+  }
+  return r;
+}
+
+double rmsAgainst(const std::vector<StabiliserFitRecording>& truth,
+                  const std::vector<std::vector<Eigen::Vector2d>>& predicted) {
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (std::size_t r = 0; r < truth.size(); ++r)
+    for (std::size_t i = 0; i < truth[r].observations.size(); ++i) {
+      if (!predicted[r][i].allFinite()) continue;
+      sum += (predicted[r][i] - truth[r].observations[i].motion_px).squaredNorm();
+      ++count;
+    }
+  return count ? std::sqrt(sum / static_cast<double>(count)) : std::nan("");
+}
+
+double rmsOf(const deep_ois::StabiliserParameters& p, const std::vector<StabiliserFitRecording>& truth,
+             const deep_ois::StabiliserFitOptions& options) {
+  std::vector<std::vector<Eigen::Vector2d>> predicted;
+  for (const auto& r : truth) predicted.push_back(deep_ois::predictLensMotion(p, r, options.step_s, options.warm_up_s));
+  return rmsAgainst(truth, predicted);
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace
+
+constexpr char kDescription[] =
+    "Benchmarks the stabiliser model on generated stabiliser designs at the level of the lens (no "
+    "image rendered): per design, the fit and candidate choice of train_stabiliser on 6 training "
+    "traces of 5 s and a 7th for the choice, then the lens-motion RMS on 2 evaluation traces, "
+    "beside no lens motion (the plain gyro) and the design's own controller on the camera's gyro "
+    "(the oracle). 'Closed' is 1 - RMS / RMS without a lens model, the share of the lens motion "
+    "explained (the images' gap to the non-OIS twin follows it, less the tracker's floor). Prints a "
+    "row per design and a summary per class; --csv writes the rows.";
+
+int main(int argc, char** argv) {
+  std::string network_path, split = "held_out", csv_path;
+  std::uint32_t seed_begin = 0, count = 40;
+  Settings settings;
+  bool chain_candidates = true, describe = false;
+  deep_ois::ToolCommandLine command_line("benchmark_lens_dynamics", kDescription);
+  CLI::App& app = command_line.app();
+  app.add_option("--network", network_path, "the lens dynamics network (none: the chain alone)")
+      ->required()
+      ->type_name("FILE.yaml|none");
+  app.add_option("--split", split, "which designs: the generator's held-out seeds (seed % 5 == 0) "
+                                   "or its training split")
+      ->check(deep_ois::oneOf({"held_out", "training"}))
+      ->capture_default_str();
+  command_line.addNumber("--seed-begin", seed_begin, "first design seed considered");
+  command_line.addNumber("--count", count, "designs of the split from --seed-begin on");
+  command_line.addNumber("--noise", settings.noise_px, "lens-motion measurement noise, px (per axis)");
+  app.add_option("--chain-candidates", chain_candidates,
+                 "also fit the chain's structural and learned-residual candidates (slower)")
+      ->capture_default_str();
+  app.add_flag("--describe", describe, "print each design's description under its row");
+  app.add_option("--csv", csv_path, "write the rows here")->type_name("FILE.csv");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+
+  try {
+    std::shared_ptr<const deep_ois::LensDynamicsNetwork> network;
+    if (network_path != "none")
+      network = std::make_shared<const deep_ois::LensDynamicsNetwork>(
+          deep_ois::LensDynamicsNetwork::load(network_path));
+    std::ofstream csv;
+    if (!csv_path.empty()) {
+      csv.open(csv_path);
+      if (!csv) throw std::runtime_error("cannot write " + csv_path);
+      csv << "design_seed,class,none_px,kept_px,kept,chain_px,generic_px,generic_map_px,generic_layer_px,oracle_px,"
+             "closed_kept,closed_chain,closed_generic,closed_oracle,seconds\n";
+    }
+    const sim::DesignSplit wanted = split == "held_out" ? sim::DesignSplit::kHeldOut : sim::DesignSplit::kTraining;
+    sim::DesignTraceOptions trace_options;
+    trace_options.duration_s = settings.duration_s;
+    trace_options.focal_px = settings.focal_px;
+    deep_ois::StabiliserFitOptions fit_options;
+    fit_options.check_timing = false;
+    deep_ois::StabiliserCandidateKinds kinds;
+    kinds.structural = chain_candidates;
+    kinds.learned_features = chain_candidates;
+    kinds.lens_dynamics = network;
+    std::printf("%-6s %-12s %8s %8s %8s %8s %8s %8s %8s %7s %7s %7s %s\n", "design", "class", "none px",
+                "kept px", "chain px", "generic", "+map", "+layer", "oracle", "kept %", "chain %", "oracle %", "kept");
+    std::map<std::string, std::vector<double>> kept_by_class, oracle_by_class;
+    std::vector<double> kept_all, oracle_all, gap_to_oracle;
+    int meets = 0, designs = 0;
+    for (std::uint32_t seed = seed_begin; designs < static_cast<int>(count); ++seed) {
+      if (sim::designSplit(seed) != wanted) continue;
+      ++designs;
+      const auto started = std::chrono::steady_clock::now();
+      const sim::StabiliserDesign design = sim::generateDesign(seed);
+      std::vector<StabiliserFitRecording> training, choice, evaluation, oracle;
+      for (std::uint32_t m = 101; m <= 109; ++m) {
+        const sim::DesignTrace trace = sim::simulateDesignTrace(seed, m, trace_options);
+        if (m <= 107) {
+          (m <= 106 ? training : choice).push_back(recordingOf(trace, trace.lens_px, settings, settings.noise_px, m));
+        } else {
+          evaluation.push_back(recordingOf(trace, trace.lens_px, settings, 0.0, m));
+          oracle.push_back(recordingOf(trace, sim::designLensShifts(design, settings.focal_px, trace.gyro),
+                                       settings, 0.0, m));
+        }
+      }
+      const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser(training, fit_options);
+      const deep_ois::StabiliserSelection selection =
+          deep_ois::selectStabiliser(fit, training, choice, fit_options, {}, kinds);
+      // The chain's own choice (the generic candidates left out), for comparison.
+      std::size_t chain_kept = 0;
+      double chain_best = INFINITY;
+      for (std::size_t k = 0; k < selection.candidates.size(); ++k) {
+        if (selection.candidates[k].name.rfind("generic", 0) == 0) continue;
+        const double v = selection.candidates[k].held_out.rms_px;
+        if (v < chain_best) chain_best = v, chain_kept = k;
+      }
+      std::vector<std::vector<Eigen::Vector2d>> oracle_motion;
+      for (const auto& r : oracle) {
+        std::vector<Eigen::Vector2d> m;
+        for (const auto& o : r.observations) m.push_back(o.motion_px);
+        oracle_motion.push_back(m);
+      }
+      const double none = rmsOf(deep_ois::noLensMotion(), evaluation, fit_options);
+      const double kept = rmsOf(selection.candidates[selection.kept].parameters, evaluation, fit_options);
+      const double chain = rmsOf(selection.candidates[chain_kept].parameters, evaluation, fit_options);
+      double generic = NAN, generic_map = NAN, generic_layer = NAN;
+      for (const auto& c : selection.candidates) {
+        if (c.name == "generic lens dynamics, adapted") generic = rmsOf(c.parameters, evaluation, fit_options);
+        if (c.name == "generic lens dynamics, adapted + lens map") generic_map = rmsOf(c.parameters, evaluation, fit_options);
+        if (c.name == "generic lens dynamics, adapted + output layer refitted") generic_layer = rmsOf(c.parameters, evaluation, fit_options);
+      }
+      const double oracle_rms = rmsAgainst(evaluation, oracle_motion);
+      auto closed = [&](double v) { return 100.0 * (1.0 - v / none); };
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      const std::string cls = sim::designClass(design);
+      std::printf("%-6u %-12s %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.1f%% %6.1f%% %6.1f%% %s (%.0f s)\n", seed,
+                  cls.c_str(), none, kept, chain, generic, generic_map, generic_layer, oracle_rms, closed(kept), closed(chain),
+                  closed(oracle_rms), selection.candidates[selection.kept].name.c_str(), seconds);
+      if (describe) {
+        std::string tags;
+        for (const std::string& tag : sim::designFeatures(design)) tags += " " + tag;
+        std::printf("       features:%s\n       %s\n", tags.c_str(), sim::describe(design).c_str());
+      }
+      std::fflush(stdout);
+      kept_by_class[cls].push_back(closed(kept));
+      oracle_by_class[cls].push_back(closed(oracle_rms));
+      kept_all.push_back(closed(kept));
+      oracle_all.push_back(closed(oracle_rms));
+      gap_to_oracle.push_back(closed(oracle_rms) - closed(kept));
+      if (closed(kept) >= 95.0 || closed(kept) >= closed(oracle_rms) - 3.0) ++meets;
+      if (csv)
+        csv << seed << "," << cls << "," << none << "," << kept << ",\"" << selection.candidates[selection.kept].name
+            << "\"," << chain << "," << generic << "," << generic_map << "," << generic_layer << "," << oracle_rms << "," << closed(kept)
+            << "," << closed(chain) << "," << closed(generic) << "," << closed(oracle_rms) << "," << seconds << "\n";
+    }
+    std::printf("\nper class (median closed: kept / oracle):\n");
+    for (const auto& [cls, values] : kept_by_class)
+      std::printf("  %-12s %2zu designs  %6.1f %% / %6.1f %%\n", cls.c_str(), values.size(), median(values),
+                  median(oracle_by_class[cls]));
+    std::printf("all %d designs (%s split): median closed %.1f %% (oracle %.1f %%), median distance to "
+                "the oracle %.1f points; %d of %d (%.0f %%) reach 95 %% or within 3 points of the oracle\n",
+                designs, split.c_str(), median(kept_all), median(oracle_all), median(gap_to_oracle), meets,
+                designs, 100.0 * meets / std::max(1, designs));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "benchmark_lens_dynamics: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
