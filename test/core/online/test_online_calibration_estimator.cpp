@@ -282,19 +282,22 @@ TEST(OnlineCalibrationEstimator, StaysWithinItsCpuShare) {
   OnlineCalibrationOptions online = unbudgeted();
   online.cpu_share = 0.02;  // far below what a fit every 1.5 s costs
   OnlineCalibrationEstimator estimator(online, recording.camera, wrongStart(recording));
-  double worst_excess_s = 0.0;
+  double worst_excess_s = 0.0, longest_fit_s = 0.0;
   replay(recording, estimator, [&](double) {
-    // From the start to any moment: what was spent beyond the share's credit is at most one fit.
+    // From the start to any moment: what was spent beyond the share's credit is at most one fit
+    // (the budget decides before a fit, never during one). A fit's cost depends on the machine's
+    // load, so the bound is the longest fit measured here (its wall time bounds its CPU time).
     const OnlineCalibrationStatus& status = estimator.status();
     worst_excess_s = std::max(worst_excess_s, status.cpu_s - online.cpu_share * status.stream_s);
+    longest_fit_s = std::max(longest_fit_s, status.last_fit_seconds);
   });
   const OnlineCalibrationStatus& status = estimator.status();
   std::cout << "[ measured ] share 2 %: " << status.cpu_s << " s CPU over " << status.stream_s << " s, " << status.fits
             << " fits, " << status.fits_over_budget << " waited; worst excess " << worst_excess_s << " s\n";
   EXPECT_GT(status.fits_over_budget, 0u);
   EXPECT_GT(status.fits, 0u);
-  EXPECT_LT(status.cpu_s, online.cpu_share * status.stream_s + 0.5);
-  EXPECT_LT(worst_excess_s, 0.5);  // one fit at most (a fit costs 0.1-0.4 s here)
+  EXPECT_LT(status.cpu_s, online.cpu_share * status.stream_s + longest_fit_s + 0.05);
+  EXPECT_LT(worst_excess_s, longest_fit_s + 0.05);  // one fit at most (0.1-0.6 s here)
 }
 
 // The live path: the learner's tracking thread hands every tracked pair to the estimator
