@@ -188,8 +188,7 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
 
 StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted,
                                              const std::vector<StabiliserFitRecording>& recordings,
-                                             const StabiliserFitOptions& options, double ridge,
-                                             bool from_zero) {
+                                             const StabiliserFitOptions& options, double ridge) {
   const std::string problem = adapted.validate();
   if (!problem.empty()) throw std::invalid_argument("lens dynamics output refit: " + problem);
   if (!adapted.learned_dynamics.active())
@@ -247,14 +246,14 @@ StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted
   Eigen::VectorXd penalty(h);
   for (long k = 0; k < h; ++k) penalty(k) = ridge * A(k, k) + floor;
   A.diagonal() += penalty;
-  if (!from_zero) B += penalty.asDiagonal() * w0.transpose();
+  B += penalty.asDiagonal() * w0.transpose();
   const Eigen::MatrixXd solution = A.ldlt().solve(B);  // H x 2
   StabiliserParameters refitted = adapted;
   if (!solution.allFinite()) return refitted;
   auto network = std::make_shared<LensDynamicsNetwork>(net);
   network->w_output = solution.topRows(hidden).transpose();
   if (skip) network->w_skip = solution.bottomRows(net.inputSize()).transpose();
-  network->b_output = from_zero ? Eigen::Vector2d::Zero() : Eigen::Vector2d(learned.output_map * net.b_output);
+  network->b_output = learned.output_map * net.b_output;
   refitted.learned_dynamics.network = network;
   refitted.learned_dynamics.output_map.setIdentity();
   return refitted;

@@ -181,13 +181,6 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
       // Then its output layer refitted to the camera (a linear map from the network's state).
       candidates.push_back({"generic lens dynamics, adapted + output layer refitted",
                             refitLensDynamicsOutput(adapted, training, options)});
-      // The fitted chain as the prior, the network's state (as adapted) explaining what it leaves.
-      StabiliserParameters on_chain = fit.parameters;
-      on_chain.learned_dynamics = adapted.learned_dynamics;
-      on_chain.learned_dynamics.output_map.setIdentity();
-      candidates.push_back({std::string(has_linear ? "physical + linear" : "physical") +
-                                " + generic lens dynamics' state",
-                            refitLensDynamicsOutput(on_chain, training, options, 1e-2, true)});
     } catch (const std::invalid_argument&) {
       // No usable lens motion: the simpler candidates stand.
     }

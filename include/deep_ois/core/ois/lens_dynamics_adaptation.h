@@ -50,12 +50,10 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
 // adapted layer; Huber weights as fit_options.huber_px) on the lens motion the rest of the model
 // leaves. The network's recurrent weights stay; the refitted layer is stored in the model's copy of
 // the network (output_map folded in). Throws std::invalid_argument as adaptLensDynamics.
-// With `from_zero`, the layer is pulled towards zero instead (the learned stage on top of a fitted
-// chain then explains only what the chain leaves: the chain stays the prior).
 StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted,
                                              const std::vector<StabiliserFitRecording>& recordings,
                                              const StabiliserFitOptions& fit_options,
-                                             double ridge = 1e-2, bool from_zero = false);
+                                             double ridge = 1e-2);
 
 // The stabiliser model of the network with its default conditioning (what a camera starts from
 // before any adaptation): noLensMotion()'s chain off, the learned stage on.
