@@ -55,7 +55,7 @@ int main(int argc, char** argv) {
   command_line.addNumber("--seed", options.seed, "initial weights and batch order");
   command_line.addNumber("--threads", options.threads, "torch threads");
   command_line.addNumber("--checkpoint-every", options.checkpoint_every, "iterations between checkpoints");
-  std::string integrals = "0.05,0.15,0.4,1,2.5";
+  std::string integrals = "none";
   app.add_option("--integrals", integrals,
                  "time constants (s) of the leaky rate integrals fed to the network, or none")
       ->capture_default_str()
