@@ -10,8 +10,11 @@
 // The gyro is used over the whole log in both folds (the stabiliser's state needs its history and
 // the gyro is always there); only the lens labels are split.
 
+#include <ros/package.h>
+
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -230,7 +233,23 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_path, "write the first fold's kept model here")->type_name("MODEL.yaml");
   app.add_option("--plots", plots, "write PREFIX_fold<N>.csv/.png: predicted and logged lens")
       ->type_name("PREFIX");
+  const std::string package = ros::package::getPath("deep_ois");
+  std::string lens_dynamics = package.empty() ? "none" : package + "/models/lens_dynamics_generic.yaml";
+  app.add_option("--lens-dynamics", lens_dynamics,
+                 "the generic lens dynamics network adapted to the log as a candidate, or none "
+                 "(as train_stabiliser's)")
+      ->capture_default_str()
+      ->type_name("FILE.yaml|none");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  deep_ois::StabiliserCandidateKinds kinds;
+  if (lens_dynamics != "none") {
+    try {
+      kinds.lens_dynamics = std::make_shared<const deep_ois::LensDynamicsNetwork>(
+          deep_ois::LensDynamicsNetwork::load(lens_dynamics));
+    } catch (const deep_ois::LensDynamicsNetworkError& e) {
+      return command_line.usageError(std::string("--lens-dynamics: ") + e.what());
+    }
+  }
   if (!out_path.empty()) {
     try {  // now, not after the fit: a mistyped --out folder must not cost the fit
       deep_ois::StabiliserModelFile::checkSavable(out_path);
@@ -306,7 +325,7 @@ int main(int argc, char** argv) {
       }
       // Every candidate fitted on the whole training time, scored on the held-out time (the table).
       const deep_ois::StabiliserSelection selection =
-          deep_ois::selectStabiliser(fit, {train}, {test}, fit_options);
+          deep_ois::selectStabiliser(fit, {train}, {test}, fit_options, {}, kinds);
       for (const auto& c : selection.candidates) {
         const RSquared r = scoreFold(c.parameters, test, fold_log, test_from, test_to, fit_options.warm_up_s);
         std::printf("| %s | %s | %.3f | %.3f | %.4f | %.4f |\n",
@@ -321,7 +340,8 @@ int main(int argc, char** argv) {
       const auto choice_train = recording(fold_log, train_from, choice_from, "training, first three quarters");
       const auto choice_check = recording(fold_log, choice_from, train_to, "training, last quarter");
       const deep_ois::StabiliserSelection choice = deep_ois::selectStabiliser(
-          deep_ois::fitStabiliser({choice_train}, fit_options), {choice_train}, {choice_check}, fit_options);
+          deep_ois::fitStabiliser({choice_train}, fit_options), {choice_train}, {choice_check}, fit_options, {},
+          kinds);
       const std::string& chosen = choice.candidates[choice.kept].name;
       std::size_t kept_index = selection.candidates.size();
       for (std::size_t i = 0; i < selection.candidates.size(); ++i)
