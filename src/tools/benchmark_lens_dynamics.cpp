@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/ois/lens_dynamics_adaptation.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/sim/design_generator.h"
@@ -84,20 +85,6 @@ double rmsAgainst(const std::vector<StabiliserFitRecording>& truth,
       ++count;
     }
   return count ? std::sqrt(sum / static_cast<double>(count)) : std::nan("");
-}
-
-double rmsOf(const deep_ois::StabiliserParameters& p, const std::vector<StabiliserFitRecording>& truth,
-             const deep_ois::StabiliserFitOptions& options) {
-  std::vector<std::vector<Eigen::Vector2d>> predicted;
-  for (const auto& r : truth) predicted.push_back(deep_ois::predictLensMotion(p, r, options.step_s, options.warm_up_s));
-  return rmsAgainst(truth, predicted);
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 }  // namespace
@@ -195,14 +182,17 @@ int main(int argc, char** argv) {
         for (const auto& o : r.observations) m.push_back(o.motion_px);
         oracle_motion.push_back(m);
       }
-      const double none = rmsOf(deep_ois::noLensMotion(), evaluation, fit_options);
-      const double kept = rmsOf(selection.candidates[selection.kept].parameters, evaluation, fit_options);
-      const double chain = rmsOf(selection.candidates[chain_kept].parameters, evaluation, fit_options);
+      auto rmsOf = [&](const deep_ois::StabiliserParameters& p) {
+        return deep_ois::scoreStabiliser(p, evaluation, fit_options).rms_px;
+      };
+      const double none = rmsOf(deep_ois::noLensMotion());
+      const double kept = rmsOf(selection.candidates[selection.kept].parameters);
+      const double chain = rmsOf(selection.candidates[chain_kept].parameters);
       double generic = NAN, generic_map = NAN, generic_layer = NAN;
       for (const auto& c : selection.candidates) {
-        if (c.name == "generic lens dynamics, adapted") generic = rmsOf(c.parameters, evaluation, fit_options);
-        if (c.name == "generic lens dynamics, adapted + lens map") generic_map = rmsOf(c.parameters, evaluation, fit_options);
-        if (c.name == "generic lens dynamics, adapted + output layer refitted") generic_layer = rmsOf(c.parameters, evaluation, fit_options);
+        if (c.name == "generic lens dynamics, adapted") generic = rmsOf(c.parameters);
+        if (c.name == "generic lens dynamics, adapted + lens map") generic_map = rmsOf(c.parameters);
+        if (c.name == "generic lens dynamics, adapted + output layer refitted") generic_layer = rmsOf(c.parameters);
       }
       const double oracle_rms = rmsAgainst(evaluation, oracle_motion);
       auto closed = [&](double v) { return 100.0 * (1.0 - v / none); };
@@ -230,11 +220,11 @@ int main(int argc, char** argv) {
     }
     std::printf("\nper class (median closed: kept / oracle):\n");
     for (const auto& [cls, values] : kept_by_class)
-      std::printf("  %-12s %2zu designs  %6.1f %% / %6.1f %%\n", cls.c_str(), values.size(), median(values),
-                  median(oracle_by_class[cls]));
+      std::printf("  %-12s %2zu designs  %6.1f %% / %6.1f %%\n", cls.c_str(), values.size(), deep_ois::median(values),
+                  deep_ois::median(oracle_by_class[cls]));
     std::printf("all %d designs (%s split): median closed %.1f %% (oracle %.1f %%), median distance to "
                 "the oracle %.1f points; %d of %d (%.0f %%) reach 95 %% or within 3 points of the oracle\n",
-                designs, split.c_str(), median(kept_all), median(oracle_all), median(gap_to_oracle), meets,
+                designs, split.c_str(), deep_ois::median(kept_all), deep_ois::median(oracle_all), deep_ois::median(gap_to_oracle), meets,
                 designs, 100.0 * meets / std::max(1, designs));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "benchmark_lens_dynamics: %s\n", e.what());

@@ -127,8 +127,10 @@ std::string StabiliserParameters::validate() const {
               !nonlinear_residual.allFinite())) {
     why << "nonlinear_residual: must be a finite 2 x " << nonlinearFeatureCount(nonlinear_features)
         << " matrix for nonlinear_features '" << nonlinear_features << "'";
-  } else if (learned_dynamics.active() && !learned_dynamics.network->validate().empty()) {
-    why << "learned_dynamics.network: " << learned_dynamics.network->validate();
+  } else if (const std::string network_problem =
+                 learned_dynamics.active() ? learned_dynamics.network->validate() : std::string();
+             !network_problem.empty()) {
+    why << "learned_dynamics.network: " << network_problem;
   } else if (learned_dynamics.active() &&
              (learned_dynamics.conditioning.size() != learned_dynamics.network->conditioning_size ||
               !learned_dynamics.conditioning.allFinite())) {
