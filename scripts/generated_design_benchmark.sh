@@ -103,4 +103,29 @@ for seed in "$@"; do
   grep -q "^| $seed |" "$table" || echo "$row" >>"$table"
   echo "design $seed ($class): $(( $(date +%s) - started )) s: $row"
 done
+# Per class and over all rows of the table: the median gap closed (capped / uncapped) of each row
+# and how many designs meet the issue's bar (>= 95 % capped, or within 3 points of the oracle).
+/usr/bin/python3 - "$table" <<'PY'
+import collections, statistics, sys
+rows = [l.split("|")[1:-1] for l in open(sys.argv[1]) if l.startswith("| ") and l[2].isdigit()]
+def pair(cell):
+    a, b = cell.replace("%", "").split("/")
+    return float(a), float(b)
+groups = collections.defaultdict(list)
+for r in rows:
+    r = [c.strip() for c in r]
+    g = {k: pair(r[i]) for k, i in (("generic", 8), ("chain", 9), ("learned", 10), ("oracle", 11))}
+    groups[r[1]].append(g)
+    groups["all"].append(g)
+print("| class | designs | generic | chain only | with learned dynamics | oracle | meet the bar: chain | learned | median points below the oracle: chain | learned |")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+med = lambda gs, k, j: statistics.median(g[k][j] for g in gs)
+bar = lambda g, k: g[k][0] >= 95.0 or g[k][0] >= g["oracle"][0] - 3.0
+for name in sorted(groups, key=lambda n: (n == "all", n)):
+    gs = groups[name]
+    cells = ["%.1f / %.1f %%" % (med(gs, k, 0), med(gs, k, 1)) for k in ("generic", "chain", "learned", "oracle")]
+    below = lambda k: statistics.median(g["oracle"][0] - g[k][0] for g in gs)
+    print("| %s | %d | %s | %d | %d | %.1f | %.1f |" % (name, len(gs), " | ".join(cells),
+          sum(bar(g, "chain") for g in gs), sum(bar(g, "learned") for g in gs), below("chain"), below("learned")))
+PY
 exit $status
