@@ -118,8 +118,12 @@ int stabiliserComplexity(const StabiliserParameters& parameters) {
                                       !parameters.actuator_coupling.isZero(0.0), parameters.soft_stroke};
   const bool linear = parameters.residual.size() != 0;
   int most = 0;
-  for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions()) {
+  for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions())
     most = std::max(most, d.complexity);
+  // A learned network (alone or on the chain's residual) is more than any row or hand-written
+  // composition: kept only when it beats every simpler candidate by the rule's margin.
+  if (parameters.learned_dynamics.active()) return most + 2;
+  for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions()) {
     // A refitted structure keeps its bank only when the bank helps: either way it is that row.
     if (sameStructure(d.structure, structure) && d.feature_set == parameters.nonlinear_features &&
         (d.structural() || d.linear_residual == linear || !d.feature_set.empty()))

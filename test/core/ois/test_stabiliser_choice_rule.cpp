@@ -198,6 +198,11 @@ TEST(StabiliserCandidates, AModelFileIsRankedByTheRowThatDescribesIt) {
   EXPECT_EQ(complexity("learned_excursion_v1"), 10);
   // Anti-windup and a learned set together: no row; after every row.
   EXPECT_EQ(complexity("learned_excursion_rate_v1"), 12);
+  // The generic learned lens dynamics: a network, last (simpler candidates win within the margin).
+  EXPECT_EQ(stabiliserComplexity(StabiliserModelFile::load(std::string(DEEP_OIS_SOURCE_DIR) +
+                                                           "/test/ros/stabiliser_model_generic_dynamics.yaml")
+                                     .parameters),
+            13);
 }
 
 }  // namespace

@@ -69,8 +69,8 @@ const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptio
 
 // A model's place in the table's simplicity order, read from its parameters: 0 for "no lens
 // motion", the complexity of the row that describes it (its structure, feature set and linear
-// bank), and after every row for a composition no row describes (a hand-written file). So a model
-// from anywhere (a prior, the model in use) is ranked as the candidates are.
+// bank), after every row for a composition no row describes (a hand-written file), and last for
+// a model with the learned lens dynamics (a network: the least simple). So a model from anywhere (a prior, the model in use) is ranked as the candidates are.
 int stabiliserComplexity(const StabiliserParameters& parameters);
 
 // Which rows stabiliserCandidates builds besides the physical chain and its linear bank.
