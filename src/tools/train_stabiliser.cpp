@@ -275,9 +275,9 @@ Findings reviewKept(const Arguments& args, const FitStage& stage,
   Findings findings;
   findings.calibration_suspect = recordings_suspect;
   if (choice.keptNoLensMotion()) return findings;
-  // The generic lens dynamics replaces the chain: the chain's review (its gain, bounds and timing
-  // check) describes a model that was not written.
-  if (choice.keptParameters().learned_dynamics.active()) return findings;
+  // The review (the chain's gain, bounds and timing check) describes the fitted chain: a kept
+  // model whose chain is switched off (the learned lens dynamics alone) has no chain to review.
+  if (deep_ois::isNoLensMotion(choice.keptParameters().physicalChain())) return findings;
   findings.on_bound = stage.fit.review.on_bound;
   findings.implausible = deep_ois::reviewStabiliserFit(choice.keptParameters(), args.lens_target).implausible;
   findings.timing = stage.fit.review.timing;
