@@ -272,14 +272,11 @@ int main(int argc, char** argv) {
   options.show_progress = false;
 
   deep_ois::OnlineLearningOptions learning;
-  if (lens_dynamics_path != "none") {
-    try {
-      learning.useLensDynamics(std::make_shared<const deep_ois::LensDynamicsNetwork>(
-          deep_ois::LensDynamicsNetwork::load(lens_dynamics_path)));
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "benchmark_online_learning: --lens-dynamics: %s\n", e.what());
-      return 2;
-    }
+  try {
+    if (auto network = deep_ois::loadLensDynamicsOption(lens_dynamics_path)) learning.useLensDynamics(network);
+  } catch (const deep_ois::LensDynamicsNetworkError& e) {
+    std::fprintf(stderr, "benchmark_online_learning: --lens-dynamics: %s\n", e.what());
+    return 2;
   }
   learning.cpu_share = cpu_share;
   learning.learning = !no_learning;

@@ -242,13 +242,10 @@ int main(int argc, char** argv) {
       ->type_name("FILE.yaml|none");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   deep_ois::StabiliserCandidateKinds kinds;
-  if (lens_dynamics != "none") {
-    try {
-      kinds.lens_dynamics = std::make_shared<const deep_ois::LensDynamicsNetwork>(
-          deep_ois::LensDynamicsNetwork::load(lens_dynamics));
-    } catch (const deep_ois::LensDynamicsNetworkError& e) {
-      return command_line.usageError(std::string("--lens-dynamics: ") + e.what());
-    }
+  try {
+    kinds.lens_dynamics = deep_ois::loadLensDynamicsOption(lens_dynamics);
+  } catch (const deep_ois::LensDynamicsNetworkError& e) {
+    return command_line.usageError(std::string("--lens-dynamics: ") + e.what());
   }
   if (!out_path.empty()) {
     try {  // now, not after the fit: a mistyped --out folder must not cost the fit

@@ -151,14 +151,11 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
     return command_line.usageError("--fit-time-offset moves a lens log: it needs --target log");
   args->fit_options.target = args->lens_target;
   if (args->cache_dir.empty()) args->cache_dir = args->out_path + ".cache";
-  if (args->lens_dynamics != "none") {
-    try {
-      args->kinds.lens_dynamics = std::make_shared<const deep_ois::LensDynamicsNetwork>(
-          deep_ois::LensDynamicsNetwork::load(args->lens_dynamics));
-    } catch (const deep_ois::LensDynamicsNetworkError& e) {
-      return command_line.usageError(std::string("--lens-dynamics: ") + e.what() +
-                                     " (or --lens-dynamics none for the chain's candidates alone)");
-    }
+  try {
+    args->kinds.lens_dynamics = deep_ois::loadLensDynamicsOption(args->lens_dynamics);
+  } catch (const deep_ois::LensDynamicsNetworkError& e) {
+    return command_line.usageError(std::string("--lens-dynamics: ") + e.what() +
+                                   " (or --lens-dynamics none for the chain's candidates alone)");
   }
   return std::nullopt;
 }

@@ -214,6 +214,11 @@ LensDynamicsNetwork LensDynamicsNetwork::load(const std::string& path) {
   }
 }
 
+std::shared_ptr<const LensDynamicsNetwork> loadLensDynamicsOption(const std::string& path_or_none) {
+  if (path_or_none.empty() || path_or_none == "none") return nullptr;
+  return std::make_shared<const LensDynamicsNetwork>(LensDynamicsNetwork::load(path_or_none));
+}
+
 void LensDynamicsNetwork::save(const std::string& path) const {
   // Written beside the target, then renamed over it: a reader (or a run killed mid-write) sees the
   // old complete file or the new one.

@@ -88,6 +88,10 @@ struct LensDynamicsNetwork {
   void save(const std::string& path) const;                  // atomic (written beside, renamed)
 };
 
+// The network a tool's or node's option names: null for "none" or "" (no learned dynamics), else
+// the file loaded. Throws LensDynamicsNetworkError naming the file.
+std::shared_ptr<const LensDynamicsNetwork> loadLensDynamicsOption(const std::string& path_or_none);
+
 // The network as a YAML map (what toYaml writes, without the document around it): a stabiliser
 // model file embeds its network this way.
 }  // namespace deep_ois
