@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/ois/camera_rate_cursor.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
 
 namespace deep_ois {
 namespace {
@@ -50,63 +51,71 @@ void runOver(const StabiliserParameters& parameters, const StabiliserFitRecordin
   }
 }
 
-// The box the fit keeps each physical parameter in. A parameter that ends on one of these
-// wanted to go further: the fit reports it (reviewStabiliserFit).
-struct Bounds {
-  double lower, upper;
-};
-constexpr Bounds kCornerHz{1e-3, 50.0};
-constexpr Bounds kActuatorHz{2.0, 500.0};
-constexpr Bounds kDamping{0.05, 5.0};
-constexpr Bounds kLagMs{0.0, 50.0};
-constexpr Bounds kStrokeDeg{0.02, 20.0};
-constexpr Bounds kReleaseHz{0.05, 100.0};
-constexpr Bounds kExcursionCentring{1e-3, 100.0};
-constexpr Bounds kActuatorCoupling{-0.5, 0.5};
+// Mechanisms whose parameters stay in the refinement's vector when it does not fit them, held (a
+// zero Jacobian column, so they do not move): the layout the fit had when it packed numbered slots.
+// The Levenberg-Marquardt step solves a system of the vector's size, and a different size rounds
+// differently; keeping the layout keeps every fit's result bit-identical to the models it made
+// before (the pan release corner was in the vector only when fitted, so it stays so).
+bool heldWhenNotFitted(const std::string& mechanism) {
+  return mechanism == stabiliser_mechanism::kExcursionCentring ||
+         mechanism == stabiliser_mechanism::kActuatorCoupling;
+}
 
-// The physical parameters the Levenberg-Marquardt step moves, as an unconstrained vector.
-struct ParameterPacking {
-  bool pan = false;  // pan_release_corner_hz is free
-  bool excursion = false;  // excursion_centring is free (slot 10)
-  bool coupling = false;   // actuator_coupling is free (slots 11, 12)
-  int size() const { return 13 + (pan ? 1 : 0); }
-  // Slots whose column stays zero (the parameter is not free).
-  bool fixed(int slot) const {
-    return (slot == 10 && !excursion) || ((slot == 11 || slot == 12) && !coupling);
+// The parameters a Levenberg-Marquardt refinement moves, as an unconstrained vector: the stages'
+// fitted parameters (core/ois/stabiliser_stage.h), named and bounded there, in the stages' order.
+// Those of the chain are always free; a mechanism's own (excursion re-centring, actuator
+// coupling, pan release corner) only when the refinement fits that mechanism. Each is held in its
+// bounds when unpacked (a parameter that ends on one is reported by reviewStabiliserFit).
+class FreeParameters {
+ public:
+  explicit FreeParameters(const std::vector<std::string>& mechanisms = {}) {
+    for (const StabiliserStage& stage : stabiliserStages()) {
+      for (const FittedStabiliserParameter& parameter : stage.fitted) {
+        const std::string mechanism = parameter.mechanism;
+        const bool free = mechanism.empty() || std::find(mechanisms.begin(), mechanisms.end(),
+                                                         mechanism) != mechanisms.end();
+        if (free || heldWhenNotFitted(mechanism)) entries_.push_back({&parameter, free});
+      }
+    }
   }
+  int size() const { return static_cast<int>(entries_.size()); }
+  // Whether entry j moves (else its Jacobian column stays zero).
+  bool free(int j) const { return entries_[static_cast<std::size_t>(j)].free; }
+  // The forward-difference step of entry j's coordinate.
+  double step(int j) const { return entries_[static_cast<std::size_t>(j)].parameter->fit_step; }
 
   Eigen::VectorXd pack(const StabiliserParameters& p) const {
     Eigen::VectorXd x(size());
-    x << p.gain(0, 0), p.gain(0, 1), p.gain(1, 0), p.gain(1, 1), std::log(p.highpass_corner_hz),
-        std::log(p.actuator_natural_hz), std::log(p.actuator_damping), 1000.0 * p.sensor_lag_s,
-        std::log(p.stroke_x_deg), std::log(p.stroke_y_deg), 0.0, p.actuator_coupling.x(),
-        p.actuator_coupling.y();
-    // Slot 10: the excursion-dependent re-centring when it is free (else unused, its column zero).
-    x(10) = excursion ? std::log(std::clamp(p.excursion_centring, kExcursionCentring.lower,
-                                            kExcursionCentring.upper))
-                      : 0.0;
-    if (pan) x(13) = std::log(p.pan_release_corner_hz);
+    for (int j = 0; j < size(); ++j) {
+      const Entry& entry = entries_[static_cast<std::size_t>(j)];
+      if (!entry.free) {
+        x(j) = 0.0;  // held: never read
+        continue;
+      }
+      const FittedStabiliserParameter& parameter = *entry.parameter;
+      // Held in the bounds first: a mechanism switched off (0) has no logarithm.
+      const double value = std::clamp(parameter.value(p), parameter.lower, parameter.upper);
+      x(j) = parameter.logarithmic ? std::log(value) : value;
+    }
     return x;
   }
   StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
-    p.gain << x(0), x(1), x(2), x(3);
-    p.highpass_corner_hz = std::clamp(std::exp(x(4)), kCornerHz.lower, kCornerHz.upper);
-    p.actuator_natural_hz = std::clamp(std::exp(x(5)), kActuatorHz.lower, kActuatorHz.upper);
-    p.actuator_damping = std::clamp(std::exp(x(6)), kDamping.lower, kDamping.upper);
-    p.sensor_lag_s = std::clamp(x(7), kLagMs.lower, kLagMs.upper) / 1000.0;
-    p.stroke_x_deg = std::clamp(std::exp(x(8)), kStrokeDeg.lower, kStrokeDeg.upper);
-    p.stroke_y_deg = std::clamp(std::exp(x(9)), kStrokeDeg.lower, kStrokeDeg.upper);
-    if (pan)
-      p.pan_release_corner_hz = std::clamp(std::exp(x(13)), kReleaseHz.lower, kReleaseHz.upper);
-    if (coupling)
-      p.actuator_coupling =
-          Eigen::Vector2d(std::clamp(x(11), kActuatorCoupling.lower, kActuatorCoupling.upper),
-                          std::clamp(x(12), kActuatorCoupling.lower, kActuatorCoupling.upper));
-    if (excursion)
-      p.excursion_centring =
-          std::clamp(std::exp(x(10)), kExcursionCentring.lower, kExcursionCentring.upper);
+    for (int j = 0; j < size(); ++j) {
+      const Entry& entry = entries_[static_cast<std::size_t>(j)];
+      if (!entry.free) continue;
+      const FittedStabiliserParameter& parameter = *entry.parameter;
+      const double value = parameter.logarithmic ? std::exp(x(j)) : x(j);
+      parameter.set(&p, std::clamp(value, parameter.lower, parameter.upper));
+    }
     return p;
   }
+
+ private:
+  struct Entry {
+    const FittedStabiliserParameter* parameter;
+    bool free;
+  };
+  std::vector<Entry> entries_;
 };
 
 // Every usable observation's weighted residual (predicted - observed motion, 2 per observation).
@@ -169,7 +178,7 @@ double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
 
 // Levenberg-Marquardt with a forward-difference Jacobian and Huber reweighting per iteration.
 // `rms_history`, when given, gets the RMS residual (pixels) after every accepted step.
-StabiliserParameters levenbergMarquardt(StabiliserParameters start, const ParameterPacking& packing,
+StabiliserParameters levenbergMarquardt(StabiliserParameters start, const FreeParameters& packing,
                                         const std::vector<StabiliserFitRecording>& recordings,
                                         const StabiliserFitOptions& options, int iterations,
                                         double* final_cost, std::vector<double>* rms_history = nullptr) {
@@ -177,21 +186,19 @@ StabiliserParameters levenbergMarquardt(StabiliserParameters start, const Parame
   Residuals current = residualsOf(packing.unpack(x, start), recordings, options);
   double cost = huberCost(current.values, options.huber_px);
   double lambda = 1e-2;
-  const std::vector<double> deltas = {1e-4, 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3,
-                                      1e-2, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-3};
   for (int iteration = 0; iteration < iterations; ++iteration) {
     const long n = current.values.size();
     Eigen::MatrixXd J(n, packing.size());
     for (int j = 0; j < packing.size(); ++j) {
-      if (packing.fixed(j)) {
+      if (!packing.free(j)) {
         J.col(j).setZero();
         continue;
       }
       Eigen::VectorXd moved = x;
-      moved(j) += deltas[static_cast<std::size_t>(j)];
+      moved(j) += packing.step(j);
       const Residuals shifted = residualsOf(packing.unpack(moved, start), recordings, options);
       if (shifted.values.size() != n) return packing.unpack(x, start);  // coverage changed
-      J.col(j) = (shifted.values - current.values) / deltas[static_cast<std::size_t>(j)];
+      J.col(j) = (shifted.values - current.values) / packing.step(j);
     }
     const Eigen::VectorXd w = huberWeights(current.values, options.huber_px);
     const Eigen::MatrixXd A = J.transpose() * w.asDiagonal() * J;
@@ -549,35 +556,26 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotio
             "lens_shift_time_offset (camera time = logged stamp + it)"
           : "a module without sensor lag, or frames placed too early in IMU time by a time offset "
             "or readout error; if unsure, run calibrate";
-  auto check = [&](const char* parameter, const char* what, double value, Bounds bounds,
-                   const char* unit) {
-    const double tolerance = 1e-6 * std::max(1.0, std::abs(bounds.upper));
-    const bool lower = value <= bounds.lower + tolerance;
-    if (!lower && value < bounds.upper - tolerance) return;
-    std::ostringstream line;
-    line << what << " " << value << (unit[0] ? " " : "") << unit << " is the fit's "
-         << (lower ? "lower" : "upper") << " bound: the data wanted " << (lower ? "less" : "more");
-    // No stabiliser moves before its gyro: frames placed too early in IMU time look like that.
-    if (lower && std::string(parameter) == "sensor_lag_s")
-      line << " (the lens moves with its gyro, no later: " << early_frames << ")";
-    review.on_bound.push_back(line.str());
-    review.on_bound_parameters.push_back(parameter);
-  };
-  check("highpass_corner_hz", "centring corner", p.highpass_corner_hz, kCornerHz, "Hz");
-  check("actuator_natural_hz", "actuator natural frequency", p.actuator_natural_hz, kActuatorHz,
-        "Hz");
-  check("actuator_damping", "actuator damping", p.actuator_damping, kDamping, "");
-  check("sensor_lag_s", "sensor lag", 1000.0 * p.sensor_lag_s, kLagMs, "ms");
-  check("stroke_x_deg", "stroke x", p.stroke_x_deg, kStrokeDeg, "deg");
-  check("stroke_y_deg", "stroke y", p.stroke_y_deg, kStrokeDeg, "deg");
-  if (p.pan_detection_rate_rad_s > 0.0)
-    check("pan_release_corner_hz", "pan release corner", p.pan_release_corner_hz, kReleaseHz, "Hz");
-  if (p.excursion_centring > 0.0)
-    check("excursion_centring", "excursion-dependent re-centring", p.excursion_centring,
-          kExcursionCentring, "");
-  if (!p.actuator_coupling.isZero(0.0)) {
-    check("actuator_coupling", "actuator coupling c_xy", p.actuator_coupling.x(), kActuatorCoupling, "");
-    check("actuator_coupling", "actuator coupling c_yx", p.actuator_coupling.y(), kActuatorCoupling, "");
+  // Every fitted parameter of the stages (stabiliser_stage.h) the model uses, against the bounds
+  // the fit keeps it in.
+  for (const StabiliserStage& stage : stabiliserStages()) {
+    for (const FittedStabiliserParameter& parameter : stage.fitted) {
+      if (parameter.used && !parameter.used(p)) continue;
+      if (!std::isfinite(parameter.lower) || !std::isfinite(parameter.upper)) continue;
+      const double value = parameter.value(p);
+      const double tolerance = 1e-6 * std::max(1.0, std::abs(parameter.upper));
+      const bool lower = value <= parameter.lower + tolerance;
+      if (!lower && value < parameter.upper - tolerance) continue;
+      std::ostringstream line;
+      line << parameter.what << " " << value << (parameter.unit[0] ? " " : "") << parameter.unit
+           << " is the fit's " << (lower ? "lower" : "upper") << " bound: the data wanted "
+           << (lower ? "less" : "more");
+      // No stabiliser moves before its gyro: frames placed too early in IMU time look like that.
+      if (lower && std::string(parameter.name) == "sensor_lag_s")
+        line << " (the lens moves with its gyro, no later: " << early_frames << ")";
+      review.on_bound.push_back(line.str());
+      review.on_bound_parameters.push_back(parameter.name);
+    }
   }
 
   constexpr double kMostStrokeDeg = 3.0;  // modules travel about +-0.5 to +-1.5 deg
@@ -742,7 +740,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   // it per axis (a cost evaluation each) and let the full refinement below move it.
   {
     double cost = 0.0;
-    best = levenbergMarquardt(best, ParameterPacking{}, recordings, physical_options,
+    best = levenbergMarquardt(best, FreeParameters(), recordings, physical_options,
                               std::max(1, options.iterations / 3), &cost, &result.rms_history);
     std::ostringstream line;
     line << "first refinement: corner " << best.highpass_corner_hz << " Hz, cost " << cost;
@@ -786,7 +784,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     return line.str();
   };
   double refined_cost = 0.0;
-  StabiliserParameters refined = levenbergMarquardt(best, ParameterPacking{}, recordings,
+  StabiliserParameters refined = levenbergMarquardt(best, FreeParameters(), recordings,
                                                     physical_options, options.iterations,
                                                     &refined_cost, &result.rms_history);
   log(describe(refined, refined_cost));
@@ -801,8 +799,9 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
       StabiliserParameters candidate = refined;
       candidate.pan_detection_rate_rad_s = threshold;
       candidate.circular_stroke = circular;
-      ParameterPacking packing;
-      packing.pan = threshold > 0.0;
+      const FreeParameters packing = threshold > 0.0
+                                         ? FreeParameters({stabiliser_mechanism::kPanDetection})
+                                         : FreeParameters();
       double cost = 0.0;
       candidate = levenbergMarquardt(candidate, packing, recordings, physical_options,
                                      short_iterations, &cost);
@@ -816,8 +815,9 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   }
   // A variant must earn its extra mechanism: at least 1 % lower cost than the plain model.
   if (variant_cost < 0.99 * refined_cost) {
-    ParameterPacking packing;
-    packing.pan = variant_best.pan_detection_rate_rad_s > 0.0;
+    const FreeParameters packing = variant_best.pan_detection_rate_rad_s > 0.0
+                                       ? FreeParameters({stabiliser_mechanism::kPanDetection})
+                                       : FreeParameters();
     refined = levenbergMarquardt(variant_best, packing, recordings, physical_options,
                                  options.iterations, &refined_cost, &result.rms_history);
     log("refined: " + describe(refined, refined_cost));
@@ -863,10 +863,11 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
   start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;
   // The coupling starts at none: the chain itself, its gain then mapping into the stroke's axes.
   start.actuator_coupling.setZero();
-  ParameterPacking packing;
-  packing.pan = start.pan_detection_rate_rad_s > 0.0;
-  packing.excursion = structure.excursion_centring;
-  packing.coupling = structure.actuator_coupling;
+  std::vector<std::string> mechanisms;
+  if (start.pan_detection_rate_rad_s > 0.0) mechanisms.push_back(stabiliser_mechanism::kPanDetection);
+  if (structure.excursion_centring) mechanisms.push_back(stabiliser_mechanism::kExcursionCentring);
+  if (structure.actuator_coupling) mechanisms.push_back(stabiliser_mechanism::kActuatorCoupling);
+  const FreeParameters packing(mechanisms);
   StabiliserFitResult result;
   const Residuals initial = residualsOf(start, recordings, options);
   if (initial.used == 0)
@@ -879,7 +880,9 @@ StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
     for (double factor : {0.7, 0.85, 1.0, 1.15, 1.3}) {
       StabiliserParameters candidate = start;
       double& stroke = axis == 0 ? candidate.stroke_x_deg : candidate.stroke_y_deg;
-      stroke = std::clamp(stroke * factor, kStrokeDeg.lower, kStrokeDeg.upper);
+      const FittedStabiliserParameter& bounds =
+          fittedStabiliserParameter(axis == 0 ? "stroke_x_deg" : "stroke_y_deg");
+      stroke = std::clamp(stroke * factor, bounds.lower, bounds.upper);
       const double c = huberCost(residualsOf(candidate, recordings, options).values, options.huber_px);
       if (c < cost) cost = c, scanned = candidate;
     }

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/common/uniform_grid_interpolation.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
 
 namespace deep_ois {
 namespace {
@@ -72,81 +73,19 @@ int nonlinearFeatureCount(const std::string& feature_set) {
 
 StabiliserParameters StabiliserParameters::physicalChain() const {
   StabiliserParameters chain = *this;
-  chain.residual_time_constants_s.clear();
-  chain.residual.resize(0, 0);
-  chain.nonlinear_features.clear();
-  chain.nonlinear_residual.resize(0, 0);
-  chain.learned_dynamics = LearnedLensDynamics();
+  for (const StabiliserStage& stage : stabiliserStages())
+    if (stage.clear) stage.clear(&chain);
   return chain;
 }
 
 std::string StabiliserParameters::validate() const {
-  std::ostringstream why;
-  auto positive = [](double x) { return std::isfinite(x) && x > 0.0; };
-  if (!gain.allFinite()) {
-    why << "gain: must be finite";
-  } else if (!std::isfinite(highpass_corner_hz) || highpass_corner_hz < 0.0) {
-    why << "highpass_corner_hz: must be >= 0 (got " << highpass_corner_hz << ")";
-  } else if (!positive(actuator_natural_hz)) {
-    why << "actuator_natural_hz: must be positive (got " << actuator_natural_hz << ")";
-  } else if (!positive(actuator_damping)) {
-    why << "actuator_damping: must be positive (got " << actuator_damping << ")";
-  } else if (!std::isfinite(sensor_lag_s) || sensor_lag_s < 0.0 || sensor_lag_s > 0.1) {
-    why << "sensor_lag_s: must be in [0, 0.1] s (got " << sensor_lag_s << ")";
-  } else if (!(stroke_x_deg > 0.0 && stroke_x_deg < 45.0) ||
-             !(stroke_y_deg > 0.0 && stroke_y_deg < 45.0)) {
-    why << "stroke_x_deg, stroke_y_deg: must be in (0, 45) degrees (got " << stroke_x_deg << ", "
-        << stroke_y_deg << ")";
-  } else if (soft_stroke && anti_windup) {
-    why << "soft_stroke, anti_windup: one or the other (a soft stroke is never met, so there is no "
-           "angle for anti-windup to hold)";
-  } else if (!std::isfinite(excursion_centring) || excursion_centring < 0.0) {
-    why << "excursion_centring: must be >= 0, 0 = off (got " << excursion_centring << ")";
-  } else if (!actuator_coupling.allFinite() || actuator_coupling.cwiseAbs().maxCoeff() > 0.5) {
-    why << "actuator_coupling: must be within +-0.5 (got " << actuator_coupling.x() << ", "
-        << actuator_coupling.y() << ")";
-  } else if (!std::isfinite(pan_detection_rate_rad_s) || pan_detection_rate_rad_s < 0.0) {
-    why << "pan_detection_rate_rad_s: must be >= 0, 0 = off (got " << pan_detection_rate_rad_s
-        << ")";
-  } else if (!positive(pan_detection_time_constant_s)) {
-    why << "pan_detection_time_constant_s: must be positive";
-  } else if (!positive(pan_release_corner_hz)) {
-    why << "pan_release_corner_hz: must be positive";
-  } else if (residual.size() != 0 &&
-             (residual.rows() != 2 ||
-              residual.cols() != 2 * static_cast<long>(residual_time_constants_s.size()) ||
-              !residual.allFinite())) {
-    why << "residual: must be a finite 2 x " << 2 * residual_time_constants_s.size()
-        << " matrix (2 x 2 per residual time constant)";
-  } else if (!nonlinear_features.empty() && nonlinearFeatureCount(nonlinear_features) == 0) {
-    why << "nonlinear_features: unknown set '" << nonlinear_features
-        << "' (known: excursion_v1, rate_bank_v1, excursion_rate_v1)";
-  } else if (nonlinear_residual.size() != 0 &&
-             (nonlinear_residual.rows() != 2 ||
-              nonlinear_residual.cols() != nonlinearFeatureCount(nonlinear_features) ||
-              !nonlinear_residual.allFinite())) {
-    why << "nonlinear_residual: must be a finite 2 x " << nonlinearFeatureCount(nonlinear_features)
-        << " matrix for nonlinear_features '" << nonlinear_features << "'";
-  } else if (const std::string network_problem =
-                 learned_dynamics.active() ? learned_dynamics.network->validate() : std::string();
-             !network_problem.empty()) {
-    why << "learned_dynamics.network: " << network_problem;
-  } else if (learned_dynamics.active() &&
-             (learned_dynamics.conditioning.size() != learned_dynamics.network->conditioning_size ||
-              !learned_dynamics.conditioning.allFinite())) {
-    why << "learned_dynamics.conditioning: must be " << learned_dynamics.network->conditioning_size
-        << " finite values (the network's conditioning_size)";
-  } else if (learned_dynamics.active() && !learned_dynamics.output_map.allFinite()) {
-    why << "learned_dynamics.output_map: must be finite";
-  } else {
-    for (double tau : residual_time_constants_s) {
-      if (!positive(tau)) {
-        why << "residual_time_constants_s: must be positive (got " << tau << ")";
-        break;
-      }
-    }
+  // Each stage validates its own parameters (core/ois/stabiliser_stage.h); the first problem, in
+  // the chain's order, is the answer.
+  for (const StabiliserStage& stage : stabiliserStages()) {
+    const std::string problem = stage.validate(*this);
+    if (!problem.empty()) return problem;
   }
-  return why.str();
+  return {};
 }
 
 LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, double focal_px,

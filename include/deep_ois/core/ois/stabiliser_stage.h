@@ -1,0 +1,100 @@
+// The stages of the stabiliser model (core/ois/stabiliser_model.h), each described once: the
+// parameters it adds to StabiliserParameters with their names, units and the fit's bounds, its
+// fields in the model file (core/ois/stabiliser_model_file.h) and its validation.
+//
+// Why descriptions and not code spread over the fit, the file and validate(): a mechanism used to
+// be written down in five places (the struct, the fit's numbered parameter slots and clamps, the
+// review's bounds, the file's reader and writer, validate()); adding one touched eight files and
+// each place could disagree with the others. Now the fit builds its parameter vector from the
+// stages' fitted parameters (by name), the review checks their bounds, and the file and validate()
+// run over the stages in order. The predictor (LensShiftPredictor) still reads the parameters
+// directly: its numerics are the chain's and stay as they were.
+//
+// The stages, in the order of the chain and of the file: centring (gain and corner), actuator
+// (bandwidth, damping, sensor lag), stroke (limits, shape, soft, anti-windup), excursion
+// re-centring, actuator coupling, pan detection, linear residual, learned residual, learned lens
+// dynamics. docs/stabiliser_model.md ("The model class") tabulates them for users.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/stabiliser_model.h"
+
+namespace YAML {
+class Emitter;
+class Node;
+}  // namespace YAML
+
+namespace deep_ois {
+
+// One scalar parameter a stage lets the Levenberg-Marquardt fit move (core/ois/stabiliser_fit.h).
+struct FittedStabiliserParameter {
+  // As StabiliserParameters and the fit's review name it ("stroke_x_deg"; both components of a
+  // vector share its name, "actuator_coupling").
+  const char* name;
+  const char* what;  // in words, for the review: "stroke x"
+  const char* unit;  // of value(), the bounds and the review ("Hz", "ms", "deg"; "" = unitless)
+  // The fit moves log(value) (a positive scale: corners, strokes) or the value itself.
+  bool logarithmic;
+  // The fit keeps the value in [lower, upper] (in `unit`); a value that ends on one wanted to go
+  // further and the review says so. +-infinity: unbounded.
+  double lower, upper;
+  double fit_step;  // the forward-difference step of the fit's Jacobian, in the fit's coordinate
+  // Empty: fitted whenever the chain is. Otherwise the mechanism whose fit frees it
+  // (StabiliserMechanism below): the fit moves it only when that mechanism is being fitted.
+  const char* mechanism;
+  double (*value)(const StabiliserParameters& p);  // in `unit`
+  void (*set)(StabiliserParameters* p, double value);
+  // Whether the model uses it (its bound is reviewed only then); null: always.
+  bool (*used)(const StabiliserParameters& p);
+};
+
+// The mechanisms whose parameters the fit frees only on request (FittedStabiliserParameter::
+// mechanism).
+namespace stabiliser_mechanism {
+constexpr const char* kPanDetection = "pan_detection";
+constexpr const char* kExcursionCentring = "excursion_centring";
+constexpr const char* kActuatorCoupling = "actuator_coupling";
+}  // namespace stabiliser_mechanism
+
+struct StabiliserStage {
+  const char* name;         // "stroke"
+  const char* description;  // one sentence for users
+  // A stage of the physical chain (kept by StabiliserParameters::physicalChain()), or a residual or
+  // learned stage on top of it (cleared there).
+  bool physical;
+  std::vector<FittedStabiliserParameter> fitted;  // in the fit's order
+  // Its keys in the file's `stabiliser` section, for the documentation's table.
+  std::vector<const char*> file_keys;
+  // Writes its keys into the open `stabiliser` map (optional keys only when used, so files written
+  // before a mechanism existed and files written now are the same bytes for the same model).
+  void (*write)(YAML::Emitter& out, const StabiliserParameters& p);
+  // Reads its keys from the `stabiliser` section into p; throws StabiliserModelFileError naming a
+  // missing or malformed field. Optional keys absent: the mechanism off.
+  void (*read)(const YAML::Node& section, StabiliserParameters* p);
+  // Empty when its parameters are usable; otherwise a sentence naming the bad field.
+  std::string (*validate)(const StabiliserParameters& p);
+  // Takes the stage out (a residual or learned stage; null for the physical ones).
+  void (*clear)(StabiliserParameters* p);
+};
+
+// Every stage, in the chain's (and the file's) order.
+const std::vector<StabiliserStage>& stabiliserStages();
+
+// The fitted parameter named `name` (its first component for a vector); throws
+// std::invalid_argument for an unknown name.
+const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& name);
+
+// The stages' definitions (one file each, src/core/ois/stages/).
+const StabiliserStage& centringStage();
+const StabiliserStage& actuatorStage();
+const StabiliserStage& strokeStage();
+const StabiliserStage& excursionCentringStage();
+const StabiliserStage& actuatorCouplingStage();
+const StabiliserStage& panDetectionStage();
+const StabiliserStage& linearResidualStage();
+const StabiliserStage& learnedResidualStage();
+const StabiliserStage& learnedLensDynamicsStage();
+
+}  // namespace deep_ois

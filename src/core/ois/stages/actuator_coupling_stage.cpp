@@ -1,0 +1,56 @@
+// The actuator coupling stage: the image shift is (a_x + c_xy a_y, a_y + c_yx a_x) for the
+// actuator's output a (a lens whose axes drag each other, a magnet turned against its coil); with
+// the gain it places the stroke's box in the actuator's axes instead of the image's.
+#include <yaml-cpp/yaml.h>
+
+#include <sstream>
+
+#include "deep_ois/core/ois/stabiliser_stage.h"
+#include "stabiliser_file_fields.h"
+
+namespace deep_ois {
+namespace {
+
+bool coupled(const StabiliserParameters& p) { return !p.actuator_coupling.isZero(0.0); }
+
+}  // namespace
+
+const StabiliserStage& actuatorCouplingStage() {
+  static const StabiliserStage stage{
+      "actuator coupling",
+      "the image shift mixes the actuator's axes: (a_x + c_xy a_y, a_y + c_yx a_x); 0 = none",
+      true,
+      {{"actuator_coupling", "actuator coupling c_xy", "", false, -0.5, 0.5, 1e-4,
+        stabiliser_mechanism::kActuatorCoupling,
+        [](const StabiliserParameters& p) { return p.actuator_coupling.x(); },
+        [](StabiliserParameters* p, double value) { p->actuator_coupling.x() = value; }, coupled},
+       {"actuator_coupling", "actuator coupling c_yx", "", false, -0.5, 0.5, 1e-4,
+        stabiliser_mechanism::kActuatorCoupling,
+        [](const StabiliserParameters& p) { return p.actuator_coupling.y(); },
+        [](StabiliserParameters* p, double value) { p->actuator_coupling.y() = value; }, coupled}},
+      {"actuator_coupling"},
+      [](YAML::Emitter& out, const StabiliserParameters& p) {
+        // Optional: files without it load uncoupled.
+        if (coupled(p))
+          out << YAML::Key << "actuator_coupling" << YAML::Value << YAML::Flow
+              << std::vector<double>{p.actuator_coupling.x(), p.actuator_coupling.y()};
+      },
+      [](const YAML::Node& s, StabiliserParameters* p) {
+        const auto coupling =
+            stabiliser_file_fields::optional<std::vector<double>>(s, "actuator_coupling", {0.0, 0.0});
+        if (coupling.size() != 2)
+          throw StabiliserModelFileError("field 'actuator_coupling' must have 2 values (c_xy, c_yx)");
+        p->actuator_coupling = Eigen::Vector2d(coupling[0], coupling[1]);
+      },
+      [](const StabiliserParameters& p) {
+        std::ostringstream why;
+        if (!p.actuator_coupling.allFinite() || p.actuator_coupling.cwiseAbs().maxCoeff() > 0.5)
+          why << "actuator_coupling: must be within +-0.5 (got " << p.actuator_coupling.x() << ", "
+              << p.actuator_coupling.y() << ")";
+        return why.str();
+      },
+      nullptr};
+  return stage;
+}
+
+}  // namespace deep_ois

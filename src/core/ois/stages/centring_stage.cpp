@@ -1,0 +1,72 @@
+// The centring stage: the commanded shift f * gain * tan(theta) for the pan/tilt angle theta, which
+// leaks back to the centre with the high-pass corner (the stabiliser's re-centring).
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "deep_ois/core/ois/stabiliser_stage.h"
+#include "stabiliser_file_fields.h"
+
+namespace deep_ois {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The gain's entries, unbounded (its sign and axes are the camera's), linear in the fit.
+template <int kRow, int kCol>
+FittedStabiliserParameter gainEntry(const char* name) {
+  return {name,
+          "gain",
+          "",
+          false,
+          -kInf,
+          kInf,
+          1e-4,
+          "",
+          [](const StabiliserParameters& p) { return p.gain(kRow, kCol); },
+          [](StabiliserParameters* p, double value) { p->gain(kRow, kCol) = value; },
+          nullptr};
+}
+
+}  // namespace
+
+const StabiliserStage& centringStage() {
+  static const StabiliserStage stage{
+      "centring",
+      "the commanded shift f * gain * tan(angle) of the integrated pan/tilt angle, which leaks back "
+      "to the centre with the high-pass corner",
+      true,
+      {gainEntry<0, 0>("gain_xx"), gainEntry<0, 1>("gain_xy"), gainEntry<1, 0>("gain_yx"),
+       gainEntry<1, 1>("gain_yy"),
+       {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3, "",
+        [](const StabiliserParameters& p) { return p.highpass_corner_hz; },
+        [](StabiliserParameters* p, double value) { p->highpass_corner_hz = value; }, nullptr}},
+      {"gain", "highpass_corner_hz"},
+      [](YAML::Emitter& out, const StabiliserParameters& p) {
+        out << YAML::Key << "gain" << YAML::Value << YAML::Flow
+            << stabiliser_file_fields::rowMajor(p.gain);
+        out << YAML::Key << "highpass_corner_hz" << YAML::Value << p.highpass_corner_hz;
+      },
+      [](const YAML::Node& s, StabiliserParameters* p) {
+        using stabiliser_file_fields::required;
+        const auto gain = required<std::vector<double>>(s, "gain");
+        if (gain.size() != 4) throw StabiliserModelFileError("field 'gain' must have 4 values");
+        p->gain << gain[0], gain[1], gain[2], gain[3];
+        p->highpass_corner_hz = required<double>(s, "highpass_corner_hz");
+      },
+      [](const StabiliserParameters& p) {
+        std::ostringstream why;
+        if (!p.gain.allFinite()) {
+          why << "gain: must be finite";
+        } else if (!std::isfinite(p.highpass_corner_hz) || p.highpass_corner_hz < 0.0) {
+          why << "highpass_corner_hz: must be >= 0 (got " << p.highpass_corner_hz << ")";
+        }
+        return why.str();
+      },
+      nullptr};
+  return stage;
+}
+
+}  // namespace deep_ois

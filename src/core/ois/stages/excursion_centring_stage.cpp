@@ -1,0 +1,44 @@
+// The excursion re-centring stage: the centring corner grows with the command's excursion against
+// the stroke, corner * (1 + k e^2) (a stabiliser that pulls back harder near its end stop).
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <sstream>
+
+#include "deep_ois/core/ois/stabiliser_stage.h"
+#include "stabiliser_file_fields.h"
+
+namespace deep_ois {
+
+const StabiliserStage& excursionCentringStage() {
+  static const StabiliserStage stage{
+      "excursion re-centring",
+      "the centring corner grows with the command's excursion e against the stroke: corner * (1 + "
+      "k e^2); k = 0 is a fixed corner",
+      true,
+      {{"excursion_centring", "excursion-dependent re-centring", "", true, 1e-3, 100.0, 1e-3,
+        stabiliser_mechanism::kExcursionCentring,
+        [](const StabiliserParameters& p) { return p.excursion_centring; },
+        [](StabiliserParameters* p, double value) { p->excursion_centring = value; },
+        [](const StabiliserParameters& p) { return p.excursion_centring > 0.0; }}},
+      {"excursion_centring"},
+      [](YAML::Emitter& out, const StabiliserParameters& p) {
+        // Optional: files without it load with a fixed corner.
+        if (p.excursion_centring != 0.0)
+          out << YAML::Key << "excursion_centring" << YAML::Value << p.excursion_centring;
+      },
+      [](const YAML::Node& s, StabiliserParameters* p) {
+        p->excursion_centring =
+            stabiliser_file_fields::optional<double>(s, "excursion_centring", 0.0);
+      },
+      [](const StabiliserParameters& p) {
+        std::ostringstream why;
+        if (!std::isfinite(p.excursion_centring) || p.excursion_centring < 0.0)
+          why << "excursion_centring: must be >= 0, 0 = off (got " << p.excursion_centring << ")";
+        return why.str();
+      },
+      nullptr};
+  return stage;
+}
+
+}  // namespace deep_ois
