@@ -21,10 +21,10 @@ std::string parseRotation(const std::string& text, Eigen::Matrix3d& R) {
   std::vector<double> values;
   for (double v; in >> v;) values.push_back(v);
   if (!in.eof() || values.size() != 9)
-    return "imu_to_camera_rotation must be 9 numbers (row-major R_cam_imu) or empty (tf), got '" + text + "'";
+    return "r_cam_imu must be 9 numbers (row-major R_cam_imu) or empty (tf), got '" + text + "'";
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) R(r, c) = values[static_cast<std::size_t>(3 * r + c)];
-  if (!isProperRotation(R)) return "imu_to_camera_rotation is not a rotation (orthonormal, det +1): '" + text + "'";
+  if (!isProperRotation(R)) return "r_cam_imu is not a rotation (orthonormal, det +1): '" + text + "'";
   return "";
 }
 
@@ -58,9 +58,9 @@ std::string applyGyroFlowConfig(const GyroFlowConfig& config, GyroFlowParameters
     return "gyro_bias_x/y/z must be within +-1 rad/s";
   }
   Eigen::Matrix3d rotation = params.rolling_shutter.imu_to_camera_rotation;
-  const bool from_tf = config.imu_to_camera_rotation.find_first_not_of(" \t") == std::string::npos;
+  const bool from_tf = config.r_cam_imu.find_first_not_of(" \t") == std::string::npos;
   if (!from_tf) {
-    const std::string problem = parseRotation(config.imu_to_camera_rotation, rotation);
+    const std::string problem = parseRotation(config.r_cam_imu, rotation);
     if (!problem.empty()) return problem;
   }
   params.rolling_shutter.time_offset_s = config.time_offset;
@@ -85,13 +85,13 @@ GyroFlowConfig toGyroFlowConfig(const GyroFlowParameters& params) {
   config.gyro_bias_x = params.integration.gyro_bias_rad_s.x();
   config.gyro_bias_y = params.integration.gyro_bias_rad_s.y();
   config.gyro_bias_z = params.integration.gyro_bias_rad_s.z();
-  config.imu_to_camera_rotation.clear();
+  config.r_cam_imu.clear();
   if (!params.rotation_from_tf) {
     std::ostringstream out;
     out.precision(12);
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) out << (r || c ? " " : "") << params.rolling_shutter.imu_to_camera_rotation(r, c);
-    config.imu_to_camera_rotation = out.str();
+    config.r_cam_imu = out.str();
   }
   return config;
 }
@@ -129,8 +129,8 @@ void GyroFlowReconfigure::callback(GyroFlowConfig& config, uint32_t) {
                    "the next frame pair)",
                    log_name_.c_str(), config.time_offset, config.readout_time, config.patch_time.c_str(),
                    config.color_max_flow, config.imu_wait_timeout, config.gyro_bias_x, config.gyro_bias_y,
-                   config.gyro_bias_z, config.imu_to_camera_rotation.empty() ? "from tf"
-                                                                            : config.imu_to_camera_rotation.c_str());
+                   config.gyro_bias_z, config.r_cam_imu.empty() ? "from tf"
+                                                                            : config.r_cam_imu.c_str());
   }
   apply_(current_);
 }

@@ -1,6 +1,6 @@
 // dynamic_reconfigure server of the gyro flow nodelet's live-tunable parameters (cfg/GyroFlow.cfg):
 // time_offset, readout_time, patch_time, color_max_flow, imu_wait_timeout, gyro_bias_x/y/z,
-// imu_to_camera_rotation.
+// r_cam_imu (the mount, ~imu_to_camera_rotation as text).
 #pragma once
 
 #include <deep_ois/GyroFlowConfig.h>
