@@ -514,6 +514,8 @@ TEST(OnlineLearning, AWrongOffsetConverges) {
               1e3 * (last.estimate_time_offset - true_offset_s), 1e3 * last.estimate_time_offset_sigma,
               1e3 * last.readout_time, last.fits, last.fits_needing_motion, last.fits_rejected, last.swaps,
               last.confirmation.c_str());
+  std::printf("[ measured ] /diagnostics: %s; %s; %s\n", diagnostics.get("online calibration").c_str(),
+              diagnostics.get("online calibration: counts").c_str(), diagnostics.get("online calibration: last").c_str());
   ASSERT_TRUE(first_applied) << "no calibration applied; last: " << last.last_reason;
   std::printf("[ measured ] first applied at pair %.2f s: held-out %.3f px with the start, %.3f px with it\n",
               (first_applied->header.stamp - base).toSec(), first_applied->held_out_in_use_residual,

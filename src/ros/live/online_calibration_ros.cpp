@@ -11,7 +11,7 @@
 
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/online/atomic_file_write.h"
-#include "deep_ois/core/online/online_calibration_feed.h"
+#include "deep_ois/core/online/online_calibration_delayed_feed.h"
 #include "deep_ois/ros/live/parameter_source.h"
 
 namespace deep_ois {
@@ -269,6 +269,7 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
     // The tracks lose the model's lens motion before they come in (withoutLens): a fixed lens.
     options.lens_shift = LensShiftHandling::kNone;
     estimator_ = std::make_unique<OnlineCalibrationEstimator>(options, pair.camera, start);
+    feed_ = std::make_unique<DelayedCalibrationFeed>(DelayedCalibrationFeed::coverageFor(options));
     ConfirmationOptions confirmation;
     confirmation.pairs = static_cast<std::size_t>(params_.learning_confirm_pairs);
     trials_ = std::make_unique<ConfirmedState<CameraImuCalibration>>(
@@ -285,7 +286,10 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
     applied_version_ = 0;
     swaps_undone_ = swaps_confirmed_ = saves_failed_ = 0;
   }
-  if (time_went_back_.exchange(false)) estimator_->restartTimeline();
+  if (time_went_back_.exchange(false)) {
+    estimator_->restartTimeline();
+    feed_->clear();
+  }
 
   // The estimator's copy: no frames, the tracks without the lens the compensation used.
   OnlineFramePair lensless;
@@ -296,7 +300,9 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
   lensless.rates = pair.rates;
   lensless.tracked = pair.tracked;
   if (pair.tracked) lensless.matches = withoutLens(pair);
-  feedTrackedPair(lensless, *estimator_);
+  // The pairs reach the estimator once the gyro covers them (a few pairs later).
+  bool changed_in_use = false;
+  const std::vector<OnlineCalibrationPair> added = feed_->feed(lensless, *estimator_, &changed_in_use);
   const OnlineCalibrationStatus& status = estimator_->status();
   const std::uint32_t version_before = applied_version_;
   if (status.version != estimator_version_) {
@@ -311,8 +317,12 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
          << millis(status.in_use.readout_time_sigma_s) << "; " << status.last_reason
          << "; on trial until the per-pair check confirms it on " << params_.learning_confirm_pairs << " pairs";
     log = said.str();
-  } else if (trials_->onTrial() && pair.tracked && !lensless.matches.empty()) {
-    judgeTrial(lensless, 0);
+  } else if (trials_->onTrial()) {
+    for (const OnlineCalibrationPair& added_pair : added) {
+      if (added_pair.matches.empty()) continue;
+      judgeTrial(added_pair);
+      if (!trials_->onTrial()) break;
+    }
     if (applied_version_ != version_before || !trials_->onTrial()) {
       const TrialEvidence& e = trials_->evidence();
       char text[240];
@@ -353,11 +363,7 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
   }
 }
 
-void OnlineCalibrationRos::judgeTrial(const OnlineFramePair& lensless, std::size_t) {
-  OnlineCalibrationPair scored;
-  scored.stamp_a_s = lensless.stamp_a_s;
-  scored.stamp_b_s = lensless.stamp_b_s;
-  scored.matches = lensless.matches;
+void OnlineCalibrationRos::judgeTrial(const OnlineCalibrationPair& scored) {
   const std::vector<OnlineCalibrationPair> pairs{scored};
   double trial_px = NAN, replaced_px = NAN, start_px = NAN;
   int tracks = 0;

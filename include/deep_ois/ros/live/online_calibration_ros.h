@@ -1,6 +1,7 @@
 // The compensation nodelet's online camera-IMU calibration (core/online/online_calibration_estimator.h)
 // in ROS terms. The online learner's tracking thread hands it every pair it tracked (its
-// on_tracked_pair hook: no second tracker, and the estimator's fits are charged to the learning's
+// on_tracked_pair hook: no second tracker; DelayedCalibrationFeed holds each pair until the gyro of
+// later pairs covers it, and the estimator's fits are charged to the learning's
 // CPU budget besides the estimator's own); the tracks first lose the lens motion the stabiliser
 // model in use predicted for the pair (the shifts the compensation published, or none while it
 // falls back to the plain gyro), so the estimator fits a fixed-lens camera and the time offset
@@ -35,6 +36,7 @@
 #include <vector>
 
 #include "deep_ois/core/online/confirmed_state.h"
+#include "deep_ois/core/online/online_calibration_delayed_feed.h"
 #include "deep_ois/core/online/online_calibration_estimator.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/ros/live/compensation_parameters.h"
@@ -90,7 +92,8 @@ class OnlineCalibrationRos {
   // Tracking thread: the pair's tracks without the lens motion the compensation used.
   std::vector<FeatureMatch> withoutLens(const OnlineFramePair& pair) const;
   void work(const OnlineFramePair& pair);
-  void judgeTrial(const OnlineFramePair& lensless, std::size_t tracks);
+  // One pair the estimator has (its gyro covers it), scored for the calibration on trial.
+  void judgeTrial(const OnlineCalibrationPair& pair);
   void publish(const GyroFlow& gyro, const Snapshot& snapshot);
   void updateDiagnostics(const Snapshot& snapshot, const GyroFlow& gyro);
 
@@ -114,6 +117,7 @@ class OnlineCalibrationRos {
   // Tracking thread only.
   std::uint64_t estimator_generation_ = 0;
   std::unique_ptr<OnlineCalibrationEstimator> estimator_;
+  std::unique_ptr<DelayedCalibrationFeed> feed_;
   std::unique_ptr<ConfirmedState<CameraImuCalibration>> trials_;
   CameraImuCalibration session_start_;
   std::string path_in_use_;
