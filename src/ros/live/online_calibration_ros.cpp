@@ -130,7 +130,7 @@ OnlineCalibrationRos::OnlineCalibrationRos(ros::NodeHandle nh, const Compensatio
   diagnostics_.setValue("online calibration", "on (waiting for the first tracked pair)");
 }
 
-void OnlineCalibrationRos::startFor(const std::string& calibration_path, const GyroFlow& gyro) {
+void OnlineCalibrationRos::startFor(const std::string& calibration_path, const GyroFlow& gyro, bool lens_moves) {
   CameraImuCalibration start;
   std::string source;
   std::string problem;
@@ -163,14 +163,16 @@ void OnlineCalibrationRos::startFor(const std::string& calibration_path, const G
   if (stale > 0)
     ROS_INFO_NAMED("compensation", "%s: removed %d partial file(s) beside %s left by a process killed while writing",
                    log_name_.c_str(), stale, calibration_path.c_str());
-  ROS_INFO_NAMED("compensation", "%s: online calibration on (mount %s, %.0f %% of a core); starting from %s: time "
-                 "offset %s, readout %s", log_name_.c_str(),
+  ROS_INFO_NAMED("compensation", "%s: online calibration on (mount %s, %.0f %% of a core, %s); starting from %s: "
+                 "time offset %s, readout %s", log_name_.c_str(),
                  params_.online_calibration_mount ? "searched" : "held", 100.0 * params_.online_calibration_cpu_share,
+                 lens_moves ? "a lens shift per frame besides the model's" : "a fixed lens",
                  source.c_str(), millis(start.time_offset_s).c_str(), millis(start.readout_time_s).c_str());
   std::lock_guard<std::mutex> lock(snapshot_mutex_);
   path_ = calibration_path;
   start_ = start;
   start_source_ = source;
+  lens_moves_ = lens_moves;
   ++camera_generation_;
   const std::uint64_t changes = snapshot_.changes, log_id = snapshot_.log_id;
   snapshot_ = Snapshot();
@@ -254,9 +256,11 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
   std::string path;
   CameraImuCalibration start;
   std::uint64_t generation = 0;
+  bool lens_moves = true;
   {
     std::lock_guard<std::mutex> lock(snapshot_mutex_);
     if (!snapshot_.started) return;
+    lens_moves = lens_moves_;
     path = path_;
     start = start_;
     generation = camera_generation_;
@@ -266,8 +270,9 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
     OnlineCalibrationOptions options;
     options.estimate_rotation = params_.online_calibration_mount;
     options.cpu_share = params_.online_calibration_cpu_share;
-    // The tracks lose the model's lens motion before they come in (withoutLens): a fixed lens.
-    options.lens_shift = LensShiftHandling::kNone;
+    // The tracks lose the model's lens motion before they come in (withoutLens); what the model
+    // gets wrong is left to a shift per frame when the lens may move.
+    options.lens_shift = lens_moves ? LensShiftHandling::kPerFrameShift : LensShiftHandling::kNone;
     estimator_ = std::make_unique<OnlineCalibrationEstimator>(options, pair.camera, start);
     feed_ = std::make_unique<DelayedCalibrationFeed>(DelayedCalibrationFeed::coverageFor(options));
     ConfirmationOptions confirmation;

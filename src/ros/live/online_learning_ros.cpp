@@ -100,7 +100,9 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.model_path = model_path_;
   if (calibration_) {
     // On the learner's tracking thread, with the tracks it made (charged to its CPU budget).
-    calibration_->startFor(onlineCalibrationPath(model_path_), gyro);
+    // A camera whose model in use moves the lens: the estimator also fits a shift per frame, so
+    // that what that model gets wrong is not absorbed by the time offset.
+    calibration_->startFor(onlineCalibrationPath(model_path_), gyro, !isNoLensMotion(priors.front().parameters));
     OnlineCalibrationRos* calibration = calibration_.get();
     options.on_tracked_pair = [calibration](const OnlineFramePair& pair) { calibration->onTrackedPair(pair); };
   }

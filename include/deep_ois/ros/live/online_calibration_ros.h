@@ -62,7 +62,12 @@ class OnlineCalibrationRos {
   // calibration is kept; the start is that file when it exists, else the gyro flow's values
   // (the message's offset, readout and rotation; the bias from ~online_calibration_gyro_flow's
   // gyro_bias parameter, else 0). ROS thread; the tracking thread makes the estimator at its next pair.
-  void startFor(const std::string& calibration_path, const GyroFlow& gyro);
+  // `lens_moves`: the model in use at the start predicts lens motion (an OIS camera, or one not
+  // known to have none): the estimator then also fits a lens shift per frame
+  // (LensShiftHandling::kPerFrameShift), as `calibrate --ois on`, so that the part of the lens
+  // motion the model gets wrong (the shipped generic model on a new camera) is not absorbed by the
+  // time offset; else the tracks are those of a fixed lens (kNone: tighter).
+  void startFor(const std::string& calibration_path, const GyroFlow& gyro, bool lens_moves);
   // ROS thread, per compensated pair: the lens shifts the model predicted (none when falling back).
   void rememberLens(const GyroFlow& gyro, const StabiliserFlowResult& result, bool falling_back);
   // Tracking thread (OnlineLearningOptions::on_tracked_pair). Never throws.
@@ -107,6 +112,7 @@ class OnlineCalibrationRos {
   std::string path_;
   CameraImuCalibration start_;
   std::string start_source_;
+  bool lens_moves_ = true;
   std::uint64_t camera_generation_ = 0;
 
   mutable std::mutex snapshot_mutex_;  // snapshot_, lenses_, path_, start_, camera_generation_
