@@ -7,7 +7,9 @@
 // held-out window: a fit close to the true stabiliser, or "no lens motion" for the OIS-off
 // camera; the model is kept in ~learning_dir, and the per-pair checks are published.
 #include <deep_ois/CompensationPairCheck.h>
+#include <deep_ois/OnlineCalibration.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <dynamic_reconfigure/Reconfigure.h>
 #include <signal.h>
 #include <ros/network.h>
 #include <xmlrpcpp/XmlRpc.h>
@@ -33,13 +35,15 @@ using live_test::LivePipelineHarness;
 LivePipelineHarness* harness = nullptr;
 
 constexpr double kStreamS = 22.0;
+// 0: a still camera (the online calibration's "a still camera holds" scenario).
+double motion_scale = 1.0;
 
 // Camera orientation in the world (small angles, a hand's shake), t seconds since the start.
 Eigen::Matrix3d orientation(double t) {
   const Eigen::Vector3d angles(0.018 * std::sin(2 * M_PI * 0.9 * t) + 0.006 * std::sin(2 * M_PI * 3.1 * t + 1.0),
                                0.022 * std::sin(2 * M_PI * 0.6 * t + 2.0) + 0.005 * std::sin(2 * M_PI * 4.3 * t),
                                0.006 * std::sin(2 * M_PI * 0.4 * t));
-  return expSO3(angles);
+  return expSO3(motion_scale * angles);
 }
 
 // Body (camera optical frame) angular rate at t, rad/s.
@@ -121,6 +125,12 @@ class SyntheticOisCamera {
   double fed_s_ = -1.5;
 };
 
+// A learned model's file (not the online calibration's, `<model>.calibration.yaml`, kept beside it).
+bool isModelFile(const std::filesystem::path& path) {
+  const std::string name = path.filename().string();
+  return path.extension() == ".yaml" && name.find(".calibration.yaml") == std::string::npos;
+}
+
 // The process id of a node (its XML-RPC getPid), or 0.
 int pidOf(const std::string& node) {
   XmlRpc::XmlRpcValue request, response, payload;
@@ -176,7 +186,7 @@ TEST(OnlineLearning, AKillDuringAFitKeepsTheLastGoodModelFile) {
         std::error_code no_dir_yet;
         if (model_path.empty() && std::filesystem::is_directory(learning_dir, no_dir_yet)) {
           for (const auto& entry : std::filesystem::directory_iterator(learning_dir))
-            if (entry.path().extension() == ".yaml") model_path = entry.path().string();
+            if (isModelFile(entry.path())) model_path = entry.path().string();
         }
         // Once a model was written, the next fit is killed mid-way.
         if (!model_path.empty() && fitting.exchange(false)) {
@@ -424,6 +434,180 @@ TEST(OnlineLearning, AReplayIsNotNewEvidence) {
   std::filesystem::remove_all(learning_dir, ignored);
 }
 
+// ---- Issue 33 item 2: the online calibration in the live pipeline (online_calibration_*.test). ----
+
+// The online_calibration messages, as they came.
+struct CalibrationMessages {
+  std::mutex mutex;
+  std::vector<OnlineCalibrationConstPtr> all;
+  ros::Subscriber subscribe(ros::NodeHandle& nh) {
+    return nh.subscribe<OnlineCalibration>("/deep_ois/online_calibration", 1000,
+                                           [this](const OnlineCalibrationConstPtr& m) {
+                                             std::lock_guard<std::mutex> lock(mutex);
+                                             all.push_back(m);
+                                           });
+  }
+  std::vector<OnlineCalibrationConstPtr> copy() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return all;
+  }
+};
+
+// The gyro flow nodelet's reconfigure values as `dynparam get` reads them (an empty set request).
+std::map<std::string, double> gyroFlowReconfigureValues() {
+  dynamic_reconfigure::Reconfigure call;
+  std::map<std::string, double> values;
+  if (!ros::service::call("/deep_ois/gyro_flow/set_parameters", call)) return values;
+  for (const auto& d : call.response.config.doubles) values[d.name] = d.value;
+  return values;
+}
+
+// A camera whose calibration starts wrong converges: the gyro flow starts with a time offset
+// ~calibration_error (15 ms) from the truth (the synthetic camera's), the camera's confirmed model
+// ("no lens motion": its OIS is off) is in place, and the stream is a hand's shake. The published
+// calibration in use must end within ~offset_tolerance of the truth, the gyro flow must use it
+// (dynparam), and the alignment must have improved (the held-out comparison that applied it, and
+// the per-pair residuals before and after).
+TEST(OnlineLearning, AWrongOffsetConverges) {
+  if (scenario() != "calibration_wrong_offset") GTEST_SKIP() << "~scenario is not calibration_wrong_offset";
+  ros::NodeHandle nh, private_nh("~");
+  const std::string path = placeConfirmedModel(noLensMotion(), "no lens motion (confirmed before)");
+  double readout_s = 0.0, start_offset_s = 0.0, error_s = 0.015, tolerance_s = 0.5e-3;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", start_offset_s);
+  private_nh.param("calibration_error", error_s, error_s);
+  private_nh.param("offset_tolerance", tolerance_s, tolerance_s);
+  const double true_offset_s = start_offset_s - error_s;
+  SyntheticOisCamera camera(false, readout_s, true_offset_s);
+  CalibrationMessages calibration;
+  ros::Subscriber calibration_sub = calibration.subscribe(nh);
+  DiagnosticsValues diagnostics;
+  ros::Subscriber diagnostics_sub = diagnostics.subscribe(nh);
+  std::mutex mutex;
+  std::vector<CompensationPairCheckConstPtr> checks;
+  ros::Subscriber check_sub = nh.subscribe<CompensationPairCheck>(
+      "/deep_ois/compensation_check", 2000, [&](const CompensationPairCheckConstPtr& m) {
+        std::lock_guard<std::mutex> lock(mutex);
+        checks.push_back(m);
+      });
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const ros::Time base = ros::Time::now();
+  double stream_s = 24.0;
+  private_nh.param("stream_s", stream_s, stream_s);
+  harness->stream(
+      stream_s, [&](live_test::FrameEdit& edit) { camera.render((edit.image->header.stamp - base).toSec(), *edit.image); },
+      [&](sensor_msgs::Imu& imu) {
+        feedImu(camera, base, imu);
+        return true;
+      });
+  ros::WallDuration(1.5).sleep();
+  const std::vector<OnlineCalibrationConstPtr> messages = calibration.copy();
+  ASSERT_FALSE(messages.empty()) << "nothing on /deep_ois/online_calibration";
+  const OnlineCalibration& last = *messages.back();
+  OnlineCalibrationConstPtr first_applied;
+  for (const auto& m : messages)
+    if (m->version > 0 && !first_applied) first_applied = m;
+  std::printf("[ measured ] start offset error %.3f ms; in use at the end: version %u, offset error %.3f ms (estimate "
+              "%.3f +- %.3f ms), readout %.3f ms; %u fits (%u needing motion, %u rejected), %u swaps; %s\n",
+              1e3 * error_s, last.version, 1e3 * (last.time_offset - true_offset_s),
+              1e3 * (last.estimate_time_offset - true_offset_s), 1e3 * last.estimate_time_offset_sigma,
+              1e3 * last.readout_time, last.fits, last.fits_needing_motion, last.fits_rejected, last.swaps,
+              last.confirmation.c_str());
+  std::printf("[ measured ] /diagnostics: %s; %s; %s\n", diagnostics.get("online calibration").c_str(),
+              diagnostics.get("online calibration: counts").c_str(), diagnostics.get("online calibration: last").c_str());
+  ASSERT_TRUE(first_applied) << "no calibration applied; last: " << last.last_reason;
+  std::printf("[ measured ] first applied at pair %.2f s: held-out %.3f px with the start, %.3f px with it\n",
+              (first_applied->header.stamp - base).toSec(), first_applied->held_out_in_use_residual,
+              first_applied->held_out_candidate_residual);
+  EXPECT_NEAR(last.time_offset, true_offset_s, tolerance_s);
+  EXPECT_LT(first_applied->held_out_candidate_residual, first_applied->held_out_in_use_residual);
+  // The gyro flow uses it: its reconfigure values (dynparam get) and the compensation's check of the
+  // gyro flows it receives.
+  const std::map<std::string, double> live = gyroFlowReconfigureValues();
+  ASSERT_TRUE(live.count("time_offset")) << "no reply from /deep_ois/gyro_flow/set_parameters";
+  EXPECT_NEAR(live.at("time_offset"), last.time_offset, 1e-9);
+  EXPECT_EQ(diagnostics.get("online calibration: used by the gyro flow"), "yes");
+  // The per-pair residual: the first 4 s (the start's offset) against the last 6 s.
+  double early = 0.0, late = 0.0;
+  std::size_t n_early = 0, n_late = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& c : checks) {
+      if (!c->usable) continue;
+      const double t = (c->header.stamp - base).toSec();
+      if (t < 4.0) {
+        early += c->gyro_residual;
+        ++n_early;
+      } else if (t > stream_s - 6.0) {
+        late += c->gyro_residual;
+        ++n_late;
+      }
+    }
+  }
+  ASSERT_GT(n_early, 20u);
+  ASSERT_GT(n_late, 20u);
+  std::printf("[ measured ] per-pair residual of the gyro flow: %.3f px (first 4 s, %zu pairs), %.3f px (last 6 s, %zu "
+              "pairs)\n", early / n_early, n_early, late / n_late, n_late);
+  EXPECT_LT(late / n_late, early / n_early);
+  std::error_code ignored;
+  std::filesystem::remove_all(std::filesystem::path(path).parent_path(), ignored);
+}
+
+// A still camera holds its calibration and says so: the stream does not move (the frames are the
+// same texture, the gyro reads zero), the gyro flow starts from its parameters. The calibration in
+// use must stay the start (version 0, the same values), the diagnostics must say "needs motion",
+// and no calibration file is written.
+TEST(OnlineLearning, AStillCameraHoldsItsCalibration) {
+  if (scenario() != "calibration_still") GTEST_SKIP() << "~scenario is not calibration_still";
+  ros::NodeHandle nh;
+  motion_scale = 0.0;
+  std::string learning_dir;
+  ASSERT_TRUE(nh.getParam("/deep_ois/compensation/learning_dir", learning_dir));
+  double readout_s = 0.0, offset_s = 0.0;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", offset_s);
+  SyntheticOisCamera camera(false, readout_s, offset_s - 0.015);  // a wrong start, which nothing can show
+  CalibrationMessages calibration;
+  ros::Subscriber calibration_sub = calibration.subscribe(nh);
+  DiagnosticsValues diagnostics;
+  ros::Subscriber diagnostics_sub = diagnostics.subscribe(nh);
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline());
+  const ros::Time base = ros::Time::now();
+  harness->stream(
+      14.0, [&](live_test::FrameEdit& edit) { camera.render((edit.image->header.stamp - base).toSec(), *edit.image); },
+      [&](sensor_msgs::Imu& imu) {
+        feedImu(camera, base, imu);
+        return true;
+      });
+  ros::WallDuration(1.5).sleep();
+  const std::vector<OnlineCalibrationConstPtr> messages = calibration.copy();
+  ASSERT_FALSE(messages.empty()) << "nothing on /deep_ois/online_calibration";
+  const OnlineCalibration& last = *messages.back();
+  const std::string state = diagnostics.get("online calibration");
+  std::printf("[ measured ] still camera: %s; %u pairs, %u fits (%u needing motion), version %u; %s\n", state.c_str(),
+              last.pairs, last.fits, last.fits_needing_motion, last.version, last.last_reason.c_str());
+  for (const auto& m : messages) {
+    EXPECT_EQ(m->version, 0u);
+    EXPECT_EQ(m->time_offset, offset_s);
+    EXPECT_EQ(m->readout_time, readout_s);
+  }
+  EXPECT_EQ(last.state, OnlineCalibration::STATE_NEEDS_MOTION);
+  EXPECT_GE(last.fits_needing_motion, 1u);
+  EXPECT_EQ(state.rfind("needs motion", 0), 0u) << state;
+  const std::map<std::string, double> live = gyroFlowReconfigureValues();
+  ASSERT_TRUE(live.count("time_offset"));
+  EXPECT_EQ(live.at("time_offset"), offset_s);
+  std::error_code no_dir;
+  if (std::filesystem::is_directory(learning_dir, no_dir)) {
+    for (const auto& entry : std::filesystem::directory_iterator(learning_dir))
+      EXPECT_EQ(entry.path().string().find(".calibration.yaml"), std::string::npos) << entry.path();
+  }
+  std::error_code ignored;
+  std::filesystem::remove_all(learning_dir, ignored);
+}
+
 TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   ros::NodeHandle nh, private_nh("~");
   bool kill_during_fit = false;
@@ -465,7 +649,7 @@ TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   // The learned model, kept under ~learning_dir (one file: one camera).
   std::vector<std::string> files;
   for (const auto& entry : std::filesystem::directory_iterator(learning_dir))
-    if (entry.path().extension() == ".yaml") files.push_back(entry.path().string());
+    if (isModelFile(entry.path())) files.push_back(entry.path().string());
   ASSERT_EQ(files.size(), 1u) << "no learned model in " << learning_dir << " after " << kStreamS
                               << " s; warnings:\n" << harness->warningsText(started);
   const StabiliserModelFile learned = StabiliserModelFile::load(files.front());

@@ -74,6 +74,14 @@ CompensationParameters loadCompensationParameters(const ParameterSource& nh) {
   if (!(p.learning_test_write_pause_s >= 0.0 && p.learning_test_write_pause_s <= 60.0))
     reject(nh, "learning_test_write_pause", "must be in [0, 60] seconds (a test hook; 0 in normal use)");
   p.fallback_to_gyro = nh.param("fallback_to_gyro", p.fallback_to_gyro);
+  p.online_calibration = nh.param("online_calibration", p.online_calibration);
+  p.online_calibration_mount = nh.param("online_calibration_mount", p.online_calibration_mount);
+  p.online_calibration_cpu_share = nh.param("online_calibration_cpu_share", p.online_calibration_cpu_share);
+  if (!(p.online_calibration_cpu_share > 0.0 && p.online_calibration_cpu_share <= 1.0))
+    reject(nh, "online_calibration_cpu_share", "must be in (0, 1] (a share of one core)");
+  p.online_calibration_gyro_flow = nh.param("online_calibration_gyro_flow", p.online_calibration_gyro_flow);
+  if (p.online_calibration_gyro_flow.empty())
+    reject(nh, "online_calibration_gyro_flow", "must name the gyro flow nodelet (e.g. gyro_flow)");
   return p;
 }
 

@@ -82,6 +82,7 @@ GyroFlowParameters loadGyroFlowParameters(const ParameterSource& nh) {
     p.integration.gyro_bias_rad_s = Eigen::Vector3d(bias[0], bias[1], bias[2]);
   }
   p.integration.max_sample_gap_s = positiveSeconds(nh, "max_imu_gap", 0.05);
+  p.follow_online_calibration = nh.param("follow_online_calibration", p.follow_online_calibration);
 
   p.camera_frame_id = nh.param<std::string>("camera_frame_id", "");
   p.imu_frame_id = nh.param<std::string>("imu_frame_id", "");

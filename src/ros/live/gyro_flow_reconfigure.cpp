@@ -3,8 +3,32 @@
 #include <ros/console.h>
 
 #include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "deep_ois/core/common/so3_and_statistics.h"
 
 namespace deep_ois {
+
+namespace {
+
+// "r00 r01 ... r22" (spaces or commas) -> R; empty text when it is not 9 numbers of a rotation.
+std::string parseRotation(const std::string& text, Eigen::Matrix3d& R) {
+  std::string spaced = text;
+  for (char& c : spaced)
+    if (c == ',' || c == '[' || c == ']') c = ' ';
+  std::istringstream in(spaced);
+  std::vector<double> values;
+  for (double v; in >> v;) values.push_back(v);
+  if (!in.eof() || values.size() != 9)
+    return "r_cam_imu must be 9 numbers (row-major R_cam_imu) or empty (tf), got '" + text + "'";
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R(r, c) = values[static_cast<std::size_t>(3 * r + c)];
+  if (!isProperRotation(R)) return "r_cam_imu is not a rotation (orthonormal, det +1): '" + text + "'";
+  return "";
+}
+
+}  // namespace
 
 std::string applyGyroFlowConfig(const GyroFlowConfig& config, GyroFlowParameters& params) {
   // The same bounds as the loader (loadGyroFlowParameters); the .cfg ranges already clamp most.
@@ -29,7 +53,20 @@ std::string applyGyroFlowConfig(const GyroFlowConfig& config, GyroFlowParameters
     return "imu_wait_timeout must be a positive number of seconds, got " +
            std::to_string(config.imu_wait_timeout);
   }
+  const Eigen::Vector3d bias(config.gyro_bias_x, config.gyro_bias_y, config.gyro_bias_z);
+  if (!bias.allFinite() || bias.cwiseAbs().maxCoeff() > 1.0) {
+    return "gyro_bias_x/y/z must be within +-1 rad/s";
+  }
+  Eigen::Matrix3d rotation = params.rolling_shutter.imu_to_camera_rotation;
+  const bool from_tf = config.r_cam_imu.find_first_not_of(" \t") == std::string::npos;
+  if (!from_tf) {
+    const std::string problem = parseRotation(config.r_cam_imu, rotation);
+    if (!problem.empty()) return problem;
+  }
   params.rolling_shutter.time_offset_s = config.time_offset;
+  params.integration.gyro_bias_rad_s = bias;
+  params.rotation_from_tf = from_tf;
+  params.rolling_shutter.imu_to_camera_rotation = rotation;
   params.rolling_shutter.readout_time_s = config.readout_time;
   params.rolling_shutter.patch_time = patch_time;
   params.color_max_flow_px = config.color_max_flow;
@@ -45,6 +82,17 @@ GyroFlowConfig toGyroFlowConfig(const GyroFlowParameters& params) {
       params.rolling_shutter.patch_time == PatchTimeReference::kPatchStart ? "start" : "centre";
   config.color_max_flow = params.color_max_flow_px;
   config.imu_wait_timeout = params.imu_wait_timeout_s;
+  config.gyro_bias_x = params.integration.gyro_bias_rad_s.x();
+  config.gyro_bias_y = params.integration.gyro_bias_rad_s.y();
+  config.gyro_bias_z = params.integration.gyro_bias_rad_s.z();
+  config.r_cam_imu.clear();
+  if (!params.rotation_from_tf) {
+    std::ostringstream out;
+    out.precision(12);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) out << (r || c ? " " : "") << params.rolling_shutter.imu_to_camera_rotation(r, c);
+    config.r_cam_imu = out.str();
+  }
   return config;
 }
 
@@ -69,16 +117,35 @@ void GyroFlowReconfigure::callback(GyroFlowConfig& config, uint32_t) {
   const RollingShutterConfig& b = current_.rolling_shutter;
   const bool changed = a.time_offset_s != b.time_offset_s || a.readout_time_s != b.readout_time_s ||
                        a.patch_time != b.patch_time || updated.color_max_flow_px != current_.color_max_flow_px ||
-                       updated.imu_wait_timeout_s != current_.imu_wait_timeout_s;
+                       updated.imu_wait_timeout_s != current_.imu_wait_timeout_s ||
+                       updated.integration.gyro_bias_rad_s != current_.integration.gyro_bias_rad_s ||
+                       updated.rotation_from_tf != current_.rotation_from_tf ||
+                       updated.rolling_shutter.imu_to_camera_rotation != current_.rolling_shutter.imu_to_camera_rotation;
   current_ = updated;
   if (changed) {
     ROS_INFO_NAMED(log_name_,
                    "%s: reconfigured: time offset %.4f s, readout %.4f s, patch time %s, color max flow "
-                   "%.2f px, IMU wait timeout %.3f s (from the next frame pair)",
+                   "%.2f px, IMU wait timeout %.3f s, gyro bias (%.5f, %.5f, %.5f) rad/s, R_cam_imu %s (from "
+                   "the next frame pair)",
                    log_name_.c_str(), config.time_offset, config.readout_time, config.patch_time.c_str(),
-                   config.color_max_flow, config.imu_wait_timeout);
+                   config.color_max_flow, config.imu_wait_timeout, config.gyro_bias_x, config.gyro_bias_y,
+                   config.gyro_bias_z, config.r_cam_imu.empty() ? "from tf"
+                                                                            : config.r_cam_imu.c_str());
   }
   apply_(current_);
+}
+
+std::string GyroFlowReconfigure::set(const GyroFlowParameters& wanted) {
+  // The server holds this lock around its own callback: a client's change and this one do not interleave.
+  boost::recursive_mutex::scoped_lock lock(server_mutex_);
+  GyroFlowConfig config = toGyroFlowConfig(wanted);
+  GyroFlowParameters updated = current_;
+  const std::string problem = applyGyroFlowConfig(config, updated);
+  if (!problem.empty()) return problem;
+  current_ = updated;
+  server_.updateConfig(config);  // published on ~parameter_updates: dynparam get shows it
+  apply_(current_);
+  return "";
 }
 
 }  // namespace deep_ois

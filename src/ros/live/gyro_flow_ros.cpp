@@ -56,6 +56,9 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       private_nh_, "gyro_flow", params_, [this](const GyroFlowParameters& updated) {
         std::lock_guard<std::mutex> lock(mutex_);
         params_ = updated;
+        // Back to tf (an empty imu_to_camera_rotation) when the start had the parameter.
+        if (params_.rotation_from_tf && !tf_listener_)
+          tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_, nh_);
         showCalibration(*diagnostics_, params_);
       });
   // Held across advertise so that a subscriber connecting meanwhile waits for the publishers.
@@ -67,6 +70,10 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   flow_pub_ = nh_.advertise<GyroFlow>("gyro_flow", 5, on_flow_subscribers, on_flow_subscribers);
   color_pub_ = it_.advertise("gyro_flow/color", 5, on_color_subscribers, on_color_subscribers);
   flow_image_pub_ = FlowImagePublisher(nh_, "gyro_flow/image", [this] { connectCallback(); });
+  if (params_.follow_online_calibration) {
+    // Not an output: it does not make the inputs subscribed. Latched on the compensation's side.
+    calibration_sub_ = nh_.subscribe("online_calibration", 5, &GyroFlowRos::onlineCalibrationCallback, this);
+  }
   waiting_timer_ = nh_.createWallTimer(ros::WallDuration(kWaitingCheckPeriodS),
                                        &GyroFlowRos::waitingTimerCallback, this);
   ROS_INFO_NAMED("gyro_flow",
@@ -86,6 +93,58 @@ GyroFlowRos::~GyroFlowRos() {
   camera_sub_.shutdown();
   info_sub_.shutdown();
   lens_sub_.shutdown();
+  calibration_sub_.shutdown();
+}
+
+void GyroFlowRos::onlineCalibrationCallback(const OnlineCalibrationConstPtr& msg) {
+  // Never throws: a message that cannot be applied is said and ignored.
+  try {
+    // Each version once (a message comes per fit), so that a later dynparam set by hand holds until
+    // the next version; a restarted compensation (its versions from 0 again) differs in values.
+    if (calibration_applied_ && calibration_applied_->version == msg->version &&
+        calibration_applied_->time_offset == msg->time_offset &&
+        calibration_applied_->readout_time == msg->readout_time && calibration_applied_->gyro_bias == msg->gyro_bias &&
+        calibration_applied_->imu_to_camera_rotation == msg->imu_to_camera_rotation)
+      return;
+    GyroFlowParameters wanted;
+    std::string camera_frame;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      wanted = params_;
+      camera_frame = !params_.camera_frame_id.empty() ? params_.camera_frame_id
+                                                      : (previous_ ? previous_->frame_id : std::string());
+    }
+    if (!msg->header.frame_id.empty() && !camera_frame.empty() && msg->header.frame_id != camera_frame) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: ignoring the online calibration on %s: it is for "
+                              "camera frame '%s', this nodelet's is '%s'", log_name_.c_str(),
+                              calibration_sub_.getTopic().c_str(), msg->header.frame_id.c_str(), camera_frame.c_str());
+      return;
+    }
+    wanted.rolling_shutter.time_offset_s = msg->time_offset;
+    wanted.rolling_shutter.readout_time_s = msg->readout_time;
+    wanted.integration.gyro_bias_rad_s = Eigen::Vector3d(msg->gyro_bias[0], msg->gyro_bias[1], msg->gyro_bias[2]);
+    if (msg->mount_estimated) {
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          wanted.rolling_shutter.imu_to_camera_rotation(r, c) = msg->imu_to_camera_rotation[static_cast<std::size_t>(3 * r + c)];
+      wanted.rotation_from_tf = false;
+    }
+    const std::string problem = reconfigure_->set(wanted);
+    if (!problem.empty()) {
+      ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: the online calibration version %u on %s is not applied: "
+                              "%s", log_name_.c_str(), msg->version, calibration_sub_.getTopic().c_str(),
+                              problem.c_str());
+      return;
+    }
+    calibration_applied_ = msg;
+    ROS_INFO_NAMED("gyro_flow", "%s: following the online calibration (version %u, %s): time offset %.3f ms, readout "
+                   "%.3f ms, gyro bias (%.5f, %.5f, %.5f) rad/s%s", log_name_.c_str(), msg->version,
+                   msg->confirmation.c_str(), 1e3 * msg->time_offset, 1e3 * msg->readout_time, msg->gyro_bias[0],
+                   msg->gyro_bias[1], msg->gyro_bias[2], msg->mount_estimated ? ", mount estimated" : "");
+  } catch (const std::exception& e) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: the online calibration on %s could not be applied: %s",
+                            log_name_.c_str(), calibration_sub_.getTopic().c_str(), e.what());
+  }
 }
 
 void GyroFlowRos::connectCallback() {

@@ -65,9 +65,15 @@ OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParam
   }
   check_pub_ = nh_.advertise<CompensationPairCheck>("compensation_check", 30, on_subscribers, on_subscribers);
   diagnostics_.setValue("learning", params_.learning ? "on (waiting for the first pair)" : "off");
+  if (params_.online_calibration) {
+    calibration_ = std::make_unique<OnlineCalibrationRos>(nh_, params_, diagnostics_, log_name_);
+  } else {
+    diagnostics_.setValue("online calibration", "off (~online_calibration)");
+  }
 }
 
 void OnlineLearningRos::startFor(const GyroFlow& gyro) {
+  learner_.reset();  // its threads stop before the calibration restarts for this camera
   model_path_ = learnedModelPath(params_.learning_dir, params_.learning_key, gyro);
   frame_id_ = gyro.header.frame_id;
   std::vector<ModelCandidate> priors;
@@ -92,6 +98,14 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.confirmation.pairs = static_cast<std::size_t>(params_.learning_confirm_pairs);
   options.write.test_pause_s = params_.learning_test_write_pause_s;
   options.model_path = model_path_;
+  if (calibration_) {
+    // On the learner's tracking thread, with the tracks it made (charged to its CPU budget).
+    // A camera whose model in use moves the lens: the estimator also fits a shift per frame, so
+    // that what that model gets wrong is not absorbed by the time offset.
+    calibration_->startFor(onlineCalibrationPath(model_path_), gyro, !isNoLensMotion(priors.front().parameters));
+    OnlineCalibrationRos* calibration = calibration_.get();
+    options.on_tracked_pair = [calibration](const OnlineFramePair& pair) { calibration->onTrackedPair(pair); };
+  }
   // The generic lens dynamics, adapted in the background like the chain's candidates (fewer
   // iterations: each is a few passes over the buffer's gyro).
   const std::string package = ros::package::getPath("deep_ois");
@@ -181,6 +195,10 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.stamp_a_s = gyro.previous_stamp.toSec();
     pair.stamp_b_s = gyro.header.stamp.toSec();
     pair.timing = result.timing;
+    // The rotation the gyro flow used (the feed rotates the camera-frame rates back to the IMU's).
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        pair.timing.imu_to_camera_rotation(r, c) = gyro.imu_to_camera_rotation[static_cast<std::size_t>(3 * r + c)];
     pair.camera = result.camera;
     pair.rotations = result.rotations;
     pair.gyro_homographies = gyro_homographies;
@@ -193,8 +211,11 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.image_a = alive->a->image;
     pair.image_b = alive->b->image;
     pair.keep_alive = alive;
+    // Before the submit: the tracking thread looks up the lens the compensation used for the pair.
+    if (calibration_) calibration_->rememberLens(gyro, result, fallingBack() || result.homographies.empty());
     learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
   }
+  if (calibration_) calibration_->afterPair(gyro);
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
     if (check_pub_.getNumSubscribers() == 0) continue;
     auto msg = boost::make_shared<CompensationPairCheck>();
@@ -234,6 +255,7 @@ bool OnlineLearningRos::fallingBack() const {
 
 void OnlineLearningRos::timeWentBack() {
   if (learner_) learner_->restartTimeline();
+  if (calibration_) calibration_->timeWentBack();
 }
 
 void OnlineLearningRos::setLearning(bool on, double cpu_share) {

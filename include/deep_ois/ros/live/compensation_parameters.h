@@ -65,6 +65,21 @@ struct CompensationParameters {
   // (a test kills the process during it); 0 in normal use
   double learning_test_write_pause_s = 0.0;
   bool fallback_to_gyro = true;          // ~fallback_to_gyro: publish the plain gyro while the model does worse
+
+  // Online camera-IMU calibration (core/online/online_calibration_estimator.h, fed from the
+  // learner's tracks; ros/live/online_calibration_ros.h). ~online_calibration: on by default, so a
+  // new camera needs no `calibrate` (a calibration is applied only when confidently better on
+  // held-out pairs, and kept only once the per-pair check confirms it); needs a stabiliser model.
+  bool online_calibration = true;
+  // ~online_calibration_mount: also search the mount (24 signed axis permutations, then a small
+  // rotation); off by default: the tf or ~imu_to_camera_rotation mount is held (a robot's is known).
+  bool online_calibration_mount = false;
+  // ~online_calibration_cpu_share: the estimator's own budget, a share of one core (its fits run on
+  // the learner's tracking thread and count in ~learning_cpu_share too).
+  double online_calibration_cpu_share = 0.12;
+  // ~online_calibration_gyro_flow: the gyro flow nodelet's name relative to this node's namespace,
+  // whose ~gyro_bias is the starting bias (its messages do not carry it).
+  std::string online_calibration_gyro_flow = "gyro_flow";
 };
 
 // Reads every parameter with its default and checks it; throws std::invalid_argument naming the

@@ -21,6 +21,11 @@ struct GyroFlowParameters {
   bool rotation_from_tf = true;
   IntegrationOptions integration;
 
+  // ~follow_online_calibration: apply the compensation's online calibration (topic
+  // online_calibration, deep_ois/OnlineCalibration) through the dynamic_reconfigure server: time
+  // offset, readout, gyro bias, and the mount when the compensation estimates it.
+  bool follow_online_calibration = true;
+
   std::string camera_frame_id;  // overrides the image's frame_id when not empty
   std::string imu_frame_id;     // overrides the Imu message's frame_id when not empty
 

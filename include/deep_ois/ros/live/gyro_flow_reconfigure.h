@@ -1,5 +1,6 @@
 // dynamic_reconfigure server of the gyro flow nodelet's live-tunable parameters (cfg/GyroFlow.cfg):
-// time_offset, readout_time, patch_time, color_max_flow, imu_wait_timeout.
+// time_offset, readout_time, patch_time, color_max_flow, imu_wait_timeout, gyro_bias_x/y/z,
+// r_cam_imu (the mount, ~imu_to_camera_rotation as text).
 #pragma once
 
 #include <deep_ois/GyroFlowConfig.h>
@@ -33,6 +34,11 @@ class GyroFlowReconfigure {
   using Apply = std::function<void(const GyroFlowParameters&)>;
   GyroFlowReconfigure(const ros::NodeHandle& private_nh, const std::string& log_name,
                       const GyroFlowParameters& loaded, Apply apply);
+
+  // Sets the live-tunable values of `wanted` as if a client had (the online calibration): they are
+  // validated, applied and published to the server's clients. Empty when applied, else the problem
+  // (nothing changed). Call on the private node handle's callback queue (as the service's).
+  std::string set(const GyroFlowParameters& wanted);
 
  private:
   void callback(GyroFlowConfig& config, uint32_t level);

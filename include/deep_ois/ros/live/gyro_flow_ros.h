@@ -3,6 +3,7 @@
 #pragma once
 
 #include <deep_ois/GyroFlow.h>
+#include <deep_ois/OnlineCalibration.h>
 #include <deep_ois/LensShiftSample.h>
 #include <image_transport/image_transport.h>
 #include <ros/ros.h>
@@ -69,6 +70,9 @@ class GyroFlowRos {
   void cameraCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
   void cameraInfoCallback(const sensor_msgs::CameraInfoConstPtr& info);
   void waitingTimerCallback(const ros::WallTimerEvent&);
+  // The compensation's online calibration: a new version for this camera is applied through the
+  // reconfigure server (as a dynparam client would), so dynparam get shows the values in use.
+  void onlineCalibrationCallback(const OnlineCalibrationConstPtr& msg);
   // The callbacks' work, inside runGuarded.
   void handleImu(const sensor_msgs::ImuConstPtr& imu);
   void handleLensShift(const LensShiftSampleConstPtr& sample);
@@ -116,6 +120,8 @@ class GyroFlowRos {
   image_transport::CameraSubscriber camera_sub_;
   ros::Subscriber info_sub_;  // instead of camera_sub_ with ~use_camera_info_only
   ros::Subscriber lens_sub_;  // the camera's lens-shift log, with ~use_lens_shift_log
+  ros::Subscriber calibration_sub_;  // online_calibration, with ~follow_online_calibration
+  OnlineCalibrationConstPtr calibration_applied_;  // the message last applied (its callback only)
   std::string image_topic_, info_topic_;  // resolved input topics, for messages
   ros::Publisher flow_pub_;
   image_transport::Publisher color_pub_;

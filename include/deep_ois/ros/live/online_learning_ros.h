@@ -7,6 +7,9 @@
 // Each camera's learned model is kept in a file under ~learning_dir ($ROS_HOME/deep_ois/stabilisers)
 // named by ~learning_key or the stream (frame id, size, focal length), written atomically by the
 // learner, and loaded at the next start as the model in use (the ~model file stays a candidate).
+//
+// With ~online_calibration, the learner's tracked pairs also feed the online camera-IMU calibration
+// (OnlineCalibrationRos: `online_calibration`, its file beside the learned model's).
 #pragma once
 
 #include <deep_ois/GyroFlow.h>
@@ -20,6 +23,7 @@
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/ros/live/compensation_parameters.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
+#include "deep_ois/ros/live/online_calibration_ros.h"
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 
 namespace deep_ois {
@@ -67,6 +71,8 @@ class OnlineLearningRos {
   LiveDiagnostics& diagnostics_;
   std::string log_name_;
   ros::Publisher check_pub_;
+  // Before learner_: the learner's tracking thread calls into it until the learner is destroyed.
+  std::unique_ptr<OnlineCalibrationRos> calibration_;
   std::unique_ptr<OnlineStabiliserLearner> learner_;
   std::string model_path_;
   std::string frame_id_;
