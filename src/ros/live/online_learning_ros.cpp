@@ -112,14 +112,11 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   const std::string network_path = params_.learning_lens_dynamics.empty()
                                        ? (package.empty() ? "" : package + "/models/lens_dynamics_generic.yaml")
                                        : params_.learning_lens_dynamics;
-  if (!network_path.empty() && network_path != "none") {
-    try {
-      options.useLensDynamics(
-          std::make_shared<const LensDynamicsNetwork>(LensDynamicsNetwork::load(network_path)));
-    } catch (const std::exception& e) {
-      ROS_WARN_NAMED("compensation", "%s: ~learning_lens_dynamics: %s; learning without the generic lens "
-                     "dynamics", log_name_.c_str(), e.what());
-    }
+  try {
+    if (auto network = loadLensDynamicsOption(network_path)) options.useLensDynamics(network);
+  } catch (const std::exception& e) {
+    ROS_WARN_NAMED("compensation", "%s: ~learning_lens_dynamics: %s; learning without the generic lens "
+                   "dynamics", log_name_.c_str(), e.what());
   }
   options.model_file_name = "learned online for " + model_path_;
   options.camera.width = static_cast<int>(gyro.image_width);
