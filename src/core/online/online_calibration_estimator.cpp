@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <iomanip>
 #include <limits>
@@ -72,6 +74,12 @@ std::string OnlineCalibrationOptions::validate() const {
     why << "rotation_every must be at least 1 (got " << rotation_every << ")";
   } else if (!(refine_sigmas > 0.0)) {
     why << "refine_sigmas must be positive (got " << refine_sigmas << ")";
+  } else if (!(refine_offset_s >= 0.0) || !(hold_readout_below_sigma_s >= 0.0) || !std::isfinite(refine_offset_s) ||
+             !std::isfinite(hold_readout_below_sigma_s)) {
+    why << "refine_offset_s and hold_readout_below_sigma_s must be finite and >= 0 (got " << refine_offset_s << ", "
+        << hold_readout_below_sigma_s << ")";
+  } else if (readout_every < 1) {
+    why << "readout_every must be at least 1 (got " << readout_every << ")";
   } else if (!(jump_sigmas > 1.0)) {
     why << "jump_sigmas must be above 1 (got " << jump_sigmas << ")";
   } else if (!(max_offset_sigma_s > 0.0) || !(max_readout_sigma_s > 0.0) || !(max_bias_sigma_rad_s > 0.0) ||
@@ -173,6 +181,7 @@ bool OnlineCalibrationEstimator::withinBudget() const {
   return !(options_.cpu_share > 0.0) || credit_s_ >= last_work_cpu_s_;
 }
 
+static const bool kTrace = std::getenv("CALIB_TRACE") != nullptr;
 bool OnlineCalibrationEstimator::update() {
   if (new_pairs_s_ >= options_.refit_every_s && !withinBudget() && !budget_said_) {
     ++status_.fits_over_budget;
@@ -181,7 +190,10 @@ bool OnlineCalibrationEstimator::update() {
   if (!due()) return false;
   const std::uint64_t before = status_.version;
   const double started = threadCpuS();
-  if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) scoreCandidate();
+  if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) {
+    scoreCandidate();
+    if (kTrace) std::fprintf(stderr, "TRACE t=%.2f %s\n", last_pair_stamp_s_, status_.last_reason.c_str());
+  }
   bool fitted = false;
   if (new_pairs_s_ >= options_.refit_every_s && withinBudget()) {
     fit();
@@ -192,6 +204,7 @@ bool OnlineCalibrationEstimator::update() {
   status_.cpu_s += cpu_s;
   if (options_.cpu_share > 0.0) credit_s_ -= cpu_s;
   if (fitted) last_work_cpu_s_ = cpu_s;
+  if (kTrace && fitted) std::fprintf(stderr, "TRACE t=%.2f cpu=%.3f %s\n", last_pair_stamp_s_, cpu_s, status_.last_reason.c_str());
   return status_.version != before;
 }
 
@@ -257,8 +270,13 @@ void OnlineCalibrationEstimator::fit() {
   options.time_offset_s = 0.0;
   options.max_abs_time_offset_s = any_accepted_ ? options_.search_s : options_.first_search_s;
   options.coarse_time_step_s = std::min(options.coarse_time_step_s, options.max_abs_time_offset_s);
-  options.estimate_readout_time = true;
-  options.readout_time_s = status_.estimate.readout_time_s;
+  // The readout is held at its filtered value once the filter knows it (the window then measures
+  // the offset alone, off the offset-readout ridge), except on every readout_every-th window.
+  const bool hold_readout = status_.mount_found && readout_.initialised &&
+                            std::sqrt(readout_.variance) <= options_.hold_readout_below_sigma_s &&
+                            status_.fits % options_.readout_every != 1 % options_.readout_every;
+  options.estimate_readout_time = !hold_readout;
+  options.readout_time_s = hold_readout ? std::max(readout_.value, 0.0) : status_.estimate.readout_time_s;
   options.estimate_gyro_bias = options_.estimate_gyro_bias;
   options.gyro_bias_rad_s = status_.estimate.gyro_bias_rad_s;
   // Once the mount is found, its small rotation is refined on every rotation_every-th window only
@@ -369,8 +387,10 @@ void OnlineCalibrationEstimator::fit() {
       jumped = true;
     } else {
       Filter readout = readout_;
-      fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
-           &jumped);
+      if (!hold_readout) {
+        fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
+             &jumped);
+      }
       if (!jumped) {
         readout_ = readout;
         const Eigen::Vector2d gain = covariance.col(0) / innovation_variance;
@@ -386,9 +406,15 @@ void OnlineCalibrationEstimator::fit() {
     offset_.covariance = Eigen::Vector2d(std::pow(window.time_offset_sigma_s, 2),
                                          std::pow(options_.initial_rate_sigma, 2)).asDiagonal();
     offset_.stamp_s = stamp_s;
-    readout_ = {};
     for (Filter& axis : bias_) axis = {};
-    fuse(readout_, window.readout_time_s, window.readout_time_sigma_s, 0.0, stamp_s, nullptr);
+    if (hold_readout) {
+      // The window did not measure the readout: the filter keeps its value, widened so that the
+      // next windows measure it again (a restarted camera app may have changed the mode).
+      readout_.variance = std::max(readout_.variance, std::pow(2.0 * options_.hold_readout_below_sigma_s, 2));
+    } else {
+      readout_ = {};
+      fuse(readout_, window.readout_time_s, window.readout_time_sigma_s, 0.0, stamp_s, nullptr);
+    }
     if (jumped) {
       ++status_.jumps;
       said << ", a jump from " << milliseconds(status_.estimate.time_offset_s) << ": the estimate restarts here";
@@ -426,6 +452,7 @@ void OnlineCalibrationEstimator::fit() {
   // Offered for use once the mount is known, after the pairs that follow this window.
   if (status_.mount_found) {
     candidate_ = estimate;
+    candidate_rate_ = offset_now(1);
     candidate_waiting_ = true;
     candidate_after_s_ = end_s;
   }
@@ -448,7 +475,9 @@ void OnlineCalibrationEstimator::predictOffset(const OffsetFilter& filter, doubl
 bool OnlineCalibrationEstimator::outsideEstimate(const CameraImuCalibration& in_use,
                                                  const CameraImuCalibration& estimate) const {
   const double k = options_.refine_sigmas;
-  if (std::abs(in_use.time_offset_s - estimate.time_offset_s) > k * estimate.time_offset_sigma_s) return true;
+  const double offset_difference_s = std::abs(in_use.time_offset_s - estimate.time_offset_s);
+  if (offset_difference_s > k * estimate.time_offset_sigma_s) return true;
+  if (options_.refine_offset_s > 0.0 && offset_difference_s > options_.refine_offset_s) return true;
   if (std::abs(in_use.readout_time_s - estimate.readout_time_s) > k * estimate.readout_time_sigma_s) return true;
   if (options_.estimate_gyro_bias) {
     for (int axis = 0; axis < 3; ++axis) {
@@ -511,9 +540,14 @@ void OnlineCalibrationEstimator::scoreCandidate() {
       held_out.push_back(pair);
     }
   }
+  // The candidate's offset is the filter's at its window's end; the filter's drift rate carries it
+  // to the held-out pairs' middle for the score, and to the newest pair when it is applied.
+  CameraImuCalibration scored = candidate_;
+  scored.time_offset_s += candidate_rate_ * 0.5 * options_.held_out_s;
+  candidate_.time_offset_s += candidate_rate_ * std::max(last_pair_stamp_s_ - candidate_after_s_, 0.0);
   double in_use_px = 0.0, candidate_px = 0.0;
   int tracks = 0;
-  scorePair(held_out, status_.in_use, candidate_, &in_use_px, &candidate_px, &tracks);
+  scorePair(held_out, status_.in_use, scored, &in_use_px, &candidate_px, &tracks);
   ++status_.candidates_scored;
   status_.held_out_in_use_px = in_use_px;
   status_.held_out_candidate_px = candidate_px;
