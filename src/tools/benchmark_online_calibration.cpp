@@ -23,7 +23,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -124,12 +123,6 @@ deep_ois::OnlineCalibrationOptions onlineOptions(bool ois, bool mount_known) {
   options.cpu_share = g_cpu_share;
   options.lens_shift = ois ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
   options.estimate_rotation = !mount_known;
-  if (const char* v = std::getenv("TUNE_RATE_RW")) options.rate_random_walk_per_sqrt_s = std::atof(v);
-  if (const char* v = std::getenv("TUNE_OFFSET_RW")) options.offset_random_walk_s_per_sqrt_s = std::atof(v);
-  if (const char* v = std::getenv("TUNE_HOLD")) options.hold_readout_below_sigma_s = std::atof(v);
-  if (const char* v = std::getenv("TUNE_REFINE")) options.refine_offset_s = std::atof(v);
-  if (const char* v = std::getenv("TUNE_WINDOW")) options.window_s = std::atof(v);
-  if (const char* v = std::getenv("TUNE_EVERY")) options.readout_every = std::atoi(v);
   return options;
 }
 

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <iomanip>
 #include <limits>
@@ -181,7 +179,6 @@ bool OnlineCalibrationEstimator::withinBudget() const {
   return !(options_.cpu_share > 0.0) || credit_s_ >= last_work_cpu_s_;
 }
 
-static const bool kTrace = std::getenv("CALIB_TRACE") != nullptr;
 bool OnlineCalibrationEstimator::update() {
   if (new_pairs_s_ >= options_.refit_every_s && !withinBudget() && !budget_said_) {
     ++status_.fits_over_budget;
@@ -190,10 +187,7 @@ bool OnlineCalibrationEstimator::update() {
   if (!due()) return false;
   const std::uint64_t before = status_.version;
   const double started = threadCpuS();
-  if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) {
-    scoreCandidate();
-    if (kTrace) std::fprintf(stderr, "TRACE t=%.2f %s\n", last_pair_stamp_s_, status_.last_reason.c_str());
-  }
+  if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) scoreCandidate();
   bool fitted = false;
   if (new_pairs_s_ >= options_.refit_every_s && withinBudget()) {
     fit();
@@ -204,7 +198,6 @@ bool OnlineCalibrationEstimator::update() {
   status_.cpu_s += cpu_s;
   if (options_.cpu_share > 0.0) credit_s_ -= cpu_s;
   if (fitted) last_work_cpu_s_ = cpu_s;
-  if (kTrace && fitted) std::fprintf(stderr, "TRACE t=%.2f cpu=%.3f %s\n", last_pair_stamp_s_, cpu_s, status_.last_reason.c_str());
   return status_.version != before;
 }
 
@@ -474,10 +467,15 @@ void OnlineCalibrationEstimator::predictOffset(const OffsetFilter& filter, doubl
 
 bool OnlineCalibrationEstimator::outsideEstimate(const CameraImuCalibration& in_use,
                                                  const CameraImuCalibration& estimate) const {
+  return outsideEstimate(in_use, estimate, true);
+}
+
+bool OnlineCalibrationEstimator::outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate,
+                                                 bool offset_threshold) const {
   const double k = options_.refine_sigmas;
   const double offset_difference_s = std::abs(in_use.time_offset_s - estimate.time_offset_s);
   if (offset_difference_s > k * estimate.time_offset_sigma_s) return true;
-  if (options_.refine_offset_s > 0.0 && offset_difference_s > options_.refine_offset_s) return true;
+  if (offset_threshold && options_.refine_offset_s > 0.0 && offset_difference_s > options_.refine_offset_s) return true;
   if (std::abs(in_use.readout_time_s - estimate.readout_time_s) > k * estimate.readout_time_sigma_s) return true;
   if (options_.estimate_gyro_bias) {
     for (int axis = 0; axis < 3; ++axis) {
@@ -559,8 +557,27 @@ void OnlineCalibrationEstimator::scoreCandidate() {
   // Worse by the same margins the other way round.
   const bool worse = candidate_px > in_use_px * (1.0 + options_.margins.min_relative_improvement) &&
                      candidate_px - in_use_px > options_.margins.min_improvement_px;
-  const bool refinement = !better && options_.refine_when_not_worse && tracks > 0 && !worse &&
-                          outsideEstimate(status_.in_use, candidate_);
+  bool refinement = !better && options_.refine_when_not_worse && tracks > 0 && !worse &&
+                    outsideEstimate(status_.in_use, candidate_, false);
+  if (!better && !refinement && options_.refine_when_not_worse && tracks > 0 && !worse &&
+      outsideEstimate(status_.in_use, candidate_, true)) {
+    // Only the offset is beyond refine_offset_s (a drift): the offset alone moves, the other
+    // quantities stay within their intervals as they are; that calibration is scored too.
+    CameraImuCalibration offset_only = status_.in_use;
+    offset_only.time_offset_s = scored.time_offset_s;
+    double unused_px = 0.0, offset_only_px = 0.0;
+    int offset_only_tracks = 0;
+    scorePair(held_out, status_.in_use, offset_only, &unused_px, &offset_only_px, &offset_only_tracks);
+    const bool offset_only_worse = offset_only_px > in_use_px * (1.0 + options_.margins.min_relative_improvement) &&
+                                   offset_only_px - in_use_px > options_.margins.min_improvement_px;
+    if (offset_only_tracks > 0 && !offset_only_worse) {
+      const CameraImuCalibration full = candidate_;
+      candidate_ = status_.in_use;
+      candidate_.time_offset_s = full.time_offset_s;
+      candidate_.time_offset_sigma_s = full.time_offset_sigma_s;
+      refinement = true;
+    }
+  }
   if (better || refinement) {
     status_.in_use = candidate_;
     ++status_.version;

@@ -190,8 +190,10 @@ TEST(OnlineCalibrationEstimator, TracksADriftingOffset) {
   std::cout << "[ measured ] after 10 s: worst estimate error " << worst_estimate_ms << " ms, in use "
             << worst_in_use_ms << " ms (the offset drifted 2 ms)\n";
   EXPECT_LT(worst_estimate_ms, 0.5);
-  // The calibration in use follows by refinements once it leaves the estimate's 2-sigma.
-  EXPECT_LT(worst_in_use_ms, 1.0);
+  // Issue 33's target holds for the calibration in use, not only the estimate: it follows by
+  // refinements of the offset once it is 0.15 ms off the estimate (0.83 ms before the readout was
+  // held and the offset refined on its own; 0.35 ms now).
+  EXPECT_LT(worst_in_use_ms, 0.5);
   EXPECT_GT(estimator.status().refinements, 0u);
 }
 
@@ -214,6 +216,33 @@ TEST(OnlineCalibrationEstimator, ReconvergesAfterATenMillisecondJump) {
   });
   say("10 ms jump at 12 s", estimator.status(), truthAt(recording, 30.0));
   std::cout << "[ measured ] in use within 0.5 ms again " << back_at_s - kJumpS << " s after the jump\n";
+  EXPECT_GE(estimator.status().jumps, 1u);
+  ASSERT_GE(back_at_s, kJumpS);
+  EXPECT_LT(back_at_s - kJumpS, 10.0);
+}
+
+// A 10 ms jump with OIS on: the window fits measure offset and readout ~2x worse than without OIS,
+// so a filter that follows each window (its drift rate included) wanders off the new offset.
+TEST(OnlineCalibrationEstimator, ReconvergesAfterATenMillisecondJumpWithOis) {
+  sim::SyntheticTrackOptions options;
+  options.duration_s = 45.0;
+  options.seed = 11;
+  constexpr double kJumpS = 15.0;
+  options.extra_offset_s = [](double t) { return t >= kJumpS ? 0.010 : 0.0; };
+  const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(true), options);
+  OnlineCalibrationOptions online = unbudgeted();
+  online.estimate_rotation = false;
+  online.lens_shift = LensShiftHandling::kPerFrameShift;
+  OnlineCalibrationEstimator estimator(online, recording.camera, truthAt(recording, 0.0));
+  double back_at_s = -1.0;
+  replay(recording, estimator, [&](double t) {
+    if (t < kJumpS) return;
+    const bool close = std::abs(estimator.status().in_use.time_offset_s - recording.time_offset_s(t)) < 0.5e-3;
+    if (close && back_at_s < 0.0) back_at_s = t;
+    if (!close) back_at_s = -1.0;
+  });
+  say("10 ms jump at 15 s, OIS on", estimator.status(), truthAt(recording, 45.0));
+  std::cout << "[ measured ] in use within 0.5 ms again (and staying) " << back_at_s - kJumpS << " s after the jump\n";
   EXPECT_GE(estimator.status().jumps, 1u);
   ASSERT_GE(back_at_s, kJumpS);
   EXPECT_LT(back_at_s - kJumpS, 10.0);

@@ -103,7 +103,7 @@ struct OnlineCalibrationOptions {
   // (seconds), the windows hold the readout at the filtered value and measure the offset alone,
   // except every readout_every-th window, which measures both and keeps the readout tracked.
   // 0 = always estimate the readout in every window.
-  double hold_readout_below_sigma_s = 0.5e-3;
+  double hold_readout_below_sigma_s = 1e-3;
   int readout_every = 4;
   // The per-window calibration (its estimate_* flags, offsets and refusal limits are set per fit;
   // iterations, robust loss and track requirements are taken from here).
@@ -184,6 +184,9 @@ class OnlineCalibrationEstimator {
                      Eigen::Matrix2d* covariance) const;
   // Whether the candidate differs from the calibration in use by more than refine_sigmas.
   bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate) const;
+  // With offset_threshold, also when the offsets differ by more than refine_offset_s.
+  bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate,
+                       bool offset_threshold) const;
   void fit();
   void scoreCandidate();
   // Kalman update of a random-walk filter; with `jumped`, a value further than jump_sigmas combined
