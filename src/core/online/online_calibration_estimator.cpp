@@ -72,6 +72,12 @@ std::string OnlineCalibrationOptions::validate() const {
     why << "rotation_every must be at least 1 (got " << rotation_every << ")";
   } else if (!(refine_sigmas > 0.0)) {
     why << "refine_sigmas must be positive (got " << refine_sigmas << ")";
+  } else if (!(refine_offset_s >= 0.0) || !(hold_readout_below_sigma_s >= 0.0) || !std::isfinite(refine_offset_s) ||
+             !std::isfinite(hold_readout_below_sigma_s)) {
+    why << "refine_offset_s and hold_readout_below_sigma_s must be finite and >= 0 (got " << refine_offset_s << ", "
+        << hold_readout_below_sigma_s << ")";
+  } else if (readout_every < 1) {
+    why << "readout_every must be at least 1 (got " << readout_every << ")";
   } else if (!(jump_sigmas > 1.0)) {
     why << "jump_sigmas must be above 1 (got " << jump_sigmas << ")";
   } else if (!(max_offset_sigma_s > 0.0) || !(max_readout_sigma_s > 0.0) || !(max_bias_sigma_rad_s > 0.0) ||
@@ -257,8 +263,13 @@ void OnlineCalibrationEstimator::fit() {
   options.time_offset_s = 0.0;
   options.max_abs_time_offset_s = any_accepted_ ? options_.search_s : options_.first_search_s;
   options.coarse_time_step_s = std::min(options.coarse_time_step_s, options.max_abs_time_offset_s);
-  options.estimate_readout_time = true;
-  options.readout_time_s = status_.estimate.readout_time_s;
+  // The readout is held at its filtered value once the filter knows it (the window then measures
+  // the offset alone, off the offset-readout ridge), except on every readout_every-th window.
+  const bool hold_readout = status_.mount_found && readout_.initialised &&
+                            std::sqrt(readout_.variance) <= options_.hold_readout_below_sigma_s &&
+                            status_.fits % options_.readout_every != 1 % options_.readout_every;
+  options.estimate_readout_time = !hold_readout;
+  options.readout_time_s = hold_readout ? std::max(readout_.value, 0.0) : status_.estimate.readout_time_s;
   options.estimate_gyro_bias = options_.estimate_gyro_bias;
   options.gyro_bias_rad_s = status_.estimate.gyro_bias_rad_s;
   // Once the mount is found, its small rotation is refined on every rotation_every-th window only
@@ -369,8 +380,10 @@ void OnlineCalibrationEstimator::fit() {
       jumped = true;
     } else {
       Filter readout = readout_;
-      fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
-           &jumped);
+      if (!hold_readout) {
+        fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
+             &jumped);
+      }
       if (!jumped) {
         readout_ = readout;
         const Eigen::Vector2d gain = covariance.col(0) / innovation_variance;
@@ -386,9 +399,15 @@ void OnlineCalibrationEstimator::fit() {
     offset_.covariance = Eigen::Vector2d(std::pow(window.time_offset_sigma_s, 2),
                                          std::pow(options_.initial_rate_sigma, 2)).asDiagonal();
     offset_.stamp_s = stamp_s;
-    readout_ = {};
     for (Filter& axis : bias_) axis = {};
-    fuse(readout_, window.readout_time_s, window.readout_time_sigma_s, 0.0, stamp_s, nullptr);
+    if (hold_readout) {
+      // The window did not measure the readout: the filter keeps its value, widened so that the
+      // next windows measure it again (a restarted camera app may have changed the mode).
+      readout_.variance = std::max(readout_.variance, std::pow(2.0 * options_.hold_readout_below_sigma_s, 2));
+    } else {
+      readout_ = {};
+      fuse(readout_, window.readout_time_s, window.readout_time_sigma_s, 0.0, stamp_s, nullptr);
+    }
     if (jumped) {
       ++status_.jumps;
       said << ", a jump from " << milliseconds(status_.estimate.time_offset_s) << ": the estimate restarts here";
@@ -426,6 +445,7 @@ void OnlineCalibrationEstimator::fit() {
   // Offered for use once the mount is known, after the pairs that follow this window.
   if (status_.mount_found) {
     candidate_ = estimate;
+    candidate_rate_ = offset_now(1);
     candidate_waiting_ = true;
     candidate_after_s_ = end_s;
   }
@@ -447,8 +467,15 @@ void OnlineCalibrationEstimator::predictOffset(const OffsetFilter& filter, doubl
 
 bool OnlineCalibrationEstimator::outsideEstimate(const CameraImuCalibration& in_use,
                                                  const CameraImuCalibration& estimate) const {
+  return outsideEstimate(in_use, estimate, true);
+}
+
+bool OnlineCalibrationEstimator::outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate,
+                                                 bool offset_threshold) const {
   const double k = options_.refine_sigmas;
-  if (std::abs(in_use.time_offset_s - estimate.time_offset_s) > k * estimate.time_offset_sigma_s) return true;
+  const double offset_difference_s = std::abs(in_use.time_offset_s - estimate.time_offset_s);
+  if (offset_difference_s > k * estimate.time_offset_sigma_s) return true;
+  if (offset_threshold && options_.refine_offset_s > 0.0 && offset_difference_s > options_.refine_offset_s) return true;
   if (std::abs(in_use.readout_time_s - estimate.readout_time_s) > k * estimate.readout_time_sigma_s) return true;
   if (options_.estimate_gyro_bias) {
     for (int axis = 0; axis < 3; ++axis) {
@@ -511,9 +538,14 @@ void OnlineCalibrationEstimator::scoreCandidate() {
       held_out.push_back(pair);
     }
   }
+  // The candidate's offset is the filter's at its window's end; the filter's drift rate carries it
+  // to the held-out pairs' middle for the score, and to the newest pair when it is applied.
+  CameraImuCalibration scored = candidate_;
+  scored.time_offset_s += candidate_rate_ * 0.5 * options_.held_out_s;
+  candidate_.time_offset_s += candidate_rate_ * std::max(last_pair_stamp_s_ - candidate_after_s_, 0.0);
   double in_use_px = 0.0, candidate_px = 0.0;
   int tracks = 0;
-  scorePair(held_out, status_.in_use, candidate_, &in_use_px, &candidate_px, &tracks);
+  scorePair(held_out, status_.in_use, scored, &in_use_px, &candidate_px, &tracks);
   ++status_.candidates_scored;
   status_.held_out_in_use_px = in_use_px;
   status_.held_out_candidate_px = candidate_px;
@@ -525,8 +557,27 @@ void OnlineCalibrationEstimator::scoreCandidate() {
   // Worse by the same margins the other way round.
   const bool worse = candidate_px > in_use_px * (1.0 + options_.margins.min_relative_improvement) &&
                      candidate_px - in_use_px > options_.margins.min_improvement_px;
-  const bool refinement = !better && options_.refine_when_not_worse && tracks > 0 && !worse &&
-                          outsideEstimate(status_.in_use, candidate_);
+  bool refinement = !better && options_.refine_when_not_worse && tracks > 0 && !worse &&
+                    outsideEstimate(status_.in_use, candidate_, false);
+  if (!better && !refinement && options_.refine_when_not_worse && tracks > 0 && !worse &&
+      outsideEstimate(status_.in_use, candidate_, true)) {
+    // Only the offset is beyond refine_offset_s (a drift): the offset alone moves, the other
+    // quantities stay within their intervals as they are; that calibration is scored too.
+    CameraImuCalibration offset_only = status_.in_use;
+    offset_only.time_offset_s = scored.time_offset_s;
+    double unused_px = 0.0, offset_only_px = 0.0;
+    int offset_only_tracks = 0;
+    scorePair(held_out, status_.in_use, offset_only, &unused_px, &offset_only_px, &offset_only_tracks);
+    const bool offset_only_worse = offset_only_px > in_use_px * (1.0 + options_.margins.min_relative_improvement) &&
+                                   offset_only_px - in_use_px > options_.margins.min_improvement_px;
+    if (offset_only_tracks > 0 && !offset_only_worse) {
+      const CameraImuCalibration full = candidate_;
+      candidate_ = status_.in_use;
+      candidate_.time_offset_s = full.time_offset_s;
+      candidate_.time_offset_sigma_s = full.time_offset_sigma_s;
+      refinement = true;
+    }
+  }
   if (better || refinement) {
     status_.in_use = candidate_;
     ++status_.version;

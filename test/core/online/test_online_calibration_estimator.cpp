@@ -190,8 +190,10 @@ TEST(OnlineCalibrationEstimator, TracksADriftingOffset) {
   std::cout << "[ measured ] after 10 s: worst estimate error " << worst_estimate_ms << " ms, in use "
             << worst_in_use_ms << " ms (the offset drifted 2 ms)\n";
   EXPECT_LT(worst_estimate_ms, 0.5);
-  // The calibration in use follows by refinements once it leaves the estimate's 2-sigma.
-  EXPECT_LT(worst_in_use_ms, 1.0);
+  // Issue 33's target holds for the calibration in use, not only the estimate: it follows by
+  // refinements of the offset once it is 0.15 ms off the estimate (0.83 ms before the readout was
+  // held and the offset refined on its own; 0.35 ms now).
+  EXPECT_LT(worst_in_use_ms, 0.5);
   EXPECT_GT(estimator.status().refinements, 0u);
 }
 

@@ -92,6 +92,19 @@ struct OnlineCalibrationOptions {
   StabiliserChoiceOptions margins;
   bool refine_when_not_worse = true;
   double refine_sigmas = 2.0;
+  // A candidate whose offset differs from the one in use by more than this (seconds) is also a
+  // refinement when not worse, however wide the estimate's interval: a drift of 3 ms a minute
+  // leaves a 2-sigma interval of ~0.3 ms in about 12 s. 0 = the sigma rule alone.
+  double refine_offset_s = 0.15e-3;
+  // The offset and the readout slide together along a ridge in a window of a few seconds (a
+  // later readout and an earlier offset explain the same tracks; about -0.7 ms of offset per ms
+  // of readout on the benchmark cameras), so a window measuring both measures the offset ~2x
+  // worse than one with the readout known. Once the readout's filter is within this 1-sigma
+  // (seconds), the windows hold the readout at the filtered value and measure the offset alone,
+  // except every readout_every-th window, which measures both and keeps the readout tracked.
+  // 0 = always estimate the readout in every window.
+  double hold_readout_below_sigma_s = 1e-3;
+  int readout_every = 4;
   // The per-window calibration (its estimate_* flags, offsets and refusal limits are set per fit;
   // iterations, robust loss and track requirements are taken from here).
   CalibrationOptions calibration = defaultWindowCalibration();
@@ -171,6 +184,9 @@ class OnlineCalibrationEstimator {
                      Eigen::Matrix2d* covariance) const;
   // Whether the candidate differs from the calibration in use by more than refine_sigmas.
   bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate) const;
+  // With offset_threshold, also when the offsets differ by more than refine_offset_s.
+  bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate,
+                       bool offset_threshold) const;
   void fit();
   void scoreCandidate();
   // Kalman update of a random-walk filter; with `jumped`, a value further than jump_sigmas combined
@@ -196,6 +212,7 @@ class OnlineCalibrationEstimator {
   // The candidate waiting for its held-out pairs (after candidate_after_s_, camera clock).
   bool candidate_waiting_ = false;
   CameraImuCalibration candidate_;
+  double candidate_rate_ = 0.0;  // the offset filter's drift rate with it (s/s)
   double candidate_after_s_ = 0.0;
   OnlineCalibrationStatus status_;
   double credit_s_ = 0.0;          // CPU seconds the budget allows now
