@@ -17,6 +17,7 @@
 
 #include "deep_ois/core/camera/camera_description_yaml.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "stages/stabiliser_file_fields.h"
 
 namespace deep_ois {
 namespace {
@@ -47,20 +48,9 @@ std::string partialPathFor(const std::string& path) {
   return path + ".partial." + std::to_string(::getpid());
 }
 
-template <typename T>
-T required(const YAML::Node& node, const std::string& key) {
-  if (!node[key]) throw StabiliserModelFileError("missing field '" + key + "'");
-  try {
-    return node[key].as<T>();
-  } catch (const YAML::Exception&) {
-    throw StabiliserModelFileError("field '" + key + "' is malformed");
-  }
-}
-
-template <typename T>
-T optional(const YAML::Node& node, const std::string& key, T fallback) {
-  return node[key] ? required<T>(node, key) : fallback;
-}
+// The same field readers as the stages' (their errors name the field).
+using stabiliser_file_fields::optional;
+using stabiliser_file_fields::required;
 
 }  // namespace
 
