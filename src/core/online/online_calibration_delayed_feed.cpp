@@ -6,7 +6,8 @@ std::vector<OnlineCalibrationPair> DelayedCalibrationFeed::feed(const OnlineFram
                                                                OnlineCalibrationEstimator& estimator, bool* changed) {
   if (changed) *changed = false;
   if (pair.stamp_b_s == last_stamp_b_s_) {
-    ++dropped_;  // a repeat: its gyro and tracks are in already
+    ++dropped_;
+    ++repeats_;  // a repeat: its gyro and tracks are in already
     return {};
   }
   if (pair.stamp_b_s < last_stamp_b_s_) {

@@ -172,6 +172,7 @@ TEST(DelayedCalibrationFeed, ARepeatedPairIsCountedNotAddedTwice) {
     if (k == 3) f.feedPair(pair);
   }
   EXPECT_EQ(f.feed.dropped(), 1u);
+  EXPECT_EQ(f.feed.repeats(), 1u);
   EXPECT_EQ(f.feed.waiting(), 5u);
   EXPECT_EQ(f.added_b_s.size(), 15u);
   for (std::size_t i = 1; i < f.added_b_s.size(); ++i) EXPECT_LT(f.added_b_s[i - 1], f.added_b_s[i]);

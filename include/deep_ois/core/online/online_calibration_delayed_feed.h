@@ -43,13 +43,14 @@ class DelayedCalibrationFeed {
   std::size_t waiting() const { return waiting_.size(); }
   // Pairs never added to the estimator: queued when time went back, or repeats.
   std::size_t dropped() const { return dropped_; }
+  std::size_t repeats() const { return repeats_; }  // of which: repeated pairs
 
  private:
   double coverage_s_;
   std::deque<OnlineCalibrationPair> waiting_;
   double gyro_end_s_ = -1e300;  // IMU clock: the newest sample added
   double last_stamp_b_s_ = -1e300;  // camera clock: frame b of the newest pair fed
-  std::size_t dropped_ = 0;
+  std::size_t dropped_ = 0, repeats_ = 0;
 };
 
 }  // namespace deep_ois
