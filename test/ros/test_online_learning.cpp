@@ -554,6 +554,75 @@ TEST(OnlineLearning, AWrongOffsetConverges) {
   std::filesystem::remove_all(std::filesystem::path(path).parent_path(), ignored);
 }
 
+// ~online_calibration_mount: a camera whose mount starts as the wrong axis permutation converges.
+// The gyro flow starts with ~imu_to_camera_rotation the identity (the truth is the harness's tf:
+// camera z along IMU x), the time offset and readout right. The published calibration in use must
+// end within ~rotation_tolerance_deg of the truth, marked estimated, and the gyro flow must use it
+// (its r_cam_imu reconfigure value).
+TEST(OnlineLearning, AWrongMountConverges) {
+  if (scenario() != "calibration_wrong_mount") GTEST_SKIP() << "~scenario is not calibration_wrong_mount";
+  ros::NodeHandle nh, private_nh("~");
+  const std::string path = placeConfirmedModel(noLensMotion(), "no lens motion (confirmed before)");
+  double readout_s = 0.0, offset_s = 0.0, tolerance_deg = 1.0, stream_s = 24.0;
+  nh.getParam("/deep_ois/gyro_flow/readout_time", readout_s);
+  nh.getParam("/deep_ois/gyro_flow/time_offset", offset_s);
+  private_nh.param("rotation_tolerance_deg", tolerance_deg, tolerance_deg);
+  private_nh.param("stream_s", stream_s, stream_s);
+  Eigen::Matrix3d R_imu_cam;
+  R_imu_cam << 0, 0, 1, -1, 0, 0, 0, -1, 0;  // as the harness's tf and SyntheticOisCamera::imuRate
+  const Eigen::Matrix3d truth = R_imu_cam.transpose();
+  SyntheticOisCamera camera(false, readout_s, offset_s);
+  CalibrationMessages calibration;
+  ros::Subscriber calibration_sub = calibration.subscribe(nh);
+  DiagnosticsValues diagnostics;
+  ros::Subscriber diagnostics_sub = diagnostics.subscribe(nh);
+  harness->publishTf();
+  ASSERT_TRUE(harness->waitForPipeline(60.0, false));  // the gyro flow has ~imu_to_camera_rotation
+  const ros::Time base = ros::Time::now();
+  harness->stream(
+      stream_s, [&](live_test::FrameEdit& edit) { camera.render((edit.image->header.stamp - base).toSec(), *edit.image); },
+      [&](sensor_msgs::Imu& imu) {
+        feedImu(camera, base, imu);
+        return true;
+      });
+  ros::WallDuration(1.5).sleep();
+  const std::vector<OnlineCalibrationConstPtr> messages = calibration.copy();
+  ASSERT_FALSE(messages.empty()) << "nothing on /deep_ois/online_calibration";
+  const OnlineCalibration& last = *messages.back();
+  const auto angleDeg = [&](const boost::array<double, 9>& row_major) {
+    Eigen::Matrix3d R;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R(r, c) = row_major[static_cast<std::size_t>(3 * r + c)];
+    return Eigen::AngleAxisd(truth.transpose() * R).angle() * 180.0 / 3.14159265358979323846;
+  };
+  std::printf("[ measured ] wrong mount (%.1f deg off at the start): in use at the end: version %u, %.3f deg off "
+              "(estimate %.3f deg off), offset %.3f ms; %u fits (%u needing motion, %u rejected), %u swaps; %s; %s\n",
+              angleDeg(messages.front()->imu_to_camera_rotation), last.version, angleDeg(last.imu_to_camera_rotation),
+              angleDeg(last.estimate_imu_to_camera_rotation), 1e3 * last.time_offset, last.fits,
+              last.fits_needing_motion, last.fits_rejected, last.swaps, last.confirmation.c_str(),
+              last.last_reason.c_str());
+  std::printf("[ measured ] /diagnostics: %s; %s\n", diagnostics.get("online calibration").c_str(),
+              diagnostics.get("online calibration: mount").c_str());
+  EXPECT_GT(angleDeg(messages.front()->imu_to_camera_rotation), 60.0);  // it did start wrong
+  EXPECT_TRUE(last.mount_estimated);
+  EXPECT_GT(last.version, 0u);
+  EXPECT_LT(angleDeg(last.imu_to_camera_rotation), tolerance_deg);
+  // The gyro flow uses it: its r_cam_imu (dynparam get), row-major R_cam_imu as text.
+  dynamic_reconfigure::Reconfigure call;
+  ASSERT_TRUE(ros::service::call("/deep_ois/gyro_flow/set_parameters", call));
+  std::string r_cam_imu;
+  for (const auto& p : call.response.config.strs)
+    if (p.name == "r_cam_imu") r_cam_imu = p.value;
+  std::istringstream in(r_cam_imu);
+  boost::array<double, 9> live{};
+  for (double& v : live) in >> v;
+  ASSERT_FALSE(in.fail()) << "r_cam_imu '" << r_cam_imu << "'";
+  EXPECT_LT(angleDeg(live), tolerance_deg) << "r_cam_imu '" << r_cam_imu << "'";
+  for (std::size_t i = 0; i < 9; ++i) EXPECT_NEAR(live[i], last.imu_to_camera_rotation[i], 1e-9);
+  std::error_code ignored;
+  std::filesystem::remove_all(std::filesystem::path(path).parent_path(), ignored);
+}
+
 // A still camera holds its calibration and says so: the stream does not move (the frames are the
 // same texture, the gyro reads zero), the gyro flow starts from its parameters. The calibration in
 // use must stay the start (version 0, the same values), the diagnostics must say "needs motion",

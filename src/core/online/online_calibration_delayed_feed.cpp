@@ -4,6 +4,19 @@ namespace deep_ois {
 
 std::vector<OnlineCalibrationPair> DelayedCalibrationFeed::feed(const OnlineFramePair& pair,
                                                                OnlineCalibrationEstimator& estimator, bool* changed) {
+  if (changed) *changed = false;
+  if (pair.stamp_b_s == last_stamp_b_s_) {
+    ++dropped_;
+    ++repeats_;  // a repeat: its gyro and tracks are in already
+    return {};
+  }
+  if (pair.stamp_b_s < last_stamp_b_s_) {
+    // Another timeline (a replay looped) the caller did not clear: the estimator would ignore its
+    // older pairs and gyro for good.
+    clear();
+    estimator.restartTimeline();
+  }
+  last_stamp_b_s_ = pair.stamp_b_s;
   const Eigen::Matrix3d camera_to_imu = pair.timing.imu_to_camera_rotation.transpose();
   for (const CameraRateSample& rate : pair.rates) {
     // Samples the estimator already has (each message repeats the warm-up) are ignored by it.
@@ -14,8 +27,6 @@ std::vector<OnlineCalibrationPair> DelayedCalibrationFeed::feed(const OnlineFram
   out.stamp_a_s = pair.stamp_a_s;
   out.stamp_b_s = pair.stamp_b_s;
   if (pair.tracked) out.matches = pair.matches;
-  // A pair from before the queue's newest (another timeline the caller did not clear) replaces it.
-  if (!waiting_.empty() && out.stamp_b_s <= waiting_.back().stamp_b_s) waiting_.clear();
   waiting_.push_back(std::move(out));
   std::vector<OnlineCalibrationPair> added;
   const double offset_s = estimator.status().estimate.time_offset_s;
@@ -28,6 +39,13 @@ std::vector<OnlineCalibrationPair> DelayedCalibrationFeed::feed(const OnlineFram
   while (estimator.update()) any = true;
   if (changed) *changed = any;
   return added;
+}
+
+void DelayedCalibrationFeed::clear() {
+  dropped_ += waiting_.size();
+  waiting_.clear();
+  gyro_end_s_ = -1e300;
+  last_stamp_b_s_ = -1e300;
 }
 
 }  // namespace deep_ois

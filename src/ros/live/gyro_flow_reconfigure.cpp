@@ -96,6 +96,18 @@ GyroFlowConfig toGyroFlowConfig(const GyroFlowParameters& params) {
   return config;
 }
 
+void applyOnlineCalibration(const OnlineCalibration& msg, GyroFlowParameters& params) {
+  params.rolling_shutter.time_offset_s = msg.time_offset;
+  params.rolling_shutter.readout_time_s = msg.readout_time;
+  params.integration.gyro_bias_rad_s = Eigen::Vector3d(msg.gyro_bias[0], msg.gyro_bias[1], msg.gyro_bias[2]);
+  if (msg.mount_estimated) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        params.rolling_shutter.imu_to_camera_rotation(r, c) = msg.imu_to_camera_rotation[static_cast<std::size_t>(3 * r + c)];
+    params.rotation_from_tf = false;
+  }
+}
+
 GyroFlowReconfigure::GyroFlowReconfigure(const ros::NodeHandle& private_nh, const std::string& log_name,
                                          const GyroFlowParameters& loaded, Apply apply)
     : log_name_(log_name), current_(loaded), apply_(std::move(apply)), server_(server_mutex_, private_nh) {

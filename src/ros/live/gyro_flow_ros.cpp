@@ -120,15 +120,7 @@ void GyroFlowRos::onlineCalibrationCallback(const OnlineCalibrationConstPtr& msg
                               calibration_sub_.getTopic().c_str(), msg->header.frame_id.c_str(), camera_frame.c_str());
       return;
     }
-    wanted.rolling_shutter.time_offset_s = msg->time_offset;
-    wanted.rolling_shutter.readout_time_s = msg->readout_time;
-    wanted.integration.gyro_bias_rad_s = Eigen::Vector3d(msg->gyro_bias[0], msg->gyro_bias[1], msg->gyro_bias[2]);
-    if (msg->mount_estimated) {
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-          wanted.rolling_shutter.imu_to_camera_rotation(r, c) = msg->imu_to_camera_rotation[static_cast<std::size_t>(3 * r + c)];
-      wanted.rotation_from_tf = false;
-    }
+    applyOnlineCalibration(*msg, wanted);
     const std::string problem = reconfigure_->set(wanted);
     if (!problem.empty()) {
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: the online calibration version %u on %s is not applied: "

@@ -361,6 +361,8 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
   snapshot_.swaps_undone = swaps_undone_;
   snapshot_.swaps_confirmed = swaps_confirmed_;
   snapshot_.saves_failed = saves_failed_;
+  snapshot_.pairs_dropped = feed_->dropped();
+  snapshot_.pairs_repeated = feed_->repeats();
   if (changed) ++snapshot_.changes;
   if (!log.empty()) {
     snapshot_.last_log = log;
@@ -497,9 +499,11 @@ void OnlineCalibrationRos::updateDiagnostics(const Snapshot& s, const GyroFlow& 
   }
   diagnostics_.setValue("online calibration: mount", text);
   std::snprintf(text, sizeof text,
-                "%zu pairs (%zu without tracks), %zu fits (%zu needing motion, %zu rejected, %zu over budget), %zu "
-                "jumps, %zu swaps (%zu undone, %zu confirmed)",
-                s.status.pairs, s.status.pairs_without_tracks, s.status.fits, s.status.fits_needing_motion,
+                "%zu pairs (%zu without tracks, %zu dropped: %zu repeats, the rest waiting when time went back), "
+                "%zu fits (%zu needing motion, %zu rejected, %zu over budget), %zu jumps, %zu swaps (%zu undone, %zu "
+                "confirmed)",
+                s.status.pairs, s.status.pairs_without_tracks, s.pairs_dropped, s.pairs_repeated, s.status.fits,
+                s.status.fits_needing_motion,
                 s.status.fits_rejected, s.status.fits_over_budget, s.status.jumps, s.status.swaps, s.swaps_undone,
                 s.swaps_confirmed);
   diagnostics_.setValue("online calibration: counts", text);

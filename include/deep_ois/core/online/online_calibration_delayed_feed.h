@@ -32,16 +32,25 @@ class DelayedCalibrationFeed {
   // pair.timing) to `estimator`, queues the pair's tracks (none when untracked: it still adds
   // time), adds the queued pairs the gyro now covers and runs the estimator's due work. Returns the
   // pairs added by this call (e.g. to score them); *changed: whether the calibration in use changed.
+  // A pair whose frame b is before the last one's (time went back without clear()) starts another
+  // timeline: the queued pairs are dropped and the estimator's timeline restarted (it ignores older
+  // pairs and gyro otherwise); one with the same frame b (a repeat) is dropped. Both are counted.
   std::vector<OnlineCalibrationPair> feed(const OnlineFramePair& pair, OnlineCalibrationEstimator& estimator,
                                           bool* changed);
-  // Time went back: the queued pairs belong to the other timeline.
-  void clear() { waiting_.clear(); }
+  // Time went back (the caller restarts the estimator's timeline): the queued pairs belong to the
+  // other timeline and are dropped (counted), and the gyro seen so far no longer covers anything.
+  void clear();
   std::size_t waiting() const { return waiting_.size(); }
+  // Pairs never added to the estimator: queued when time went back, or repeats.
+  std::size_t dropped() const { return dropped_; }
+  std::size_t repeats() const { return repeats_; }  // of which: repeated pairs
 
  private:
   double coverage_s_;
   std::deque<OnlineCalibrationPair> waiting_;
   double gyro_end_s_ = -1e300;  // IMU clock: the newest sample added
+  double last_stamp_b_s_ = -1e300;  // camera clock: frame b of the newest pair fed
+  std::size_t dropped_ = 0, repeats_ = 0;
 };
 
 }  // namespace deep_ois

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <deep_ois/GyroFlowConfig.h>
+#include <deep_ois/OnlineCalibration.h>
 #include <dynamic_reconfigure/server.h>
 #include <ros/node_handle.h>
 
@@ -20,6 +21,10 @@ namespace deep_ois {
 std::string applyGyroFlowConfig(const GyroFlowConfig& config, GyroFlowParameters& params);
 // The live-tunable values of `params` as a reconfigure config.
 GyroFlowConfig toGyroFlowConfig(const GyroFlowParameters& params);
+// The online calibration's values in `params`: time offset, readout, gyro bias and, when the mount
+// is estimated (~online_calibration_mount), R_cam_imu from the message's row-major rotation (the
+// tf is then no longer followed). Not validated here: GyroFlowReconfigure::set validates.
+void applyOnlineCalibration(const OnlineCalibration& msg, GyroFlowParameters& params);
 
 // Serves ~set_parameters on the private node handle. Starts from the parameters the loader read
 // (so the loader's defaults are the only ones) and hands every valid change to `apply`, which the

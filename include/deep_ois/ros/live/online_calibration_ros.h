@@ -85,6 +85,8 @@ class OnlineCalibrationRos {
     std::uint32_t applied_version = 0;
     std::string confirmation = "start";
     std::size_t swaps_undone = 0, swaps_confirmed = 0, saves_failed = 0;
+    std::size_t pairs_dropped = 0;  // never reached the estimator: repeats, or waiting when time went back
+    std::size_t pairs_repeated = 0;  // of which: repeats
     std::uint64_t changes = 0;  // +1 per change worth publishing
     std::string last_log;       // a sentence for the log, said once
     std::uint64_t log_id = 0;
