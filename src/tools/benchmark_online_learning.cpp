@@ -8,6 +8,10 @@
 //   benchmark_online_learning --bags long_ois.bag --twins long_nonois.bag [--model MODEL.yaml]
 //       [--window 10] [--cpu-share 0.3] [--plot curve.png]
 //   benchmark_online_learning --bags ois_off.bag --no-ois      (a camera without OIS: vs the gyro)
+//   benchmark_online_learning --bags long_ois.bag --twins long_nonois.bag --online-calibration
+//       (the compensation nodelet's online camera-IMU calibration runs on the learner's tracks as it
+//        does live (core/online/online_calibration_session.h), and its cost is printed beside the
+//        learner's)
 //   benchmark_online_learning --bags s1.bag s2.bag s3.bag --twins t1.bag t2.bag t3.bag --continue-bags
 //       (one camera's session longer than one recording: the learner, its check and the replay
 //        clock carry on, and the stamps of each next recording are shifted to follow the previous
@@ -23,8 +27,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
+#include <deque>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -33,6 +40,7 @@
 #include "deep_ois/core/evaluation/standard_table_rows.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/online/online_calibration_session.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/parameter_source.h"
@@ -44,6 +52,71 @@ namespace {
 
 constexpr const char* kOnlineMethod = "stabiliser, learning online";
 constexpr const char* kFixedMethod = "stabiliser, the starting model (fixed)";
+
+double threadCpuSeconds() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
+
+// The compensation nodelet's online calibration (ros/live/online_calibration_ros.cpp) on the
+// learner's tracking thread: the lens shifts the compensation used per pair (remembered by the
+// output path, as rememberLens), the session made at the first tracked pair, its thread CPU time.
+struct CalibrationRun {
+  deep_ois::OnlineCalibrationOptions options;  // the nodelet's defaults (mount held, 12 % budget)
+  std::size_t confirm_pairs = 60;              // ~learning_confirm_pairs
+  Eigen::Vector3d start_bias_rad_s = Eigen::Vector3d::Zero();
+  bool lens_moves = true;
+  std::mutex mutex;                            // lenses, written by the output path
+  std::deque<deep_ois::PairLensShift> lenses;  // the newest 120, as the nodelet keeps
+  std::atomic<bool> time_went_back{false};
+  // Tracking thread only.
+  std::unique_ptr<deep_ois::OnlineCalibrationSession> session;
+  double cpu_s = 0.0;
+  std::size_t pairs = 0;
+  std::string last_log, problem;
+
+  void remember(deep_ois::PairLensShift lens) {
+    std::lock_guard<std::mutex> lock(mutex);
+    lenses.push_back(std::move(lens));
+    while (lenses.size() > 120) lenses.pop_front();
+  }
+  // OnlineLearningOptions::on_tracked_pair: what OnlineCalibrationRos::onTrackedPair does.
+  void onTrackedPair(const deep_ois::OnlineFramePair& pair) {
+    const double started = threadCpuSeconds();
+    try {
+      if (!session) {
+        deep_ois::CameraImuCalibration start;
+        start.time_offset_s = pair.timing.time_offset_s;
+        start.readout_time_s = pair.timing.readout_time_s;
+        start.imu_to_camera_rotation = pair.timing.imu_to_camera_rotation;
+        start.gyro_bias_rad_s = start_bias_rad_s;
+        options.lens_shift = lens_moves ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
+        // Nothing is written: the confirmation's write is the nodelet's (an atomic file write).
+        session = std::make_unique<deep_ois::OnlineCalibrationSession>(
+            options, confirm_pairs, pair.camera, start, nullptr, "(not written by the benchmark)");
+      }
+      if (time_went_back.exchange(false)) session->restartTimeline();
+      deep_ois::PairLensShift lens;
+      bool found = false;
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        const auto it = std::find_if(lenses.begin(), lenses.end(),
+                                     [&](const deep_ois::PairLensShift& l) { return l.stamp_b_s == pair.stamp_b_s; });
+        if (it != lenses.end()) {
+          lens = *it;
+          found = true;
+        }
+      }
+      const auto outcome = session->addPair(deep_ois::lenslessPair(pair, found ? &lens : nullptr));
+      if (!outcome.log.empty()) last_log = outcome.log;
+      ++pairs;
+    } catch (const std::exception& e) {
+      problem = e.what();
+    }
+    cpu_s += threadCpuSeconds() - started;
+  }
+};
 
 // The live path over the evaluator's pairs: the model in use (swapped when the learner swaps it),
 // the fallback to the plain gyro, every pair handed to the learner with its frames.
@@ -62,6 +135,7 @@ struct OnlinePath {
   std::vector<std::pair<double, std::string>> swaps;  // replay time, model
   std::size_t fallback_pairs = 0, pairs = 0;
   std::atomic<double> replay_clock_s{0.0};  // the learner's budget clock
+  std::shared_ptr<CalibrationRun> calibration;  // --online-calibration, else null
   // Per pair, the output path's time (the compensator's step, the pair handed to the learner and the
   // fallback read), ms: what the compensation callback does besides the messages.
   std::vector<double> output_ms;
@@ -91,6 +165,7 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
                 p.shift_s = p.last_stamp_s + p.shift_s + p.gap_s - pair.stamp_a_s;
               } else {
                 p.learner->restartTimeline();
+                if (p.calibration && !first) p.calibration->time_went_back = true;
               }
               p.recording = pair.recording_id;
               p.recording_start_s = pair.stamp_a_s;
@@ -139,6 +214,10 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
             p.replay_clock_s.store(p.replay_s + pair.stamp_b_s - p.recording_start_s);
             while (p.learner->queued() >= 10) std::this_thread::sleep_for(std::chrono::milliseconds(2));
             const auto handed = std::chrono::steady_clock::now();
+            // As the nodelet's rememberLens, before the submit: the lens the output used for the pair.
+            if (p.calibration && !p.learner->fallingBack() && !result.shift_a_px.empty() &&
+                result.shift_a_px.size() == result.shift_b_px.size())
+              p.calibration->remember({online.stamp_b_s, result.shift_a_px, result.shift_b_px});
             p.learner->submit(std::move(online));
             ++p.pairs;
             const bool falling_back = p.learner->fallingBack();
@@ -216,7 +295,8 @@ int main(int argc, char** argv) {
   std::string plot_path, final_model_path;
   std::string lens_dynamics_path = package.empty() ? "none" : package + "/models/lens_dynamics_generic.yaml";
   double window_s = 10.0, cpu_share = 0.3, gap_s = 1.0;
-  bool no_ois = false, continue_bags = false, no_learning = false;
+  bool no_ois = false, continue_bags = false, no_learning = false, online_calibration = false;
+  double calibration_cpu_share = deep_ois::OnlineCalibrationOptions().cpu_share;
   app.add_option("--bags", bags, "the camera's recordings, replayed in this order (one long one is best)")
       ->required()
       ->check(deep_ois::existingFile())
@@ -250,7 +330,16 @@ int main(int argc, char** argv) {
                "takes the time of recording k)");
   command_line.addNumber("--continue-gap", gap_s, "seconds between two recordings with --continue-bags (a gap: no learning window spans two recordings)")
       ->check(deep_ois::atLeast(0.1));
+  app.add_flag("--online-calibration", online_calibration,
+               "also run the compensation nodelet's online camera-IMU calibration (~online_calibration, the "
+               "mount held) on the learner's tracks as it does live, the model's lens shifts removed, and "
+               "print its CPU share, the learner's, their sum and its final state; it starts from "
+               "--gyro-config's offset, readout, mount and bias and writes nothing");
+  command_line.addNumber("--calibration-cpu-share", calibration_cpu_share,
+                         "the online calibration's own budget, share of one core (~online_calibration_cpu_share)");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+  if (!(calibration_cpu_share > 0.0 && calibration_cpu_share <= 1.0))
+    return command_line.usageError("--calibration-cpu-share must be in (0, 1]");
   if (!(cpu_share > 0.0 && cpu_share <= 1.0)) return command_line.usageError("--cpu-share must be in (0, 1]");
   if (no_ois && !twins.empty()) return command_line.usageError("--no-ois takes no --twins (the bags are the twins)");
   if (continue_bags && !twins.empty() && twins.size() != bags.size())
@@ -287,6 +376,16 @@ int main(int argc, char** argv) {
   path->gap_s = gap_s;
   OnlinePath* const clock_owner = path.get();  // outlives the learner (reset first below)
   learning.budget_clock = [clock_owner] { return clock_owner->replay_clock_s.load(); };
+  if (online_calibration) {
+    path->calibration = std::make_shared<CalibrationRun>();
+    CalibrationRun* const calibration = path->calibration.get();
+    calibration->options.estimate_rotation = false;  // ~online_calibration_mount's default
+    calibration->options.cpu_share = calibration_cpu_share;
+    calibration->confirm_pairs = learning.confirmation.pairs;
+    calibration->start_bias_rad_s = options.gyro.integration.gyro_bias_rad_s;
+    calibration->lens_moves = !deep_ois::isNoLensMotion(start.parameters);
+    learning.on_tracked_pair = [calibration](const deep_ois::OnlineFramePair& pair) { calibration->onTrackedPair(pair); };
+  }
   path->learner = std::make_unique<deep_ois::OnlineStabiliserLearner>(
       learning, std::vector<deep_ois::ModelCandidate>{{"starting model", start.parameters}}, 0);
 
@@ -386,12 +485,46 @@ int main(int argc, char** argv) {
               s.pairs_over_budget, s.fits_delayed_by_budget, path->fallback_pairs, path->pairs, s.cpu_s, path->replay_s + path->last_stamp_s - path->recording_start_s,
               100.0 * s.cpu_s / std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s), wall_s,
               s.last_problem.empty() ? "" : "; last problem: ", s.last_problem.c_str());
-  std::printf("output path per pair (the compensator's step, the hand-over to the learner, the fallback read; "
+  std::printf("output path per pair (the compensator's step, the lens kept for the online calibration when on, the hand-over "
+              "to the learner, the fallback read; "
               "not the benchmark's frame copy or its wait for the learner's queue): p50 %.3f ms, p95 %.3f ms, "
-              "max %.3f ms over %zu pairs, learning %s\n",
+              "max %.3f ms over %zu pairs, learning %s, online calibration %s\n",
               percentile(path->output_ms, 0.5), percentile(path->output_ms, 0.95),
               path->output_ms.empty() ? std::nan("") : *std::max_element(path->output_ms.begin(), path->output_ms.end()),
-              path->output_ms.size(), no_learning ? "off (checks only)" : "on");
+              path->output_ms.size(), no_learning ? "off (checks only)" : "on", online_calibration ? "on" : "off");
+  if (path->calibration) {
+    const CalibrationRun& c = *path->calibration;
+    const double replay_s = std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s);
+    // The learner's CPU includes its on_tracked_pair hook (the calibration is charged to its budget, as live).
+    std::printf("CPU over %.1f s of replay (share of one core): online calibration %.1f %% (%.1f s, its hook on %zu "
+                "tracked pairs), learner without it %.1f %% (%.1f s), together %.1f %% (%.1f s)\n",
+                replay_s, 100.0 * c.cpu_s / replay_s, c.cpu_s, c.pairs, 100.0 * (s.cpu_s - c.cpu_s) / replay_s,
+                s.cpu_s - c.cpu_s, 100.0 * s.cpu_s / replay_s, s.cpu_s);
+    if (c.session) {
+      const deep_ois::OnlineCalibrationStatus& st = c.session->status();
+      const deep_ois::CameraImuCalibration& a = c.session->inUse();
+      const deep_ois::CameraImuCalibration& e = st.estimate;
+      std::printf("online calibration at the end: %s; applied (version %u): time offset %.3f ms, readout %.3f ms, "
+                  "gyro bias (%.5f, %.5f, %.5f) rad/s; estimate: time offset %.3f +- %.3f ms, readout %.3f +- %.3f "
+                  "ms, gyro bias (%.5f, %.5f, %.5f) +- (%.5f, %.5f, %.5f) rad/s\n",
+                  st.state.c_str(), c.session->appliedVersion(), 1e3 * a.time_offset_s, 1e3 * a.readout_time_s,
+                  a.gyro_bias_rad_s(0), a.gyro_bias_rad_s(1), a.gyro_bias_rad_s(2), 1e3 * e.time_offset_s,
+                  1e3 * e.time_offset_sigma_s, 1e3 * e.readout_time_s, 1e3 * e.readout_time_sigma_s,
+                  e.gyro_bias_rad_s(0), e.gyro_bias_rad_s(1), e.gyro_bias_rad_s(2), e.gyro_bias_sigma_rad_s(0),
+                  e.gyro_bias_sigma_rad_s(1), e.gyro_bias_sigma_rad_s(2));
+      std::printf("online calibration counts: %zu pairs (%zu without tracks), %zu fits (%zu needing motion, %zu "
+                  "rejected, %zu over budget), %zu jumps, %zu swaps applied (%zu undone, %zu confirmed); its own "
+                  "estimator CPU %.1f s\n",
+                  st.pairs, st.pairs_without_tracks, st.fits, st.fits_needing_motion, st.fits_rejected,
+                  st.fits_over_budget, st.jumps, st.swaps, c.session->swapsUndone(), c.session->swapsConfirmed(),
+                  st.cpu_s);
+      if (!st.last_reason.empty()) std::printf("online calibration last: %s\n", st.last_reason.c_str());
+      if (!c.last_log.empty()) std::printf("online calibration last change: %s\n", c.last_log.c_str());
+    } else {
+      std::printf("online calibration: no tracked pair reached it\n");
+    }
+    if (!c.problem.empty()) std::printf("online calibration: last problem: %s\n", c.problem.c_str());
+  }
   if (!plot_path.empty()) {
     // The table's rows as CSV beside the PNG (PATH.png -> PATH.csv), then the curve from it.
     std::string csv_path = plot_path;

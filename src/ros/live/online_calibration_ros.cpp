@@ -18,8 +18,6 @@ namespace deep_ois {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-// A pair scored for a trial needs this many tracks that either calibration explains.
-constexpr int kMinTrialTracks = 10;
 // Pairs' lens shifts kept for the tracking thread (it is at most ~10 pairs behind: its queue).
 constexpr std::size_t kLensesKept = 120;
 // /diagnostics figures every this many pairs (and at every change).
@@ -39,22 +37,6 @@ void toRowMajor(const Eigen::Matrix3d& M, boost::array<double, 9>& values) {
 
 void toArray(const Eigen::Vector3d& v, boost::array<double, 3>& values) {
   for (int i = 0; i < 3; ++i) values[static_cast<std::size_t>(i)] = v(i);
-}
-
-bool sameCalibration(const CameraImuCalibration& a, const CameraImuCalibration& b) {
-  return a.time_offset_s == b.time_offset_s && a.readout_time_s == b.readout_time_s &&
-         a.gyro_bias_rad_s == b.gyro_bias_rad_s && a.imu_to_camera_rotation == b.imu_to_camera_rotation;
-}
-
-// The shift at `row` (pixels) from the per-patch shifts at the patches' capture rows.
-Eigen::Vector2d shiftAtRow(const std::vector<Eigen::Vector2d>& shifts, double row, int height, double fraction) {
-  const int n = static_cast<int>(shifts.size());
-  const double position = row * n / std::max(1, height) - fraction;  // in patches, 0 = patch 0's capture row
-  if (position <= 0.0) return shifts.front();
-  if (position >= n - 1) return shifts.back();
-  const int i = static_cast<int>(std::floor(position));
-  const double w = position - i;
-  return (1.0 - w) * shifts[static_cast<std::size_t>(i)] + w * shifts[static_cast<std::size_t>(i + 1)];
 }
 
 std::string millis(double seconds) {
@@ -190,7 +172,7 @@ void OnlineCalibrationRos::rememberLens(const GyroFlow& gyro, const StabiliserFl
   if (!result.ok || falling_back || result.shift_a_px.empty() ||
       result.shift_a_px.size() != result.shift_b_px.size())
     return;
-  PairLens lens;
+  PairLensShift lens;
   lens.stamp_b_s = gyro.header.stamp.toSec();
   lens.shift_a_px = result.shift_a_px;
   lens.shift_b_px = result.shift_b_px;
@@ -199,43 +181,17 @@ void OnlineCalibrationRos::rememberLens(const GyroFlow& gyro, const StabiliserFl
   while (lenses_.size() > kLensesKept) lenses_.pop_front();
 }
 
-std::vector<FeatureMatch> OnlineCalibrationRos::withoutLens(const OnlineFramePair& pair) const {
-  PairLens lens;
+OnlineFramePair OnlineCalibrationRos::withoutLens(const OnlineFramePair& pair) const {
+  PairLensShift lens;
   {
     std::lock_guard<std::mutex> lock(snapshot_mutex_);
     const auto it = std::find_if(lenses_.begin(), lenses_.end(),
-                                 [&](const PairLens& l) { return l.stamp_b_s == pair.stamp_b_s; });
-    if (it == lenses_.end()) return pair.matches;  // the plain gyro was published: no lens
+                                 [&](const PairLensShift& l) { return l.stamp_b_s == pair.stamp_b_s; });
+    // Not found: the plain gyro was published, no lens to remove.
+    if (it == lenses_.end()) return lenslessPair(pair, nullptr);
     lens = *it;
   }
-  const CameraModel& camera = pair.camera;
-  const double fraction = pair.timing.patch_time == PatchTimeReference::kPatchCentre ? 0.5 : 0.0;
-  std::vector<Eigen::Vector2d> a, b;
-  a.reserve(pair.matches.size());
-  b.reserve(pair.matches.size());
-  for (const FeatureMatch& m : pair.matches) {
-    a.emplace_back(m.point_a_px.x, m.point_a_px.y);
-    b.emplace_back(m.point_b_px.x, m.point_b_px.y);
-  }
-  // The shift moves undistorted pixels (K(s) = K with the principal point moved by s).
-  if (camera.hasDistortion()) {
-    camera.undistortPoints(a);
-    camera.undistortPoints(b);
-  }
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    a[k] -= shiftAtRow(lens.shift_a_px, pair.matches[k].point_a_px.y, camera.height(), fraction);
-    b[k] -= shiftAtRow(lens.shift_b_px, pair.matches[k].point_b_px.y, camera.height(), fraction);
-  }
-  if (camera.hasDistortion()) {
-    camera.distortPoints(a);
-    camera.distortPoints(b);
-  }
-  std::vector<FeatureMatch> out = pair.matches;
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    out[k].point_a_px = cv::Point2f(static_cast<float>(a[k].x()), static_cast<float>(a[k].y()));
-    out[k].point_b_px = cv::Point2f(static_cast<float>(b[k].x()), static_cast<float>(b[k].y()));
-  }
-  return out;
+  return lenslessPair(pair, &lens);
 }
 
 void OnlineCalibrationRos::onTrackedPair(const OnlineFramePair& pair) {
@@ -265,147 +221,46 @@ void OnlineCalibrationRos::work(const OnlineFramePair& pair) {
     start = start_;
     generation = camera_generation_;
   }
-  std::string log;
-  if (!estimator_ || generation != estimator_generation_) {
+  if (!session_ || generation != estimator_generation_) {
     OnlineCalibrationOptions options;
     options.estimate_rotation = params_.online_calibration_mount;
     options.cpu_share = params_.online_calibration_cpu_share;
     // The tracks lose the model's lens motion before they come in (withoutLens); what the model
     // gets wrong is left to a shift per frame when the lens may move.
     options.lens_shift = lens_moves ? LensShiftHandling::kPerFrameShift : LensShiftHandling::kNone;
-    estimator_ = std::make_unique<OnlineCalibrationEstimator>(options, pair.camera, start);
-    feed_ = std::make_unique<DelayedCalibrationFeed>(DelayedCalibrationFeed::coverageFor(options));
-    ConfirmationOptions confirmation;
-    confirmation.pairs = static_cast<std::size_t>(params_.learning_confirm_pairs);
-    trials_ = std::make_unique<ConfirmedState<CameraImuCalibration>>(
-        start,
+    session_ = std::make_unique<OnlineCalibrationSession>(
+        options, static_cast<std::size_t>(params_.learning_confirm_pairs), pair.camera, start,
         [path](const CameraImuCalibration& confirmed) {
           writeFileAtomically(path, onlineCalibrationYaml(confirmed, "Written when confirmed."));
         },
-        confirmation);
-    session_start_ = start;
-    path_in_use_ = path;
-    confirmation_.clear();
+        path);
     estimator_generation_ = generation;
-    estimator_version_ = 0;
-    applied_version_ = 0;
-    swaps_undone_ = swaps_confirmed_ = saves_failed_ = 0;
   }
-  if (time_went_back_.exchange(false)) {
-    estimator_->restartTimeline();
-    feed_->clear();
-  }
+  if (time_went_back_.exchange(false)) session_->restartTimeline();
 
   // The estimator's copy: no frames, the tracks without the lens the compensation used.
-  OnlineFramePair lensless;
-  lensless.stamp_a_s = pair.stamp_a_s;
-  lensless.stamp_b_s = pair.stamp_b_s;
-  lensless.timing = pair.timing;
-  lensless.camera = pair.camera;
-  lensless.rates = pair.rates;
-  lensless.tracked = pair.tracked;
-  if (pair.tracked) lensless.matches = withoutLens(pair);
-  // The pairs reach the estimator once the gyro covers them (a few pairs later).
-  bool changed_in_use = false;
-  const std::vector<OnlineCalibrationPair> added = feed_->feed(lensless, *estimator_, &changed_in_use);
-  const OnlineCalibrationStatus& status = estimator_->status();
-  const std::uint32_t version_before = applied_version_;
-  if (status.version != estimator_version_) {
-    // Confidently better on the held-out pairs: applied now, on trial from the next pair.
-    estimator_version_ = status.version;
-    trials_->startTrial(status.in_use);
-    ++applied_version_;
-    std::ostringstream said;
-    said << "online calibration applied (version " << applied_version_ << "): time offset "
-         << millis(status.in_use.time_offset_s) << " +- " << millis(status.in_use.time_offset_sigma_s)
-         << ", readout " << millis(status.in_use.readout_time_s) << " +- "
-         << millis(status.in_use.readout_time_sigma_s) << "; " << status.last_reason
-         << "; on trial until the per-pair check confirms it on " << params_.learning_confirm_pairs << " pairs";
-    log = said.str();
-  } else if (trials_->onTrial()) {
-    for (const OnlineCalibrationPair& added_pair : added) {
-      if (added_pair.matches.empty()) continue;
-      judgeTrial(added_pair);
-      if (!trials_->onTrial()) break;
-    }
-    if (applied_version_ != version_before || !trials_->onTrial()) {
-      const TrialEvidence& e = trials_->evidence();
-      char text[240];
-      std::snprintf(text, sizeof text, "%.3f px with it, %.3f px with the one it replaced, %.3f px with the start, on %zu pairs",
-                    e.trialMeanPx(), e.replacedMeanPx(), e.gyroMeanPx(), e.pairs());
-      log = "online calibration " + std::string(applied_version_ != version_before ? "undone (worse than the one it "
-                                                                                      "replaced): "
-                                                                                    : "trial ended: ") +
-            text;
-    }
-  }
-  std::string confirmation;
-  if (trials_->onTrial()) {
-    const TrialEvidence& e = trials_->evidence();
-    char text[240];
-    std::snprintf(text, sizeof text, "on trial: %zu of %d pairs (%.3f px with it, %.3f px with the one it replaced)",
-                  e.pairs(), params_.learning_confirm_pairs, e.trialMeanPx(), e.replacedMeanPx());
-    confirmation = e.pairs() ? text : "on trial: waiting for usable pairs";
-  } else {
-    confirmation = confirmation_;
-  }
+  const OnlineCalibrationSession::Outcome outcome = session_->addPair(withoutLens(pair));
+  const OnlineCalibrationStatus& status = session_->status();
+  const std::uint32_t applied_version = session_->appliedVersion();
+  const std::size_t swaps_confirmed = session_->swapsConfirmed();
   std::lock_guard<std::mutex> lock(snapshot_mutex_);
   if (generation != camera_generation_) return;  // another camera started meanwhile
   const bool changed = status.fits != snapshot_.status.fits || status.state != snapshot_.status.state ||
-                       applied_version_ != snapshot_.applied_version || status.candidates_scored !=
-                       snapshot_.status.candidates_scored || swaps_confirmed_ != snapshot_.swaps_confirmed;
+                       applied_version != snapshot_.applied_version || status.candidates_scored !=
+                       snapshot_.status.candidates_scored || swaps_confirmed != snapshot_.swaps_confirmed;
   snapshot_.status = status;
-  snapshot_.applied = trials_->inUse();
-  snapshot_.applied_version = applied_version_;
-  if (!confirmation.empty()) snapshot_.confirmation = confirmation;
-  snapshot_.swaps_undone = swaps_undone_;
-  snapshot_.swaps_confirmed = swaps_confirmed_;
-  snapshot_.saves_failed = saves_failed_;
-  snapshot_.pairs_dropped = feed_->dropped();
-  snapshot_.pairs_repeated = feed_->repeats();
+  snapshot_.applied = session_->inUse();
+  snapshot_.applied_version = applied_version;
+  if (!outcome.confirmation.empty()) snapshot_.confirmation = outcome.confirmation;
+  snapshot_.swaps_undone = session_->swapsUndone();
+  snapshot_.swaps_confirmed = swaps_confirmed;
+  snapshot_.saves_failed = session_->savesFailed();
+  snapshot_.pairs_dropped = session_->pairsDropped();
+  snapshot_.pairs_repeated = session_->pairsRepeated();
   if (changed) ++snapshot_.changes;
-  if (!log.empty()) {
-    snapshot_.last_log = log;
+  if (!outcome.log.empty()) {
+    snapshot_.last_log = outcome.log;
     ++snapshot_.log_id;
-  }
-}
-
-void OnlineCalibrationRos::judgeTrial(const OnlineCalibrationPair& scored) {
-  const std::vector<OnlineCalibrationPair> pairs{scored};
-  double trial_px = NAN, replaced_px = NAN, start_px = NAN;
-  int tracks = 0;
-  estimator_->scorePair(pairs, trials_->inUse(), trials_->replaced(), &trial_px, &replaced_px, &tracks);
-  if (tracks < kMinTrialTracks || !std::isfinite(trial_px) || !std::isfinite(replaced_px)) return;
-  start_px = replaced_px;
-  if (!sameCalibration(session_start_, trials_->replaced())) {
-    double trial_again_px = NAN;
-    int start_tracks = 0;
-    estimator_->scorePair(pairs, trials_->inUse(), session_start_, &trial_again_px, &start_px, &start_tracks);
-    // Scored on the tracks either explains: the start's figure is taken relative to the trial's there.
-    if (start_tracks >= kMinTrialTracks && std::isfinite(start_px) && std::isfinite(trial_again_px))
-      start_px += trial_px - trial_again_px;
-    else
-      start_px = replaced_px;
-  }
-  const auto outcome = trials_->addPair(trial_px, replaced_px, start_px);
-  switch (outcome.verdict) {
-    case TrialVerdict::kUndone:
-      ++applied_version_;  // the replaced calibration is applied again
-      ++swaps_undone_;
-      confirmation_ = "undone: worse than the calibration it replaced (" + trials_->evidence().summary() + ")";
-      break;
-    case TrialVerdict::kConfirmed:
-      ++swaps_confirmed_;
-      confirmation_ = outcome.persist_error.empty()
-                          ? "confirmed and written to " + path_in_use_ + " (" + trials_->evidence().summary() + ")"
-                          : "confirmed, but the write failed: " + outcome.persist_error;
-      if (!outcome.persist_error.empty()) ++saves_failed_;
-      break;
-    case TrialVerdict::kKeptUnconfirmed:
-      confirmation_ = "kept in use, not written: worse than the start (" + trials_->evidence().summary() + ")";
-      break;
-    case TrialVerdict::kPending:
-      break;
   }
 }
 

@@ -1,5 +1,6 @@
 // The compensation nodelet's online camera-IMU calibration (core/online/online_calibration_estimator.h)
-// in ROS terms. The online learner's tracking thread hands it every pair it tracked (its
+// in ROS terms; what runs on the tracking thread is core/online/online_calibration_session.h (shared
+// with benchmark_online_learning --online-calibration). The online learner's tracking thread hands it every pair it tracked (its
 // on_tracked_pair hook: no second tracker; DelayedCalibrationFeed holds each pair until the gyro of
 // later pairs covers it, and the estimator's fits are charged to the learning's
 // CPU budget besides the estimator's own); the tracks first lose the lens motion the stabiliser
@@ -35,9 +36,7 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/online/confirmed_state.h"
-#include "deep_ois/core/online/online_calibration_delayed_feed.h"
-#include "deep_ois/core/online/online_calibration_estimator.h"
+#include "deep_ois/core/online/online_calibration_session.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/ros/live/compensation_parameters.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
@@ -91,16 +90,9 @@ class OnlineCalibrationRos {
     std::string last_log;       // a sentence for the log, said once
     std::uint64_t log_id = 0;
   };
-  struct PairLens {
-    double stamp_b_s = 0.0;
-    std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;  // per patch, undistorted pixels
-  };
-
-  // Tracking thread: the pair's tracks without the lens motion the compensation used.
-  std::vector<FeatureMatch> withoutLens(const OnlineFramePair& pair) const;
+  // Tracking thread: the estimator's copy of the pair, without the lens motion the compensation used.
+  OnlineFramePair withoutLens(const OnlineFramePair& pair) const;
   void work(const OnlineFramePair& pair);
-  // One pair the estimator has (its gyro covers it), scored for the calibration on trial.
-  void judgeTrial(const OnlineCalibrationPair& pair);
   void publish(const GyroFlow& gyro, const Snapshot& snapshot);
   void updateDiagnostics(const Snapshot& snapshot, const GyroFlow& gyro);
 
@@ -119,20 +111,12 @@ class OnlineCalibrationRos {
 
   mutable std::mutex snapshot_mutex_;  // snapshot_, lenses_, path_, start_, camera_generation_
   Snapshot snapshot_;
-  std::deque<PairLens> lenses_;
+  std::deque<PairLensShift> lenses_;
   std::atomic<bool> time_went_back_{false};
 
   // Tracking thread only.
   std::uint64_t estimator_generation_ = 0;
-  std::unique_ptr<OnlineCalibrationEstimator> estimator_;
-  std::unique_ptr<DelayedCalibrationFeed> feed_;
-  std::unique_ptr<ConfirmedState<CameraImuCalibration>> trials_;
-  CameraImuCalibration session_start_;
-  std::string path_in_use_;
-  std::string confirmation_;  // the last trial's verdict
-  std::uint64_t estimator_version_ = 0;
-  std::uint32_t applied_version_ = 0;
-  std::size_t swaps_undone_ = 0, swaps_confirmed_ = 0, saves_failed_ = 0;
+  std::unique_ptr<OnlineCalibrationSession> session_;
 
   // ROS thread only.
   std::uint64_t published_changes_ = ~std::uint64_t{0};
