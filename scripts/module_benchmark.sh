@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The compensation benchmark across stabiliser modules and cameras. For every module of the data
 # folder written by scripts/make_module_datasets.sh:
-#   1. trains a per-camera stabiliser model on the module's training split (train_stabiliser, the
-#      ground truth from the images; cached in DATA_DIR/stabiliser_cache, so a re-run is quick);
+#   1. trains a per-camera stabiliser model on the module's training split, its last recording held
+#      out for the candidate choice (train_stabiliser, the ground truth from the images; cached in
+#      DATA_DIR/stabiliser_cache, so a re-run is quick);
 #   2. runs `evaluate` on its evaluation split with the module camera's gyro flow parameters: the
 #      non-OIS twin, the uncompensated OIS gyro, the Fundamental Mixtures ground truth, the image
 #      baselines, the network, the shipped generic stabiliser model and the per-camera one;
@@ -57,7 +58,12 @@ for dir in "$data"/*/; do
   out="$dir/benchmark"
   mkdir -p "$out"
   per_camera="$out/stabiliser_per_camera.yaml"
-  if ! rosrun deep_ois train_stabiliser --bags "$dir"/train/*.bag --gyro-config "$dir/gyro_flow.yaml" \
+  # The last training recording is held out for the candidate choice (the README's protocol): chosen
+  # on the training data alone, the most flexible candidate always wins.
+  train=("$dir"/train/*.bag)
+  held_out=()
+  if [ "${#train[@]}" -ge 2 ]; then held_out=(--held-out "${train[-1]}"); unset 'train[-1]'; fi
+  if ! rosrun deep_ois train_stabiliser --bags "${train[@]}" "${held_out[@]}" --gyro-config "$dir/gyro_flow.yaml" \
       --out "$per_camera" --name "$module (per-camera)" --cache "$data/stabiliser_cache" \
       --no-progress >"$out/train_stabiliser.md" 2>"$out/train_stabiliser.log"; then
     # Exit 3 (a recording unreadable or a calibration warning) still wrote the model.
