@@ -106,29 +106,74 @@ TraceStates statesOf(const LinearDynamicsBasisSpec& spec, const Settings& s, con
   return {all.topRows(g), all.middleRows(g, n), all.bottomRows(n)};
 }
 
-// The stroke clip after the linear part: a box or an ellipse with half-widths per axis and
-// direction (focal units; infinite: none).
+// The stroke after the linear part, with half-widths per axis and direction (focal units;
+// infinite: none): a hard box or ellipse (the lens stops there) or a soft one (L tanh(u / L) per
+// axis, or radially), as the generated designs' strokes are.
+enum class StrokeShape { kBox, kEllipse, kSoftBox, kSoftEllipse };
+const char* toString(StrokeShape shape) {
+  switch (shape) {
+    case StrokeShape::kBox: return "box";
+    case StrokeShape::kEllipse: return "ellipse";
+    case StrokeShape::kSoftBox: return "soft box";
+    case StrokeShape::kSoftEllipse: return "soft ellipse";
+  }
+  return "?";
+}
 struct Stroke {
-  bool ellipse = false;
+  StrokeShape shape = StrokeShape::kBox;
   double x_pos = INFINITY, x_neg = INFINITY, y_pos = INFINITY, y_neg = INFINITY;
+  bool soft() const { return shape == StrokeShape::kSoftBox || shape == StrokeShape::kSoftEllipse; }
+  double limitX(double x) const { return x >= 0.0 ? x_pos : x_neg; }
+  double limitY(double y) const { return y >= 0.0 ? y_pos : y_neg; }
+  // Per axis, the command over its limit (0 where there is none).
+  Eigen::Vector2d excursion(const Eigen::Vector2d& c) const {
+    const double lx = limitX(c.x()), ly = limitY(c.y());
+    return Eigen::Vector2d(std::isfinite(lx) ? c.x() / lx : 0.0, std::isfinite(ly) ? c.y() / ly : 0.0);
+  }
   Eigen::Vector2d apply(const Eigen::Vector2d& c) const {
-    const double lx = c.x() >= 0.0 ? x_pos : x_neg, ly = c.y() >= 0.0 ? y_pos : y_neg;
-    if (ellipse) {
-      const double r = std::hypot(std::isfinite(lx) ? c.x() / lx : 0.0, std::isfinite(ly) ? c.y() / ly : 0.0);
-      return r > 1.0 ? Eigen::Vector2d(c / r) : c;
+    const Eigen::Vector2d e = excursion(c);
+    switch (shape) {
+      case StrokeShape::kBox:
+        return Eigen::Vector2d(std::clamp(c.x(), -x_neg, x_pos), std::clamp(c.y(), -y_neg, y_pos));
+      case StrokeShape::kEllipse: {
+        const double r = e.norm();
+        return r > 1.0 ? Eigen::Vector2d(c / r) : c;
+      }
+      case StrokeShape::kSoftBox:
+        return Eigen::Vector2d(e.x() != 0.0 ? c.x() * std::tanh(e.x()) / e.x() : c.x(),
+                               e.y() != 0.0 ? c.y() * std::tanh(e.y()) / e.y() : c.y());
+      case StrokeShape::kSoftEllipse: {
+        const double r = e.norm();
+        return r > 1e-12 ? Eigen::Vector2d(c * (std::tanh(r) / r)) : c;
+      }
     }
-    return Eigen::Vector2d(std::clamp(c.x(), -x_neg, x_pos), std::clamp(c.y(), -y_neg, y_pos));
+    return c;
+  }
+  // The command a soft stroke turns into this lens (block-oriented: the static nonlinearity
+  // inverted on the lens, so the linear part is fitted to the command), or the lens itself for a
+  // hard one. Only for a lens inside the stroke (|excursion| < 1).
+  Eigen::Vector2d invert(const Eigen::Vector2d& l) const {
+    const Eigen::Vector2d e = excursion(l);
+    if (shape == StrokeShape::kSoftBox)
+      return Eigen::Vector2d(e.x() != 0.0 ? l.x() * std::atanh(e.x()) / e.x() : l.x(),
+                             e.y() != 0.0 ? l.y() * std::atanh(e.y()) / e.y() : l.y());
+    if (shape == StrokeShape::kSoftEllipse) {
+      const double r = e.norm();
+      return r > 1e-12 ? Eigen::Vector2d(l * (std::atanh(r) / r)) : l;
+    }
+    return l;
   }
   bool inside(const Eigen::Vector2d& c, double fraction) const {
-    return c.x() < fraction * x_pos && -c.x() < fraction * x_neg && c.y() < fraction * y_pos &&
-           -c.y() < fraction * y_neg;
+    const Eigen::Vector2d e = excursion(c);
+    if (shape == StrokeShape::kEllipse || shape == StrokeShape::kSoftEllipse) return e.norm() < fraction;
+    return std::abs(e.x()) < fraction && std::abs(e.y()) < fraction;
   }
-  Stroke scaled(double k) const { return {ellipse, k * x_pos, k * x_neg, k * y_pos, k * y_neg}; }
+  Stroke scaled(double k) const { return {shape, k * x_pos, k * x_neg, k * y_pos, k * y_neg}; }
 };
 
 // The widest lens (focal units) per axis and direction over these lenses.
 Stroke widest(const std::vector<std::vector<Eigen::Vector2d>>& lenses) {
-  Stroke s{false, 0.0, 0.0, 0.0, 0.0};
+  Stroke s{StrokeShape::kBox, 0.0, 0.0, 0.0, 0.0};
   for (const auto& lens : lenses)
     for (const Eigen::Vector2d& l : lens) {
       s.x_pos = std::max(s.x_pos, l.x());
@@ -195,13 +240,17 @@ std::vector<double> parseList(const std::string& text) {
   return v;
 }
 
-std::string specName(const LinearDynamicsBasisSpec& spec) {
+std::string specName(const LinearDynamicsBasisSpec& spec) {  // e.g. "1Hz+10Hz x16"
   char text[64];
   if (spec.second_pole_hz > 0.0)
     std::snprintf(text, sizeof text, "%gHz+%gHz x%d", spec.pole_hz, spec.second_pole_hz, spec.order);
   else
     std::snprintf(text, sizeof text, "%gHz x%d", spec.pole_hz, spec.order);
   return text;
+}
+
+std::string stageName(const LinearStage& stage) {
+  return specName(stage.spec) + " " + toString(stage.stroke.shape);
 }
 
 }  // namespace
@@ -224,7 +273,7 @@ int main(int argc, char** argv) {
   std::string poles_text = "0.3,0.6,1.2,2.5", orders_text = "4,6,8,12", second_text = "0,25";
   std::uint32_t seed_begin = 0, count = 40, per_class = 0;
   Settings settings;
-  bool chain = false, images = true;
+  bool chain = false, images = true, describe = false, soft_strokes = true;
   deep_ois::ToolCommandLine command_line("benchmark_linear_dynamics", kDescription);
   CLI::App& app = command_line.app();
   app.add_option("--split", split, "which designs: the generator's held-out seeds (seed % 5 == 0) "
@@ -244,8 +293,11 @@ int main(int argc, char** argv) {
                                                         "early/late split of the evaluation)");
   command_line.addNumber("--noise", settings.noise_px, "lens-motion measurement noise, px (per axis)");
   app.add_option("--images", images, "also fit from frame-to-frame lens motions only")->capture_default_str();
+  app.add_option("--soft-strokes", soft_strokes, "also try soft strokes (tanh) after the linear part")
+      ->capture_default_str();
   app.add_option("--chain", chain, "also fit the chain's candidates (benchmark_lens_dynamics --network none)")
       ->capture_default_str();
+  app.add_flag("--describe", describe, "print each design's description under its row");
   app.add_option("--csv", csv_path, "write the rows here")->type_name("FILE.csv");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
@@ -330,28 +382,39 @@ int main(int argc, char** argv) {
         std::vector<TraceStates> train_states;
         for (const auto& r : training) train_states.push_back(statesOf(spec, settings, r));
         const TraceStates choice_states = statesOf(spec, settings, choice[0]);
-        // From the lens: samples after settle_s and inside 80 % of the stroke seen.
-        {
+        // From the lens: samples after settle_s. A hard stroke (the widest lens seen): the lens as
+        // the target, inside 80 % of it. A soft one (k x the widest lens seen): every sample, the
+        // target the command the stroke turns into that lens (its tanh inverted).
+        std::vector<Stroke> log_strokes;
+        for (StrokeShape shape : {StrokeShape::kBox, StrokeShape::kEllipse}) {
+          Stroke stroke = data_stroke;
+          stroke.shape = shape;
+          log_strokes.push_back(stroke);
+        }
+        if (soft_strokes)
+          for (double k : {1.05, 1.25, 1.6})
+            for (StrokeShape shape : {StrokeShape::kSoftBox, StrokeShape::kSoftEllipse}) {
+              Stroke stroke = data_stroke.scaled(k);
+              stroke.shape = shape;
+              log_strokes.push_back(stroke);
+            }
+        for (const Stroke& stroke : log_strokes) {
           std::vector<Eigen::RowVectorXd> rows;
           std::vector<Eigen::RowVector2d> targets;
           for (std::size_t r = 0; r < training.size(); ++r)
-            for (std::size_t i = 0; i < training[r].rates.size(); ++i)
-              if (training[r].rates[i].stamp_s >= settings.settle_s &&
-                  data_stroke.inside(training_lens[r][i], settings.inside_stroke)) {
-                rows.push_back(train_states[r].at_gyro.row(static_cast<long>(i)));
-                targets.push_back(training_lens[r][i].transpose());
-              }
+            for (std::size_t i = 0; i < training[r].rates.size(); ++i) {
+              const Eigen::Vector2d& lens = training_lens[r][i];
+              if (training[r].rates[i].stamp_s < settings.settle_s) continue;
+              if (!stroke.inside(lens, stroke.soft() ? 1.0 : settings.inside_stroke)) continue;
+              rows.push_back(train_states[r].at_gyro.row(static_cast<long>(i)));
+              targets.push_back(stroke.invert(lens).transpose());
+            }
           Eigen::MatrixXd x(static_cast<long>(rows.size()), train_states[0].at_gyro.cols()), y(x.rows(), 2);
           for (std::size_t i = 0; i < rows.size(); ++i) x.row(static_cast<long>(i)) = rows[i], y.row(static_cast<long>(i)) = targets[i];
-          if (x.rows() > x.cols()) {
-            const Eigen::MatrixXd c = deep_ois::fitLinearDynamicsCoefficients(x, y, {}, settings.ridge);
-            for (bool ellipse : {false, true}) {
-              Stroke stroke = data_stroke;
-              stroke.ellipse = ellipse;
-              const double rms = errorsOf(c, stroke, choice_states, choice[0], settings).rms();
-              if (rms < best_log.choice_rms_px) best_log = {spec, c, stroke, rms};
-            }
-          }
+          if (x.rows() <= x.cols()) continue;
+          const Eigen::MatrixXd c = deep_ois::fitLinearDynamicsCoefficients(x, y, {}, settings.ridge);
+          const double rms = errorsOf(c, stroke, choice_states, choice[0], settings).rms();
+          if (rms < best_log.choice_rms_px) best_log = {spec, c, stroke, rms};
         }
         // From the lens motions alone: differences of the states against the observed motions
         // (focal units), first on every pair after settle_s; then the stroke (a scale of the widest
@@ -397,8 +460,10 @@ int main(int argc, char** argv) {
               if (w.sum() <= 2.0 * x.cols()) continue;
             }
             const Eigen::MatrixXd c = k < 1e8 ? deep_ois::fitLinearDynamicsCoefficients(x, y, w, settings.ridge) : first;
-            for (bool ellipse : {false, true}) {
-              stroke.ellipse = ellipse;
+            for (StrokeShape shape : {StrokeShape::kBox, StrokeShape::kEllipse, StrokeShape::kSoftBox,
+                                      StrokeShape::kSoftEllipse}) {
+              if (!soft_strokes && (shape == StrokeShape::kSoftBox || shape == StrokeShape::kSoftEllipse)) continue;
+              stroke.shape = shape;
               const double rms = errorsOf(c, stroke, choice_states, choice[0], settings).rms();
               if (rms < best_images.choice_rms_px) best_images = {spec, c, stroke, rms};
               if (k > 1e8) break;  // no stroke: one shape
@@ -432,11 +497,16 @@ int main(int argc, char** argv) {
       const double images_rms = images ? images_e.rms() : NAN;
       std::printf("%-6u %-22s %8.4f %8.4f %8.4f %8.4f %8.4f %6.1f%% %6.1f%% %6.1f%% %6.1f%%  %s / %s (%.0f s)\n", seed,
                   cls.c_str(), none.rms(), log_e.rms(), images_rms, chain_rms, oracle_e.rms(), closed(log_e.rms()),
-                  closed(images_rms), closed(chain_rms), closed(oracle_e.rms()), specName(best_log.spec).c_str(),
-                  images ? specName(best_images.spec).c_str() : "-", secs);
+                  closed(images_rms), closed(chain_rms), closed(oracle_e.rms()), stageName(best_log).c_str(),
+                  images ? stageName(best_images).c_str() : "-", secs);
       std::printf("       early (%.0f-%.0f s) / late: none %.4f / %.4f px, log %.4f / %.4f px, oracle %.4f / %.4f px\n",
                   1.0, settings.settle_s, none.rmsEarly(), none.rmsLate(), log_e.rmsEarly(), log_e.rmsLate(),
                   oracle_e.rmsEarly(), oracle_e.rmsLate());
+      if (describe) {
+        std::string tags;
+        for (const std::string& tag : sim::designFeatures(design)) tags += " " + tag;
+        std::printf("       features:%s\n       %s\n", tags.c_str(), sim::describe(design).c_str());
+      }
       std::fflush(stdout);
       const double values[4] = {closed(log_e.rms()), closed(images_rms), closed(chain_rms), closed(oracle_e.rms())};
       for (int k = 0; k < 4; ++k) {
@@ -450,7 +520,7 @@ int main(int argc, char** argv) {
       if (csv)
         csv << seed << "," << cls << "," << none.rms() << "," << log_e.rms() << "," << images_rms << "," << chain_rms
             << "," << oracle_e.rms() << "," << values[0] << "," << values[1] << "," << values[2] << "," << values[3]
-            << ",\"" << specName(best_log.spec) << "\",\"" << (images ? specName(best_images.spec) : "") << "\","
+            << ",\"" << stageName(best_log) << "\",\"" << (images ? stageName(best_images) : "") << "\","
             << none.rmsEarly() << "," << log_e.rmsEarly() << "," << oracle_e.rmsEarly() << "," << none.rmsLate() << ","
             << log_e.rmsLate() << "," << oracle_e.rmsLate() << "," << secs << "\n";
     }
