@@ -45,7 +45,7 @@ struct Settings {
   double step_s = 1e-3;          // the predictor's step
   double settle_s = 2.0;         // samples before this are not fitted on
   double inside_stroke = 0.8;    // nor lens samples beyond this fraction of the stroke
-  double ridge = 1e-8;           // relative, fitLinearDynamicsCoefficients' convention
+  double ridge = 1e-5;           // relative, fitLinearDynamicsCoefficients' convention
 };
 
 Eigen::Vector2d lensAt(const std::vector<CameraRateSample>& gyro, const std::vector<Eigen::Vector2d>& lens,
@@ -270,7 +270,7 @@ constexpr char kDescription[] =
 
 int main(int argc, char** argv) {
   std::string split = "held_out", csv_path, classes_text;
-  std::string poles_text = "0.3,0.6,1.2,2.5", orders_text = "4,6,8,12", second_text = "0,25";
+  std::string poles_text = "0.5,1,2", orders_text = "4,8,12,16", second_text = "0,10,30";
   std::uint32_t seed_begin = 0, count = 40, per_class = 0;
   Settings settings;
   bool chain = false, images = true, describe = false, soft_strokes = true;
