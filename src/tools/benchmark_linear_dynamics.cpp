@@ -234,6 +234,14 @@ struct LinearStage {
   double choice_rms_px = INFINITY;
 };
 
+// Rows stacked into a matrix of `cols` columns (none: 0 rows).
+template <typename Row>
+Eigen::MatrixXd stacked(const std::vector<Row>& rows, long cols) {
+  Eigen::MatrixXd m(static_cast<long>(rows.size()), cols);
+  for (std::size_t i = 0; i < rows.size(); ++i) m.row(static_cast<long>(i)) = rows[i];
+  return m;
+}
+
 std::vector<double> parseList(const std::string& text) {
   std::vector<double> v;
   for (double x : deep_ois::splitCommaSeparatedNumbers(text)) v.push_back(x);
@@ -409,8 +417,7 @@ int main(int argc, char** argv) {
               rows.push_back(train_states[r].at_gyro.row(static_cast<long>(i)));
               targets.push_back(stroke.invert(lens).transpose());
             }
-          Eigen::MatrixXd x(static_cast<long>(rows.size()), train_states[0].at_gyro.cols()), y(x.rows(), 2);
-          for (std::size_t i = 0; i < rows.size(); ++i) x.row(static_cast<long>(i)) = rows[i], y.row(static_cast<long>(i)) = targets[i];
+          const Eigen::MatrixXd x = stacked(rows, train_states[0].at_gyro.cols()), y = stacked(targets, 2);
           if (x.rows() <= x.cols()) continue;
           const Eigen::MatrixXd c = deep_ois::fitLinearDynamicsCoefficients(x, y, {}, settings.ridge);
           const double rms = errorsOf(c, stroke, choice_states, choice[0], settings).rms();
@@ -434,8 +441,7 @@ int main(int argc, char** argv) {
               targets.push_back(o.motion_px.transpose() / settings.focal_px);
               where.emplace_back(r, k);
             }
-          Eigen::MatrixXd x(static_cast<long>(rows.size()), train_states[0].at_a.cols()), y(x.rows(), 2);
-          for (std::size_t i = 0; i < rows.size(); ++i) x.row(static_cast<long>(i)) = rows[i], y.row(static_cast<long>(i)) = targets[i];
+          const Eigen::MatrixXd x = stacked(rows, train_states[0].at_a.cols()), y = stacked(targets, 2);
           if (x.rows() <= x.cols()) continue;
           const Eigen::MatrixXd first = deep_ois::fitLinearDynamicsCoefficients(x, y, {}, settings.ridge);
           // The widest predicted lens on the training gyro.
