@@ -170,6 +170,10 @@ void OnlineCalibrationSession::judgeTrial(const OnlineCalibrationPair& scored) {
     case TrialVerdict::kUndone:
       ++applied_version_;  // the replaced calibration is applied again
       ++swaps_undone_;
+      // Hook for rewinding the estimator to its state before the undone step (not done yet): the
+      // feed needs nothing for it, as its waiting pairs are held on the camera clock and do not
+      // depend on the calibration in use (the gyro flow's calibration_epoch tells the stabiliser
+      // model that the undo is a calibration change, not a time jump).
       confirmation_ = "undone: worse than the calibration it replaced (" + trials_.evidence().summary() + ")";
       break;
     case TrialVerdict::kConfirmed:

@@ -6,6 +6,7 @@
 
 #include <boost/make_shared.hpp>
 #include <opencv2/core/utility.hpp>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -25,6 +26,19 @@ constexpr double kWarnPeriodS = 2.0;
 // A handling delay this much below the smallest seen means ROS time went back (seconds; the gyro
 // flow nodelet's ~time_jump_reset default).
 constexpr double kTimelineJumpS = 1.0;
+// The optional outputs shed under overload (OutputShedding indices), costliest first as measured.
+constexpr std::size_t kShedColour = 0, kShedAligned = 1, kShedGhost = 2;
+// Shedding starts at a quarter of ~max_lag and ends below a tenth: the plain compensated flow keeps
+// up well before a pair would be dropped.
+OutputShedding makeShedding(double max_lag_s) {
+  OutputSheddingOptions options;
+  options.shed_above_s = 0.25 * max_lag_s;
+  options.restore_below_s = 0.1 * max_lag_s;
+  return OutputShedding({"compensated_flow/color", "aligned/image_raw", "aligned/ghost"}, options);
+}
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 }  // namespace
 
 CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -35,7 +49,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       compensator_kind_(compensatorKindFor(params_.model_path)),
       it_(nh),
       matcher_(FlowFrameMatcherOptions{static_cast<std::size_t>(params_.image_cache_size),
-                                       static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}) {
+                                       static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}),
+      shedding_(makeShedding(params_.max_lag_s)) {
   if (compensator_kind_ == CompensatorKind::kStabiliserModel) {
     stabiliser_ = std::make_unique<StabiliserFlowCompensator>(StabiliserModelFile::load(params_.model_path));
   } else {
@@ -227,12 +242,28 @@ void CompensationRos::settle(const std::vector<Matcher::Settled>& settled) {
       continue;
     }
     const double lag_s = lagS(s.flow->header.stamp);
+    // Late: the optional outputs go first (one more per late pair), the pair only beyond ~max_lag.
+    const std::size_t shed_before = shedding_.level();
+    if (shedding_.beforePair(lag_s) != shed_before) sayShedding(lag_s, shed_before);
     if (lag_s > params_.max_lag_s) {
       countDrop("compensation more than ~max_lag behind its input");
       guarded(gyro_flow_sub_.getTopic(), [&] { observeOnly(*s.flow); });
       continue;
     }
     guarded(gyro_flow_sub_.getTopic(), [&] { process(*s.flow, s.frame_a, s.frame_b); });
+  }
+}
+
+void CompensationRos::sayShedding(double lag_s, std::size_t shed_before) {
+  diagnostics_->setValue("overload: shedding now", shedding_.describeShed());
+  diagnostics_->setValue("overload: pairs with an output shed", shedding_.describeCounts());
+  if (shedding_.level() > shed_before) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
+                            "%s: compensation %.3f s behind its input on %s: shedding %s (the costliest optional "
+                            "outputs first: %s) until it keeps up; the compensated flow goes on, and a pair is "
+                            "dropped only beyond ~max_lag (%.3f s)",
+                            log_name_.c_str(), lag_s, gyro_flow_sub_.getTopic().c_str(),
+                            shedding_.describeShed().c_str(), shedding_.describeOrder().c_str(), params_.max_lag_s);
   }
 }
 
@@ -304,6 +335,23 @@ void CompensationRos::sayTimeJump(const GyroFlow& gyro, double back_s) {
                  kStabiliserWarmUpS);
 }
 
+void CompensationRos::sayCalibrationChange(const GyroFlow& gyro) {
+  const int changes = stabiliser_->calibrationChanges();
+  if (changes == calibration_changes_said_) return;
+  calibration_changes_said_ = changes;
+  const int restarts = stabiliser_->calibrationRestarts();
+  diagnostics_->setValue("stabiliser: calibration changes carried across",
+                         std::to_string(changes - restarts) + " (" + std::to_string(restarts) +
+                             " restarted: moved back beyond the model's history)");
+  // Once per applied calibration (a few a minute at most): not throttled.
+  ROS_INFO_NAMED("compensation",
+                 "%s: gyro flows on %s now use calibration epoch %u (time offset %.3f ms): the stabiliser model %s",
+                 log_name_.c_str(), gyro_flow_sub_.getTopic().c_str(), gyro.calibration_epoch, 1e3 * gyro.time_offset,
+                 restarts > calibration_restarts_said_ ? "restarts (the offset moved back beyond its history)"
+                                                       : "carries its state across the change");
+  calibration_restarts_said_ = restarts;
+}
+
 void CompensationRos::checkStampClock(const ros::Time& stamp, const std::string& topic) {
   const bool say = stamp_clock_.observe(stamp.toSec(), ros::Time::now().toSec());
   diagnostics_->setClockProblem(stamp_clock_.describe());
@@ -343,7 +391,10 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::asMeasured(co
   // (as at the start of a stream) rather than mixing in lens-corrected ones; a stabiliser model
   // keeps following the gyro stream.
   if (stream_) stream_->reset();
-  if (stabiliser_) sayTimeJump(gyro, stabiliser_->observe(gyro));
+  if (stabiliser_) {
+    sayTimeJump(gyro, stabiliser_->observe(gyro));
+    sayCalibrationChange(gyro);
+  }
   return CompensatedMotion{gyro_flow.clone(), {}, {}};
 }
 
@@ -353,6 +404,7 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::withStabilise
   if (learning_) learning_->beforePair(gyro, *stabiliser_);  // the model in use (a swap is said once)
   StabiliserFlowResult result = stabiliser_->compensate(gyro);
   sayTimeJump(gyro, result.time_jump_back_s);
+  sayCalibrationChange(gyro);
   if (!result.ok) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",
                             log_name_.c_str(), gyro.header.stamp.toSec(), result.reason.c_str());
@@ -463,13 +515,25 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   if (compensated_msg) compensated_pub_.publish(compensated_msg);
   const cv::Size camera_size(static_cast<int>(gyro.image_width), static_cast<int>(gyro.image_height));
   flow_image_pub_.publish(gyro.header, compensated);
-  if (color_pub_.getNumSubscribers() > 0) {
+  // The optional outputs, each unless shed under overload (OutputShedding), each timed for the
+  // shedding order (wall time: what the pipeline's lag is made of).
+  const bool subscribed_color = color_pub_.getNumSubscribers() > 0;
+  const bool subscribed_aligned = aligned_pub_.getNumSubscribers() > 0;
+  const bool subscribed_ghost = ghost_pub_.getNumSubscribers() > 0;
+  const bool want_color = subscribed_color && !shedding_.shed(kShedColour, subscribed_color);
+  const bool want_aligned = subscribed_aligned && !shedding_.shed(kShedAligned, subscribed_aligned);
+  const bool want_ghost = subscribed_ghost && !shedding_.shed(kShedGhost, subscribed_ghost);
+  if (want_color) {
+    const auto start = std::chrono::steady_clock::now();
     cv::Mat color;
     sensor_msgs::ImagePtr msg = makeImageMsg(gyro.header, sensor_msgs::image_encodings::RGB8, compensated.size(), color);
     colorizeFlow(compensated, params_.color_max_flow_px, color);
     color_pub_.publish(msg);
+    shedding_.measured(kShedColour, secondsSince(start));
   }
-  const bool want_aligned = aligned_pub_.getNumSubscribers() > 0, want_ghost = ghost_pub_.getNumSubscribers() > 0;
+  // The map serves both: its cost goes to the aligned frame when it is made, else to the ghost.
+  const auto map_start = std::chrono::steady_clock::now();
+  double map_s = 0.0;
   if (want_aligned || want_ghost) {
     // The flow inverted on its grid; per camera pixel only the map's interpolation and the remaps.
     if (!compensated_homographies.empty()) {
@@ -483,19 +547,23 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     } else {
       buildFixedPointBackwardMap(compensated, camera_size, params_.warp_iterations, warp_map_);
     }
+    map_s = secondsSince(map_start);
   }
   const std_msgs::Header& header = image_b->header;
   cv::Mat aligned;
   if (want_aligned) {
+    const auto start = std::chrono::steady_clock::now();
     // Any encoding: the warp works per channel on the frame's own pixels.
     const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a);
     sensor_msgs::ImagePtr msg = makeImageMsg(header, image_a->encoding, camera_size, aligned);
     warpWithFixedPointMap(a->image, warp_map_, aligned);
     aligned_pub_.publish(msg);
+    shedding_.measured(kShedAligned, map_s + secondsSince(start));
   }
   // The pair has its output now: a ghost that cannot be drawn is said and counted on its own,
   // not as a flow without output.
   if (want_ghost) {
+    const auto start = std::chrono::steady_clock::now();
     try {
       cv::Mat ghost;
       sensor_msgs::ImagePtr msg = makeImageMsg(header, sensor_msgs::image_encodings::RGB8, camera_size, ghost);
@@ -509,6 +577,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
         ghostOverlay(ghost, b->image, ghost);
       }
       ghost_pub_.publish(msg);
+      shedding_.measured(kShedGhost, (want_aligned ? 0.0 : map_s) + secondsSince(start));
     } catch (const std::exception& e) {  // cv_bridge::Exception, or cv::Exception from OpenCV
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no ghost overlay for the %s frames on %s: %s",
                               log_name_.c_str(), image_b->encoding.c_str(), image_sub_.getTopic().c_str(), e.what());
@@ -516,6 +585,8 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     }
   }
   ++published_;
+  // The measured order every 15 pairs (a second at 30 fps): it moves slowly.
+  if (published_ % 15 == 1) diagnostics_->setValue("overload: shed order (mean cost a pair)", shedding_.describeOrder());
 }
 
 }  // namespace deep_ois

@@ -34,6 +34,16 @@ void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& par
   diagnostics.setValue("grid [px]", std::to_string(params.grid_size.width) + "x" +
                                         std::to_string(params.grid_size.height));
 }
+
+// Whether the calibration a flow is made with differs: timing, mount (or its source) or gyro bias.
+bool calibrationDiffers(const GyroFlowParameters& a, const GyroFlowParameters& b) {
+  const RollingShutterConfig &x = a.rolling_shutter, &y = b.rolling_shutter;
+  return x.time_offset_s != y.time_offset_s || x.readout_time_s != y.readout_time_s ||
+         x.patch_count != y.patch_count || x.patch_time != y.patch_time ||
+         a.rotation_from_tf != b.rotation_from_tf ||
+         (!a.rotation_from_tf && x.imu_to_camera_rotation != y.imu_to_camera_rotation) ||
+         a.integration.gyro_bias_rad_s != b.integration.gyro_bias_rad_s;
+}
 }  // namespace
 
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -55,6 +65,13 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   reconfigure_ = std::make_unique<GyroFlowReconfigure>(
       private_nh_, "gyro_flow", params_, [this](const GyroFlowParameters& updated) {
         std::lock_guard<std::mutex> lock(mutex_);
+        // The flows after a calibration change carry a new epoch (GyroFlow.calibration_epoch): a
+        // downstream model then moves its times with the offset instead of taking the change for a
+        // jump in time.
+        if (calibrationDiffers(params_, updated)) {
+          ++calibration_epoch_;
+          diagnostics_->setValue("calibration epoch", std::to_string(calibration_epoch_));
+        }
         params_ = updated;
         // Back to tf (an empty imu_to_camera_rotation) when the start had the parameter.
         if (params_.rotation_from_tf && !tf_listener_)
@@ -546,6 +563,7 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   metadata.distortion_model = frame.distortion_model;
   metadata.distortion = frame.distortion;
   metadata.rolling_shutter = config;
+  metadata.calibration_epoch = calibration_epoch_;
   {
     // The gyro stream behind the pair (for stabiliser models downstream): from the model's warm-up
     // before frame a's first patch to frame b's last patch, relative to frame b's stamp. Every

@@ -39,8 +39,13 @@ StabiliserCompensator& StabiliserFlowCompensator::compensatorFor(const GyroFlow&
   }
   // Before the rates: the state of another timeline must not take in this one's samples.
   const RollingShutterConfig rs = timingOf(msg);
+  // A new epoch is an applied calibration: the frames' IMU times moved by the change of offset.
+  const double calibration_shift_s =
+      last_epoch_ && *last_epoch_ != msg.calibration_epoch ? msg.time_offset - last_time_offset_s_ : 0.0;
+  last_epoch_ = msg.calibration_epoch;
+  last_time_offset_s_ = msg.time_offset;
   *time_jump_back_s = compensator_->followTimeline(patchImuTime(rs, msg.previous_stamp.toSec(), 0),
-                                                   patchImuTime(rs, msg.header.stamp.toSec(), 0));
+                                                   patchImuTime(rs, msg.header.stamp.toSec(), 0), calibration_shift_s);
   const std::vector<CameraRateSample> rates = readGyroFlowRates(msg, problem);
   compensator_->addRates(rates);
   return *compensator_;

@@ -17,6 +17,7 @@
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/common/drop_tally.h"
+#include "deep_ois/core/common/output_shedding.h"
 #include "deep_ois/core/common/stamp_clock_check.h"
 #include "deep_ois/core/ois/compensation_method.h"
 #include "deep_ois/core/flow/flow_frame_matcher.h"
@@ -97,6 +98,12 @@ class CompensationRos {
   void observeOnly(const GyroFlow& gyro);
   // Says once that the stabiliser model restarted because time went back by `back_s` (> 0).
   void sayTimeJump(const GyroFlow& gyro, double back_s);
+  // Says (once per change, and in /diagnostics) that the flows' calibration changed and the
+  // stabiliser model carried its state across it (GyroFlow.calibration_epoch).
+  void sayCalibrationChange(const GyroFlow& gyro);
+  // Says (throttled, and in /diagnostics) what is shed under overload now that the shedding level
+  // moved from `shed_before` outputs; `lag_s`: the pair's lag that moved it.
+  void sayShedding(double lag_s, std::size_t shed_before);
   // Processing delay of the pair ending at `stamp_b` beyond the smallest seen, seconds.
   double lagS(const ros::Time& stamp_b);
   // The throttled warning of everything dropped since the last one.
@@ -156,6 +163,9 @@ class CompensationRos {
 
   Matcher matcher_;
   DropTally drops_;                  // gyro flows without an output, by reason
+  // Graceful overload: the optional outputs (colour, aligned frame, ghost) left out of late pairs,
+  // costliest first by their measured wall time, before a pair is dropped by ~max_lag.
+  OutputShedding shedding_;
   ros::WallTime last_drop_report_;
   std::optional<ros::Time> last_flow_stamp_;  // frame b of the last gyro flow received
   std::optional<double> min_delay_s_;         // smallest handling delay seen (see ~max_lag)
@@ -163,6 +173,7 @@ class CompensationRos {
   StampClockCheck stamp_clock_;               // input stamps against ROS time
   std::size_t errors_ = 0;  // exceptions caught at the callbacks
   std::size_t published_ = 0;
+  int calibration_changes_said_ = 0, calibration_restarts_said_ = 0;  // stabiliser model, said so far
   std::size_t ghosts_not_drawn_ = 0;  // pairs with an output whose ghost could not be drawn
   std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, model
   std::unique_ptr<CompensationReconfigure> reconfigure_;

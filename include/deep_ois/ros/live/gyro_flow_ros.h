@@ -13,6 +13,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <cstdint>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -163,6 +164,8 @@ class GyroFlowRos {
   ros::Time last_imu_arrival_;  // ROS time the latest IMU message was handled
   std::size_t frames_received_ = 0;
   std::size_t flows_published_ = 0;
+  // GyroFlow.calibration_epoch: +1 per change of the calibration in use (reconfigure or online).
+  std::uint32_t calibration_epoch_ = 0;
   std::size_t imu_in_window_ = 0, frames_in_window_ = 0, flows_in_window_ = 0;
   std::string window_problem_;          // the latest reason a pair gave no flow in the window
   bool input_stopped_reported_ = false;  // said once when the input stops, until it resumes

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -54,16 +55,25 @@ class StabiliserFlowCompensator {
   }
   int stateResets() const { return compensator_ ? compensator_->stateResets() : 0; }
   int timeJumps() const { return compensator_ ? compensator_->timeJumps() : 0; }
+  // Applied calibrations (GyroFlow.calibration_epoch changed) the state was carried across, and of
+  // those the ones that moved back beyond the model's history (restarted).
+  int calibrationChanges() const { return compensator_ ? compensator_->calibrationChanges() : 0; }
+  int calibrationRestarts() const { return compensator_ ? compensator_->calibrationRestarts() : 0; }
 
  private:
   // The compensator for the message's camera (rebuilt when K changes), restarted when time went
-  // back (*time_jump_back_s, seconds), then fed with the message's gyro stream.
+  // back (*time_jump_back_s, seconds), then fed with the message's gyro stream. A message of
+  // another calibration epoch than the last moved its IMU times by the change of time_offset:
+  // that is told to the compensator, which carries its state across.
   StabiliserCompensator& compensatorFor(const GyroFlow& msg, std::string* problem,
                                         double* time_jump_back_s);
 
   StabiliserModelFile model_;
   std::unique_ptr<StabiliserCompensator> compensator_;
   Eigen::Matrix3d K_ = Eigen::Matrix3d::Zero();
+  // The calibration of the last message (GyroFlow.calibration_epoch and time_offset, seconds).
+  std::optional<std::uint32_t> last_epoch_;
+  double last_time_offset_s_ = 0.0;
   std::unique_ptr<HomographyFlowRenderer> renderer_;
 };
 
