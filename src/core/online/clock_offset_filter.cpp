@@ -24,6 +24,8 @@ std::string ClockModelOptions::validate() const {
     why << "offset_random_walk_s_per_sqrt_s, rate_random_walk_per_sqrt_s and initial_rate_sigma must be finite and >= 0";
   } else if (!(jump_sigmas > 1.0) || !std::isfinite(jump_sigmas)) {
     why << "jump_sigmas must be above 1 (got " << jump_sigmas << ")";
+  } else if (!(suspect_sigmas > 0.0 && suspect_sigmas <= jump_sigmas)) {
+    why << "suspect_sigmas must be in (0, jump_sigmas] (got " << suspect_sigmas << ")";
   } else if (!(noise_memory >= 1.0) || !std::isfinite(noise_memory)) {
     why << "noise_memory must be at least 1 window (got " << noise_memory << ")";
   } else if (!(min_noise_scale > 0.0 && min_noise_scale <= 1.0) || !(max_noise_scale >= 1.0) ||
@@ -71,22 +73,25 @@ double ClockOffsetFilter::sigmaAt(double stamp_s) const {
   return std::sqrt(std::max(covariance(0, 0), 0.0));
 }
 
-void ClockOffsetFilter::restart(const ClockMeasurement& measurement) {
+void ClockOffsetFilter::restart(const ClockMeasurement& measurement, bool keep_rate) {
+  const bool had_rate = keep_rate && initialised_;
+  const double rate = had_rate ? state_(1) : 0.0;
+  const double rate_variance = had_rate ? covariance_(1, 1) : std::pow(options_.initial_rate_sigma, 2);
   initialised_ = true;
-  state_ = Eigen::Vector2d(measurement.offset_s, 0.0);
-  covariance_ = Eigen::Vector2d(windowVariance(measurement), std::pow(options_.initial_rate_sigma, 2)).asDiagonal();
+  state_ = Eigen::Vector2d(measurement.offset_s, rate);
+  covariance_ = Eigen::Vector2d(windowVariance(measurement), rate_variance).asDiagonal();
   stamp_s_ = measurement.stamp_s;
   last_normalised_innovation_ = 0.0;
 }
 
-bool ClockOffsetFilter::isJump(const ClockMeasurement& measurement) const {
+bool ClockOffsetFilter::isJump(const ClockMeasurement& measurement, double sigmas) const {
   if (!initialised_) return false;
   Eigen::Vector2d state;
   Eigen::Matrix2d covariance;
   predict(measurement.stamp_s, &state, &covariance);
   // A single window's deviation: its own (scaled) variance, not the overlap's share.
   const double innovation = measurement.offset_s - state(0);
-  return std::abs(innovation) > options_.jump_sigmas * std::sqrt(covariance(0, 0) + windowVariance(measurement));
+  return std::abs(innovation) > sigmas * std::sqrt(covariance(0, 0) + windowVariance(measurement));
 }
 
 ClockOffsetFilter::Outcome ClockOffsetFilter::add(const ClockMeasurement& measurement) {

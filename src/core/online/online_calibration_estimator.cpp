@@ -467,28 +467,15 @@ void OnlineCalibrationEstimator::fit() {
   status_.window_offset_s = offset_s;
   status_.window_offset_sigma_s = window.time_offset_sigma_s;
   ++status_.windows_measured;
+  // A window far from the line (suspect_sigmas) may hold a jump: the newest pairs are fitted at
+  // once (ahead of the budget, within max_borrow_s) and tell. A window straddling a jump is wide
+  // and lies between the two offsets; the newest pairs are after it.
   bool jumped = false;
-  if (!restart && clock_.initialised()) {
-    if (clock_.isJump(measured)) {
-      jumped = true;
-    } else {
-      Filter readout = readout_;
-      if (!hold_readout) {
-        fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
-             &jumped);
-      }
-      if (!jumped) {
-        readout_ = readout;
-        clock_.add(measured);
-      }
-    }
-  }
   bool newest_measured_readout = !hold_readout;
-  if (jumped && options_.jump_window_s > 0.0) {
-    // Re-estimated at once from the newest pairs (the window that showed the jump holds pairs from
-    // before it), ahead of the budget within max_borrow_s; older pairs leave the window.
+  const bool suspect = !restart && clock_.initialised() && clock_.isJump(measured, options_.clock.suspect_sigmas);
+  bool newest_said = false;
+  if (suspect && options_.jump_window_s > 0.0) {
     const double newest_begin_s = end_s - options_.jump_window_s;
-    window_floor_s_ = newest_begin_s;
     const double owed_s = threadCpuS() - work_started_cpu_s_ - credit_s_;
     if (!(options_.cpu_share > 0.0) || owed_s < options_.max_borrow_s) {
       if (options_.cpu_share > 0.0 && owed_s > 0.0) ++status_.fits_borrowed;
@@ -503,18 +490,40 @@ void OnlineCalibrationEstimator::fit() {
       if (calibrateWindow(newest, newest_options, "newest " + std::to_string(options_.jump_window_s) + " s",
                           &newest_result, &newest_rejected) &&
           newest_rejected.empty()) {
-        window = newest_result.calibration;
-        stamp_s = 0.5 * (newest_begin_s + end_s);
-        offset_s = window.time_offset_s + offset_s;
-        measured = {stamp_s, offset_s, window.time_offset_sigma_s, 1.0};
-        newest_measured_readout = newest_options.estimate_readout_time;
-        said << "; the newest " << options_.jump_window_s << " s: offset " << offset_s * 1e3 << " +- "
-             << window.time_offset_sigma_s * 1e3 << " ms";
+        newest_said = true;
+        const CameraImuCalibration& found = newest_result.calibration;
+        const ClockMeasurement newest_measured{0.5 * (newest_begin_s + end_s), found.time_offset_s + offset_s,
+                                               found.time_offset_sigma_s, 1.0};
+        said << "; the newest " << options_.jump_window_s << " s: offset " << newest_measured.offset_s * 1e3 << " +- "
+             << found.time_offset_sigma_s * 1e3 << " ms";
+        if (clock_.isJump(newest_measured, options_.clock.jump_sigmas)) {
+          // A jump: the filter restarts from the newest pairs, and older pairs leave the window.
+          jumped = true;
+          window = found;
+          stamp_s = newest_measured.stamp_s;
+          offset_s = newest_measured.offset_s;
+          measured = newest_measured;
+          newest_measured_readout = newest_options.estimate_readout_time;
+          window_floor_s_ = newest_begin_s;
+        }
       }
     }
   }
+  if (suspect && !newest_said) jumped = clock_.isJump(measured, options_.clock.jump_sigmas);
+  if (!restart && clock_.initialised() && !jumped) {
+    Filter readout = readout_;
+    if (!hold_readout) {
+      fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
+           &jumped);
+    }
+    if (!jumped) {
+      readout_ = readout;
+      clock_.add(measured);
+    }
+  }
   if (restart || jumped || !clock_.initialised()) {
-    clock_.restart(measured);
+    // A jump moves the offset, not the clocks' rates: the drift rate learned so far is kept.
+    clock_.restart(measured, jumped);
     for (Filter& axis : bias_) axis = {};
     if (!newest_measured_readout) {
       // The window did not measure the readout: the filter keeps its value, widened so that the

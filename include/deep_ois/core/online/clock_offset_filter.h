@@ -35,8 +35,10 @@ struct ClockModelOptions {
   double offset_random_walk_s_per_sqrt_s = 3e-5;
   double rate_random_walk_per_sqrt_s = 1.5e-5;
   double initial_rate_sigma = 1e-4;
-  // A window further than this many combined sigmas from the prediction is a jump.
+  // A window further than this many combined sigmas from the prediction is a jump; beyond
+  // suspect_sigmas it may be one (the estimator then checks the newest pairs).
   double jump_sigmas = 5.0;
+  double suspect_sigmas = 3.0;
   // Windows over which the innovations' mean square is averaged (an exponential memory), and the
   // bounds of the learned scale of the windows' 1-sigma (below 1: the windows overstate it, as
   // the calibration's 1-sigma, inflated for a whole recording's systematic errors, does).
@@ -64,11 +66,13 @@ class ClockOffsetFilter {
   // Fuses a window (the first one starts the filter). kJump: too far from the prediction, nothing
   // changed (the learned scale neither).
   Outcome add(const ClockMeasurement& measurement);
-  // Whether `measurement` would be a jump (no change).
-  bool isJump(const ClockMeasurement& measurement) const;
-  // Starts again from one window (a jump): rate 0 with initial_rate_sigma; the learned scale stays
-  // (it is the windows', not the clock's).
-  void restart(const ClockMeasurement& measurement);
+  // Whether `measurement` is further than `sigmas` combined sigmas from the prediction (no change).
+  bool isJump(const ClockMeasurement& measurement, double sigmas) const;
+  bool isJump(const ClockMeasurement& measurement) const { return isJump(measurement, options_.jump_sigmas); }
+  // Starts again from one window: the offset from it; the rate 0 with initial_rate_sigma, or with
+  // keep_rate (a jump moves the offset, not the clocks' rates) the rate and its variance as they
+  // are. The learned scale and correlation stay (they are the windows', not the clock's).
+  void restart(const ClockMeasurement& measurement, bool keep_rate = false);
   // Offset (s) and drift rate (s/s) carried to stamp_s, with their covariance.
   void predict(double stamp_s, Eigen::Vector2d* state, Eigen::Matrix2d* covariance) const;
   double offsetAt(double stamp_s) const;

@@ -18,9 +18,10 @@
 //    are moved by that line, so the drift is removed inside the window; overlapping windows count
 //    once per window length, and the windows' 1-sigma is scaled by what the innovations show, so
 //    that the reported 1-sigma is honest. The estimate is the line at the newest pair.
-//  - A window further from the line than the jump threshold (a camera app restarted) is a jump:
-//    the newest `jump_window_s` of pairs are fitted at once (ahead of the CPU budget: it may owe
-//    up to `max_borrow_s`), the filter restarts there and older pairs leave the window.
+//  - A window further from the line than clock.suspect_sigmas may hold a jump (a camera app
+//    restarted): the newest `jump_window_s` of pairs are fitted at once (ahead of the CPU budget:
+//    it may owe up to `max_borrow_s`); when they are beyond clock.jump_sigmas, the filter restarts
+//    there (keeping the drift rate) and older pairs leave the window.
 //  - The mount is searched over the 24 signed axis permutations until two consecutive accepted
 //    windows find the same permutation; from then on a window finding another permutation is not
 //    used, and the small rotation about the permutation is fused like the other quantities.
@@ -79,8 +80,8 @@ struct OnlineCalibrationOptions {
   // The offset's clock model: its random walks, the jump threshold (also the readout's), the
   // learned scale of the windows' 1-sigma.
   ClockModelOptions clock;
-  // After a jump, the newest this many seconds of pairs are fitted at once and the filter restarts
-  // from them (0 = from the window that showed the jump).
+  // A suspected jump: the newest this many seconds of pairs are fitted at once and, when they are a
+  // jump, the filter restarts from them (0 = the suspect window itself is tested for a jump).
   double jump_window_s = 1.5;
   // CPU seconds the budget may owe for a jump's fit: it runs when the debt is below this, and the
   // next fits wait until the debt is repaid. Beyond the share, at most this plus one fit is spent.
