@@ -3,12 +3,59 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <deque>
 #include <sstream>
 
+#include "deep_ois/core/ois/lens_actuator.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
+namespace {
+
+// Moves the lens (per axis, core/ois/lens_actuator.h) to the command of sensor_lag_s ago. The
+// lens itself stops at the stroke too (the command never asks for more).
+class ActuatorRunner final : public StabiliserStageRunner {
+ public:
+  ActuatorRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : natural_hz_(p.actuator_natural_hz),
+        damping_(p.actuator_damping),
+        step_s_(context.step_s),
+        stroke_px_(stage_numerics::strokePx(p, context.focal_px)),
+        x_(natural_hz_, damping_, step_s_, stroke_px_.x()),
+        y_(natural_hz_, damping_, step_s_, stroke_px_.y()) {
+    // A fractional lag: the acted command is interpolated between the two stored around it (so
+    // the fit sees a smooth cost in the lag).
+    const double lag_steps = p.sensor_lag_s / step_s_;
+    lag_steps_ = static_cast<std::size_t>(std::floor(lag_steps));
+    lag_fraction_ = lag_steps - static_cast<double>(lag_steps_);
+  }
+  void reset(StabiliserSignal&) override {
+    pending_commands_.assign(lag_steps_ + 1, Eigen::Vector2d::Zero());  // commands of the last steps
+    x_ = LensActuator(natural_hz_, damping_, step_s_, stroke_px_.x());
+    y_ = LensActuator(natural_hz_, damping_, step_s_, stroke_px_.y());
+  }
+  void advance(StabiliserSignal& signal) override {
+    // Holds lag_steps_ + 2 commands after the push: front = lag_steps_ + 1 steps old.
+    pending_commands_.push_back(signal.command_px);
+    const Eigen::Vector2d acted =
+        lag_fraction_ * pending_commands_[0] + (1.0 - lag_fraction_) * pending_commands_[1];
+    pending_commands_.pop_front();
+    signal.actuator_px = Eigen::Vector2d(x_.advance(acted.x()), y_.advance(acted.y()));
+    signal.lens_px = signal.actuator_px;
+  }
+
+ private:
+  double natural_hz_, damping_, step_s_;
+  Eigen::Vector2d stroke_px_;
+  std::size_t lag_steps_ = 0;  // whole steps of sensor lag
+  double lag_fraction_ = 0.0;  // and the fraction of one more
+  std::deque<Eigen::Vector2d> pending_commands_;
+  LensActuator x_, y_;
+};
+
+}  // namespace
 
 const StabiliserStage& actuatorStage() {
   static const StabiliserStage stage{
@@ -50,7 +97,8 @@ const StabiliserStage& actuatorStage() {
         }
         return why.str();
       },
-      nullptr};
+      nullptr,
+      stage_numerics::runner<ActuatorRunner>};
   return stage;
 }
 

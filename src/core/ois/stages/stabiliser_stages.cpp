@@ -1,16 +1,45 @@
-// The stages of the stabiliser model in the chain's (and the file's) order.
+// The registry of the stabiliser model's stages, in the order the signal passes them: adding a
+// stage is its file (src/core/ois/stages/) and one line here (docs/stabiliser_model.md, "Adding a
+// stage").
 #include <stdexcept>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 
 namespace deep_ois {
 
+// Each defined in its own file.
+const StabiliserStage& panDetectionStage();
+const StabiliserStage& excursionCentringStage();
+const StabiliserStage& centringStage();
+const StabiliserStage& strokeStage();
+const StabiliserStage& actuatorStage();
+const StabiliserStage& actuatorCouplingStage();
+const StabiliserStage& linearResidualStage();
+const StabiliserStage& learnedResidualStage();
+const StabiliserStage& learnedLensDynamicsStage();
+
 const std::vector<StabiliserStage>& stabiliserStages() {
   static const std::vector<StabiliserStage> stages = {
-      centringStage(),          actuatorStage(),        strokeStage(),
-      excursionCentringStage(), actuatorCouplingStage(), panDetectionStage(),
-      linearResidualStage(),    learnedResidualStage(), learnedLensDynamicsStage()};
+      panDetectionStage(),      // decides whether the angle re-centres fast (a pan)
+      excursionCentringStage(), // scales the centring's corner with the excursion
+      centringStage(),          // rate -> angle -> raw command
+      strokeStage(),            // raw command -> command
+      actuatorStage(),          // command -> lens
+      actuatorCouplingStage(),  // the actuator's axes -> the image's
+      linearResidualStage(),    // + residual of leaky rate integrals
+      learnedResidualStage(),   // + residual of the chain's features
+      learnedLensDynamicsStage(),  // + a recurrent network's lens
+  };
   return stages;
+}
+
+const StabiliserStage& stabiliserStage(const std::string& name) {
+  for (const StabiliserStage& stage : stabiliserStages())
+    if (name == stage.name) return stage;
+  std::string known;
+  for (const StabiliserStage& stage : stabiliserStages())
+    known += (known.empty() ? "" : ", ") + std::string(stage.name);
+  throw std::invalid_argument("no stabiliser stage named '" + name + "' (known: " + known + ")");
 }
 
 const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& name) {
@@ -18,6 +47,14 @@ const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& na
     for (const FittedStabiliserParameter& parameter : stage.fitted)
       if (name == parameter.name) return parameter;
   throw std::invalid_argument("no fitted stabiliser parameter named '" + name + "'");
+}
+
+std::vector<std::unique_ptr<StabiliserStageRunner>> stabiliserRunners(
+    const StabiliserParameters& p, const StabiliserRunContext& context) {
+  std::vector<std::unique_ptr<StabiliserStageRunner>> runners;
+  for (const StabiliserStage& stage : stabiliserStages())
+    if (auto runner = stage.runner(p, context)) runners.push_back(std::move(runner));
+  return runners;
 }
 
 }  // namespace deep_ois
