@@ -18,6 +18,13 @@ StabiliserParameters StabiliserParameters::physicalChain() const {
 }
 
 std::string StabiliserParameters::validate() const {
+  for (const std::string& name : stages) {
+    try {
+      stabiliserStage(name);
+    } catch (const std::invalid_argument& e) {
+      return std::string("stages: ") + e.what();
+    }
+  }
   // Each stage validates its own parameters (core/ois/stabiliser_stage.h); the first problem, in
   // the chain's order, is the answer.
   for (const StabiliserStage& stage : stabiliserStages()) {
@@ -93,6 +100,8 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s,
   signal_.rate_rad_s = rate_rad_s;
   signal_.end_rate_rad_s = end_rate_rad_s;
   signal_.step_index = ++steps_;
+  // The stages that write the raw command set it (centring) or add to it (linear dynamics).
+  signal_.raw_command_px.setZero();
   for (const auto& runner : runners_) runner->advance(signal_);
   // From an integer step count: summing step_s_ on epoch-sized stamps would drift (ulp ~ 2e-7 s).
   clock_s_ = start_s_ + static_cast<double>(steps_) * step_s_;

@@ -85,6 +85,9 @@ std::string StabiliserModelFile::toYaml() const {
         std::end(kFirstFormatOrder))
       stage.write(out, parameters);
   }
+  // A model that is not the default chain names its stages (optional: older files have none).
+  if (!parameters.stages.empty())
+    out << YAML::Key << "stages" << YAML::Value << YAML::Flow << parameters.stages;
   out << YAML::EndMap;
   writeCameraDescription(out, camera);
   const StabiliserTrainingRecord& t = training;
@@ -126,6 +129,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   const YAML::Node s = root["stabiliser"];
   StabiliserParameters& p = file.parameters;
   for (const StabiliserStage& stage : stabiliserStages()) stage.read(s, &p);
+  p.stages = stabiliser_file_fields::optional<std::vector<std::string>>(s, "stages", {});
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
   try {

@@ -37,6 +37,9 @@ StabiliserParameters everyMechanism() {
   p.residual = Eigen::MatrixXd::Constant(2, 4, 0.01);
   p.nonlinear_features = "rate_bank_v1";
   p.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.02);
+  p.linear_dynamics.basis.pole_hz = 2.0;
+  p.linear_dynamics.basis.order = 2;
+  p.linear_dynamics.coefficients = Eigen::MatrixXd::Constant(2, 6, 0.01);
   return p;
 }
 

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "deep_ois/core/ois/lens_dynamics_network.h"
+#include "deep_ois/core/ois/linear_dynamics_basis.h"
 #include "deep_ois/core/ois/stabiliser_signal.h"
 
 namespace deep_ois {
@@ -40,6 +41,15 @@ struct LearnedLensDynamics {
   // turned against the designs'); the identity unless the adaptation fitted it.
   Eigen::Matrix2d output_map = Eigen::Matrix2d::Identity();
   bool active() const { return network != nullptr; }
+};
+
+// The linear-dynamics stage's values (src/core/ois/stages/linear_dynamics_stage.cpp): raw command
+// += focal_px * coefficients * the state of an orthonormal basis of the three gyro axes
+// (core/ois/linear_dynamics_basis.h).
+struct LinearDynamicsValues {
+  LinearDynamicsBasisSpec basis;
+  Eigen::MatrixXd coefficients;  // 2 x 3 basis.order (focal units per basis state); empty = off
+  bool active() const { return coefficients.size() != 0; }
 };
 
 struct StabiliserParameters {
@@ -96,6 +106,12 @@ struct StabiliserParameters {
   std::string nonlinear_features;
   Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
   LearnedLensDynamics learned_dynamics;
+  LinearDynamicsValues linear_dynamics;
+  // The model's stages by name, when it is not the default chain ({"linear_dynamics", "stroke",
+  // "actuator"}: no centring); only these run (each still only when its values make it act).
+  // Empty: every stage whose values make it act (centring, stroke and actuator always), as every
+  // file before the key.
+  std::vector<std::string> stages;
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;

@@ -31,7 +31,8 @@ class Node;
 
 namespace deep_ois {
 
-// One scalar parameter a stage lets the Levenberg-Marquardt fit move (core/ois/stabiliser_fit.h).
+// One scalar parameter a stage lets the Levenberg-Marquardt fit move (core/ois/stabiliser_fit.h),
+// when the stage is among those being fitted.
 struct FittedStabiliserParameter {
   // As StabiliserParameters and the fit's review name it ("stroke_x_deg"; both components of a
   // vector share its name, "actuator_coupling").
@@ -44,22 +45,11 @@ struct FittedStabiliserParameter {
   // further and the review says so. +-infinity: unbounded.
   double lower, upper;
   double fit_step;  // the forward-difference step of the fit's Jacobian, in the fit's coordinate
-  // Empty: fitted whenever the chain is. Otherwise the mechanism whose fit frees it
-  // (StabiliserMechanism below): the fit moves it only when that mechanism is being fitted.
-  const char* mechanism;
   double (*value)(const StabiliserParameters& p);  // in `unit`
   void (*set)(StabiliserParameters* p, double value);
   // Whether the model uses it (its bound is reviewed only then); null: always.
   bool (*used)(const StabiliserParameters& p);
 };
-
-// The mechanisms whose parameters the fit frees only on request (FittedStabiliserParameter::
-// mechanism).
-namespace stabiliser_mechanism {
-constexpr const char* kPanDetection = "pan_detection";
-constexpr const char* kExcursionCentring = "excursion_centring";
-constexpr const char* kActuatorCoupling = "actuator_coupling";
-}  // namespace stabiliser_mechanism
 
 struct StabiliserStage {
   const char* name;         // "stroke"
@@ -84,6 +74,14 @@ struct StabiliserStage {
   // std::invalid_argument when it cannot run at the context's step.
   std::unique_ptr<StabiliserStageRunner> (*runner)(const StabiliserParameters& p,
                                                    const StabiliserRunContext& context);
+  // Its word in a model's composition (stabiliserComposition, the candidates' lists): its name,
+  // or name:variant ("stroke:soft"); empty when it does not act for p.
+  std::string (*token)(const StabiliserParameters& p);
+  // Sets the stage up in p as a refit starts it: `variant` "" is the plain stage, another its
+  // variant (as in token), null the stage left out (switched off). Throws std::invalid_argument
+  // for a variant it does not have. Null: the refit does not start it (always there, or fitted
+  // otherwise).
+  void (*start)(StabiliserParameters* p, const char* variant);
 };
 
 // Every stage, in the order the signal passes them (src/core/ois/stages/stabiliser_stages.cpp, the
@@ -95,6 +93,14 @@ const StabiliserStage& stabiliserStage(const std::string& name);
 // The fitted parameter named `name` (its first component for a vector); throws
 // std::invalid_argument for an unknown name.
 const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& name);
+
+// The model's composition: the tokens of the stages that act for p, in the chain's order
+// ({"centring", "stroke:anti_windup", "actuator", "linear_residual"}); what a candidate is written
+// as (core/ois/stabiliser_candidates.h).
+std::vector<std::string> stabiliserComposition(const StabiliserParameters& p);
+// The stage name of a token ("stroke" for "stroke:soft") and its variant ("soft"; "" for none).
+std::string stageOfToken(const std::string& token);
+std::string variantOfToken(const std::string& token);
 
 // The runners of every stage that acts for p, in the chain's order.
 std::vector<std::unique_ptr<StabiliserStageRunner>> stabiliserRunners(

@@ -37,11 +37,9 @@ const StabiliserStage& actuatorCouplingStage() {
       "the image shift mixes the actuator's axes: (a_x + c_xy a_y, a_y + c_yx a_x); 0 = none",
       true,
       {{"actuator_coupling", "actuator coupling c_xy", "", false, -0.5, 0.5, 1e-4,
-        stabiliser_mechanism::kActuatorCoupling,
         [](const StabiliserParameters& p) { return p.actuator_coupling.x(); },
         [](StabiliserParameters* p, double value) { p->actuator_coupling.x() = value; }, coupled},
        {"actuator_coupling", "actuator coupling c_yx", "", false, -0.5, 0.5, 1e-4,
-        stabiliser_mechanism::kActuatorCoupling,
         [](const StabiliserParameters& p) { return p.actuator_coupling.y(); },
         [](StabiliserParameters* p, double value) { p->actuator_coupling.y() = value; }, coupled}},
       {"actuator_coupling"},
@@ -68,7 +66,10 @@ const StabiliserStage& actuatorCouplingStage() {
       nullptr,
       [](const StabiliserParameters& p, const StabiliserRunContext& context) {
         return coupled(p) ? stage_numerics::runner<ActuatorCouplingRunner>(p, context) : nullptr;
-      }};
+      },
+      [](const StabiliserParameters& p) { return std::string(coupled(p) ? "actuator_coupling" : ""); },
+      // Starts at none: the chain itself, its gain then mapping into the stroke's axes.
+      [](StabiliserParameters* p, const char*) { p->actuator_coupling.setZero(); }};
   return stage;
 }
 

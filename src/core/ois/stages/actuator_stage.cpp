@@ -63,14 +63,14 @@ const StabiliserStage& actuatorStage() {
       "the lens follows the command through a second-order position loop (natural frequency, "
       "damping) acting on commands as old as the sensor lag",
       true,
-      {{"actuator_natural_hz", "actuator natural frequency", "Hz", true, 2.0, 500.0, 1e-3, "",
+      {{"actuator_natural_hz", "actuator natural frequency", "Hz", true, 2.0, 500.0, 1e-3,
         [](const StabiliserParameters& p) { return p.actuator_natural_hz; },
         [](StabiliserParameters* p, double value) { p->actuator_natural_hz = value; }, nullptr},
-       {"actuator_damping", "actuator damping", "", true, 0.05, 5.0, 1e-3, "",
+       {"actuator_damping", "actuator damping", "", true, 0.05, 5.0, 1e-3,
         [](const StabiliserParameters& p) { return p.actuator_damping; },
         [](StabiliserParameters* p, double value) { p->actuator_damping = value; }, nullptr},
        // Fitted in milliseconds (a step of 0.01 ms), linear: a lag of 0 is a module's own.
-       {"sensor_lag_s", "sensor lag", "ms", false, 0.0, 50.0, 1e-2, "",
+       {"sensor_lag_s", "sensor lag", "ms", false, 0.0, 50.0, 1e-2,
         [](const StabiliserParameters& p) { return 1000.0 * p.sensor_lag_s; },
         [](StabiliserParameters* p, double value) { p->sensor_lag_s = value / 1000.0; }, nullptr}},
       {"actuator_natural_hz", "actuator_damping", "sensor_lag_s"},
@@ -98,7 +98,8 @@ const StabiliserStage& actuatorStage() {
         return why.str();
       },
       nullptr,
-      stage_numerics::runner<ActuatorRunner>};
+      stage_numerics::runner<ActuatorRunner>,
+      [](const StabiliserParameters&) { return std::string("actuator"); }, nullptr};
   return stage;
 }
 

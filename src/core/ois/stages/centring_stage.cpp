@@ -40,6 +40,8 @@ class CentringRunner final : public StabiliserStageRunner {
     }
     signal.raw_command_px =
         focal_px_ * (gain_ * Eigen::Vector2d(std::tan(theta.x()), std::tan(theta.y())));
+    // Until a stroke or an actuator after it acts.
+    signal.command_px = signal.lens_px = signal.raw_command_px;
   }
 
  private:
@@ -60,7 +62,6 @@ FittedStabiliserParameter gainEntry(const char* name) {
           -kInf,
           kInf,
           1e-4,
-          "",
           [](const StabiliserParameters& p) { return p.gain(kRow, kCol); },
           [](StabiliserParameters* p, double value) { p->gain(kRow, kCol) = value; },
           nullptr};
@@ -76,7 +77,7 @@ const StabiliserStage& centringStage() {
       true,
       {gainEntry<0, 0>("gain_xx"), gainEntry<0, 1>("gain_xy"), gainEntry<1, 0>("gain_yx"),
        gainEntry<1, 1>("gain_yy"),
-       {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3, "",
+       {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3,
         [](const StabiliserParameters& p) { return p.highpass_corner_hz; },
         [](StabiliserParameters* p, double value) { p->highpass_corner_hz = value; }, nullptr}},
       {"gain", "highpass_corner_hz"},
@@ -102,7 +103,8 @@ const StabiliserStage& centringStage() {
         return why.str();
       },
       nullptr,
-      stage_numerics::runner<CentringRunner>};
+      stage_numerics::runner<CentringRunner>,
+      [](const StabiliserParameters&) { return std::string("centring"); }, nullptr};
   return stage;
 }
 

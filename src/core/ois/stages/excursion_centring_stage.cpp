@@ -41,7 +41,6 @@ const StabiliserStage& excursionCentringStage() {
       "k e^2); k = 0 is a fixed corner",
       true,
       {{"excursion_centring", "excursion-dependent re-centring", "", true, 1e-3, 100.0, 1e-3,
-        stabiliser_mechanism::kExcursionCentring,
         [](const StabiliserParameters& p) { return p.excursion_centring; },
         [](StabiliserParameters* p, double value) { p->excursion_centring = value; },
         [](const StabiliserParameters& p) { return p.excursion_centring > 0.0; }}},
@@ -66,7 +65,12 @@ const StabiliserStage& excursionCentringStage() {
         return p.excursion_centring > 0.0
                    ? stage_numerics::runner<ExcursionCentringRunner>(p, context)
                    : nullptr;
-      }};
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.excursion_centring > 0.0 ? "excursion_centring" : "");
+      },
+      // Starts from k = 1 (its fit's bound 0.001 is named when it wants none).
+      [](StabiliserParameters* p, const char* variant) { p->excursion_centring = variant ? 1.0 : 0.0; }};
   return stage;
 }
 

@@ -134,7 +134,11 @@ const StabiliserStage& learnedLensDynamicsStage() {
         return p.learned_dynamics.active()
                    ? stage_numerics::runner<LearnedLensDynamicsRunner>(p, context)
                    : nullptr;
-      }};
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.learned_dynamics.active() ? "learned_lens_dynamics" : "");
+      },
+      nullptr};
   return stage;
 }
 

@@ -184,7 +184,12 @@ const StabiliserStage& learnedResidualStage() {
         return p.nonlinear_features.empty()
                    ? nullptr
                    : stage_numerics::runner<LearnedResidualRunner>(p, context);
-      }};
+      },
+      [](const StabiliserParameters& p) {
+        return p.nonlinear_features.empty() ? std::string()
+                                            : "learned_residual:" + p.nonlinear_features;
+      },
+      nullptr};
   return stage;
 }
 

@@ -101,7 +101,11 @@ const StabiliserStage& linearResidualStage() {
         return p.residual_time_constants_s.empty()
                    ? nullptr
                    : stage_numerics::runner<LinearResidualRunner>(p, context);
-      }};
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.residual.size() != 0 ? "linear_residual" : "");
+      },
+      nullptr};
   return stage;
 }
 

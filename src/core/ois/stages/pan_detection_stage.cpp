@@ -53,7 +53,6 @@ const StabiliserStage& panDetectionStage() {
       "with the release corner; below 0.7 x the threshold it holds again",
       true,
       {{"pan_release_corner_hz", "pan release corner", "Hz", true, 0.05, 100.0, 1e-3,
-        stabiliser_mechanism::kPanDetection,
         [](const StabiliserParameters& p) { return p.pan_release_corner_hz; },
         [](StabiliserParameters* p, double value) { p->pan_release_corner_hz = value; },
         [](const StabiliserParameters& p) { return p.pan_detection_rate_rad_s > 0.0; }}},
@@ -87,7 +86,11 @@ const StabiliserStage& panDetectionStage() {
       [](const StabiliserParameters& p, const StabiliserRunContext& context) {
         return p.pan_detection_rate_rad_s > 0.0 ? stage_numerics::runner<PanDetectionRunner>(p, context)
                                                 : nullptr;
-      }};
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.pan_detection_rate_rad_s > 0.0 ? "pan_detection" : "");
+      },
+      nullptr};
   return stage;
 }
 

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
@@ -66,6 +68,7 @@ class StrokeRunner final : public StabiliserStageRunner {
       raw_command = signal.command_px;
     }
     signal.excursion_sq = (raw_command.cwiseQuotient(stroke_px_)).squaredNorm();
+    signal.lens_px = signal.command_px;  // until an actuator after it moves the lens
   }
 
  private:
@@ -85,10 +88,10 @@ const StabiliserStage& strokeStage() {
       "it), at an end stop or softly (tanh); at an end stop the integrator winds up or is held "
       "(anti-windup)",
       true,
-      {{"stroke_x_deg", "stroke x", "deg", true, 0.02, 20.0, 1e-3, "",
+      {{"stroke_x_deg", "stroke x", "deg", true, 0.02, 20.0, 1e-3,
         [](const StabiliserParameters& p) { return p.stroke_x_deg; },
         [](StabiliserParameters* p, double value) { p->stroke_x_deg = value; }, nullptr},
-       {"stroke_y_deg", "stroke y", "deg", true, 0.02, 20.0, 1e-3, "",
+       {"stroke_y_deg", "stroke y", "deg", true, 0.02, 20.0, 1e-3,
         [](const StabiliserParameters& p) { return p.stroke_y_deg; },
         [](StabiliserParameters* p, double value) { p->stroke_y_deg = value; }, nullptr}},
       {"stroke_x_deg", "stroke_y_deg", "circular_stroke", "soft_stroke", "anti_windup"},
@@ -123,7 +126,17 @@ const StabiliserStage& strokeStage() {
         return why.str();
       },
       nullptr,
-      stage_numerics::runner<StrokeRunner>};
+      stage_numerics::runner<StrokeRunner>,
+      [](const StabiliserParameters& p) {
+        return std::string(p.soft_stroke ? "stroke:soft" : p.anti_windup ? "stroke:anti_windup" : "stroke");
+      },
+      [](StabiliserParameters* p, const char* variant) {
+        const std::string v = variant ? variant : "";
+        if (v != "" && v != "soft" && v != "anti_windup")
+          throw std::invalid_argument("stroke: no variant '" + v + "' (soft, anti_windup)");
+        p->soft_stroke = v == "soft";
+        p->anti_windup = v == "anti_windup";
+      }};
   return stage;
 }
 
