@@ -7,7 +7,7 @@
 //  - "physical": the fitted chain alone;
 //  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
 //    returns);
-//  - the chain with a better structure, refitted (refitStabiliserStructure): an integrator held at
+//  - the chain with a better structure, refitted (refitStabiliserStages): an integrator held at
 //    the end stop (anti-windup), a re-centring corner that grows with the excursion, both; the
 //    stroke in the actuator's own axes with a cross-coupling after the actuator (a turned or
 //    coupled mount); a soft stroke (stroke x tanh(u / stroke)) instead of an end stop, alone and
@@ -16,7 +16,9 @@
 //    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
 //    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,
 //    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
-//    or estimator the chain does not name; and both (excursion_rate_v1).
+//    or estimator the chain does not name; and both (excursion_rate_v1);
+//  - a linear filter of free order of the three gyro axes (the linear_dynamics stage) instead of
+//    the centring, before the fitted stroke (with or without its actuator), fitted in closed form.
 // Pure C++/Eigen: no ROS.
 #pragma once
 
