@@ -39,6 +39,7 @@ set(NUMERIC_predict_lens "--warm-up;1s")
 set(NUMERIC_benchmark_online_learning "--window;10s")
 set(NUMERIC_benchmark_online_calibration "--window;10s")
 set(NUMERIC_benchmark_lens_dynamics "--count;4.5")
+set(NUMERIC_benchmark_linear_dynamics "--count;4.5")
 set(NUMERIC_pretrain_lens_model "--iterations;10x")
 
 set(failures "")

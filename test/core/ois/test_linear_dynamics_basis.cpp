@@ -156,9 +156,11 @@ TEST(LinearDynamicsFit, RecoversTheSimulatorsKalmanStabiliser) {
   const sim::StabiliserDesign design = kalmanDesign();
   const double stroke_focal = std::tan(1.5 * kPi / 180.0);
   LinearDynamicsBasisSpec spec;
+  // A slow pole for the estimator (0.5 Hz) and a fast one for the actuator (40 Hz): a Laguerre
+  // basis at either alone needs far more functions (at 1 Hz x 8: R^2 0.9956; 2 Hz x 20: 0.99988).
   spec.pole_hz = 1.0;
-  spec.order = 8;
-  spec.second_pole_hz = 30.0;
+  spec.second_pole_hz = 10.0;
+  spec.order = 16;
   const double step_s = 1e-3;
   // Samples after the first 2 s (the Kalman gain settles from its initial covariance) and inside
   // 80 % of the stroke.
@@ -191,9 +193,11 @@ TEST(LinearDynamicsFit, RecoversTheSimulatorsKalmanStabiliser) {
   const double total = (test_y.rowwise() - mean).squaredNorm();
   const double r2 = 1.0 - (test_y - predicted).squaredNorm() / total;
   EXPECT_GT(r2, 0.999) << "held-out R^2";
-  // The lens follows the turn about y in x and against the turn about x in y: the fit found the
-  // axes (the z functions carry almost nothing).
-  EXPECT_LT(c.block(0, 2 * spec.order, 2, spec.order).norm(), 0.05 * c.norm());
+  // The design's gyro is not turned against the camera: the roll functions carry almost nothing
+  // of the predicted lens.
+  const Eigen::MatrixXd from_roll =
+      test_x.middleCols(2 * spec.order, spec.order) * c.middleCols(2 * spec.order, spec.order).transpose();
+  EXPECT_LT(from_roll.norm(), 0.01 * predicted.norm());
 }
 
 TEST(LinearDynamicsFit, RefusesBadInputNamingIt) {
