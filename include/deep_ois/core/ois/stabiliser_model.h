@@ -22,8 +22,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/ois/lens_actuator.h"
 #include "deep_ois/core/ois/lens_dynamics_network.h"
+#include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/stabiliser_signal.h"
 
 namespace deep_ois {
 
@@ -40,6 +41,15 @@ struct LearnedLensDynamics {
   // turned against the designs'); the identity unless the adaptation fitted it.
   Eigen::Matrix2d output_map = Eigen::Matrix2d::Identity();
   bool active() const { return network != nullptr; }
+};
+
+// The linear-dynamics stage's values (src/core/ois/stages/linear_dynamics_stage.cpp): raw command
+// += focal_px * coefficients * the state of an orthonormal basis of the three gyro axes
+// (core/ois/linear_dynamics_basis.h).
+struct LinearDynamicsValues {
+  LinearDynamicsBasisSpec basis;
+  Eigen::MatrixXd coefficients;  // 2 x 3 basis.order (focal units per basis state); empty = off
+  bool active() const { return coefficients.size() != 0; }
 };
 
 struct StabiliserParameters {
@@ -96,6 +106,12 @@ struct StabiliserParameters {
   std::string nonlinear_features;
   Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
   LearnedLensDynamics learned_dynamics;
+  LinearDynamicsValues linear_dynamics;
+  // The model's stages by name, when it is not the default chain ({"linear_dynamics", "stroke",
+  // "actuator"}: no centring); only these run (each still only when its values make it act).
+  // Empty: every stage whose values make it act (centring, stroke and actuator always), as every
+  // file before the key.
+  std::vector<std::string> stages;
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
@@ -149,27 +165,24 @@ class LensShiftPredictor {
   // Keeps the learned stage's state (the network's hidden vector and, with a skip path, its
   // inputs; extrapolated between its steps as its lens is) of every retained step, and answers it like lensShiftAt: the features a refit
   // of the network's output layer regresses on (core/ois/lens_dynamics_adaptation.h).
-  void recordLearnedState() { record_learned_ = true; }
+  void recordLearnedState() {
+    record_learned_ = true;
+    signal_.want_learned_state = true;
+  }
   Eigen::VectorXd learnedStateAt(double t_s) const;
 
   double max_gap_s = 0.1;
 
  private:
-  // One internal step: the rate at its middle (the chain) and at its end (the learned stage, which
-  // reads the rate at its own step times).
+  // One internal step: the rate at its middle (the chain) and at its end (a stage that reads the
+  // rate at its own step times): the stages' runners in the chain's order.
   void step(const Eigen::Vector3d& rate_rad_s, const Eigen::Vector3d& end_rate_rad_s);
 
-  StabiliserParameters parameters_;
-  double focal_px_;
   double step_s_;
   std::size_t history_steps_;
-  // Per-step constants.
-  double decay_hold_ = 1.0, weight_hold_ = 0.0, decay_pan_ = 1.0, weight_pan_ = 0.0;
-  double pan_smoothing_ = 0.0;
-  Eigen::Vector2d stroke_px_;
-  std::vector<double> residual_decay_, residual_weight_;
-  std::size_t lag_steps_ = 0;  // whole steps of sensor lag
-  double lag_fraction_ = 0.0;   // and the fraction of one more
+  // The stages that act for the parameters (core/ois/stabiliser_stage.h) and their signal.
+  std::vector<std::unique_ptr<StabiliserStageRunner>> runners_;
+  StabiliserSignal signal_;
 
   // State.
   bool started_ = false;
@@ -178,34 +191,10 @@ class LensShiftPredictor {
   double start_s_ = 0.0;      // stamp of the first sample since the last reset
   long long steps_ = 0;       // internal steps since then
   double clock_s_ = 0.0;      // time of the newest internal step: start_s_ + steps_ * step_s_
-  Eigen::Vector2d theta_ = Eigen::Vector2d::Zero();
-  double smoothed_rate_ = 0.0;
-  bool panning_ = false;
-  std::vector<Eigen::Vector2d> residual_state_;  // per time constant, (x, y) leaky rate integral
-  std::deque<Eigen::Vector2d> pending_commands_;
-  LensActuator actuator_x_, actuator_y_;
   std::deque<Eigen::Vector2d> shifts_;  // lens shift at clock_s_ - (size - 1 - j) * step_s_
-  // Nonlinear residual: per time constant the leaky integral of the excursion-weighted command.
-  std::vector<double> nonlinear_decay_, nonlinear_weight_;
-  std::vector<Eigen::Vector2d> nonlinear_state_;
-  bool excursion_features_ = false;
-  std::vector<double> rate_bank_decay_, rate_bank_weight_;
-  std::vector<Eigen::Vector2d> rate_bank_state_;
-  Eigen::VectorXd features_;
   bool record_features_ = false;
-  // Anti-windup: the inverse of the gain (valid when the gain is invertible) maps the limited
-  // command back to the angle.
-  bool anti_windup_ = false;
-  Eigen::Matrix2d inverse_gain_ = Eigen::Matrix2d::Zero();
-  double excursion_sq_ = 0.0;  // e^2 of the last step's command (excursion_centring)
   std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
-  // The learned stage: its runner, updated every learned_every_steps_ internal steps, and its last
-  // two outputs (focal units, through the output map) for the steps in between.
-  std::optional<LensDynamicsRunner> learned_;
-  long long learned_every_steps_ = 0;
-  Eigen::Vector2d learned_last_ = Eigen::Vector2d::Zero(), learned_before_ = Eigen::Vector2d::Zero();
   bool record_learned_ = false;
-  Eigen::VectorXd hidden_last_, hidden_before_;
   std::deque<Eigen::VectorXd> learned_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };
