@@ -347,7 +347,10 @@ int main(int argc, char** argv) {
     trace_options.focal_px = settings.focal_px;
     deep_ois::StabiliserFitOptions fit_options;
     fit_options.check_timing = false;
+    // The chain column is the package's chain without the linear-dynamics rows this tool scores
+    // on its own (else "chain" would already hold them).
     deep_ois::StabiliserCandidateKinds kinds;
+    kinds.linear_dynamics = false;
 
     std::printf("%-6s %-22s %8s %8s %8s %8s %8s %7s %7s %7s %7s  %s\n", "design", "class", "none px", "log px",
                 "images", "chain", "oracle", "log %", "img %", "chain %", "orac %", "log basis / images basis");
