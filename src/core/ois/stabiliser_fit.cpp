@@ -18,39 +18,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// Observations of a recording sorted by t_b (the order the predictor can answer them in).
-std::vector<std::size_t> orderByEnd(const std::vector<LensMotionObservation>& observations) {
-  std::vector<std::size_t> order(observations.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return observations[a].t_b_s < observations[b].t_b_s;
-  });
-  return order;
-}
-
-// Runs `sample(predictor, observation index)` for every observation the predictor covers after
-// the warm-up, feeding the gyro stream up to each observation's end.
-template <typename Visit>
-void runOver(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
-             double step_s, double warm_up_s, Visit visit) {
-  if (recording.rates.empty()) return;
-  double span = 0.0;
-  for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
-  LensShiftPredictor predictor(parameters, recording.focal_px, step_s, std::max(0.25, 2.0 * span));
-  predictor.max_gap_s = std::numeric_limits<double>::infinity();  // the recording's own gaps: fed
-  const double usable_from = recording.rates.front().stamp_s + warm_up_s;
-  std::size_t next_rate = 0;
-  for (std::size_t index : orderByEnd(recording.observations)) {
-    const LensMotionObservation& o = recording.observations[index];
-    while (next_rate < recording.rates.size() &&
-           (!predictor.started() || predictor.newestStamp() < o.t_b_s)) {
-      predictor.addRate(recording.rates[next_rate++]);
-    }
-    if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
-    visit(predictor, index);
-  }
-}
-
 // The parameters a Levenberg-Marquardt refinement moves, as an unconstrained vector: the fitted
 // parameters (core/ois/stabiliser_stage.h), named and bounded there, of the stages being fitted,
 // in the stages' order: the chain's (centring, stroke, actuator) always, and those named (stage
@@ -107,7 +74,7 @@ Residuals residualsOf(const StabiliserParameters& parameters,
   Residuals result;
   for (const StabiliserFitRecording& recording : recordings) {
     std::size_t used_here = 0;
-    runOver(parameters, recording, options.step_s, options.warm_up_s,
+    visitCoveredObservations(parameters, recording, options.step_s, options.warm_up_s,
             [&](const LensShiftPredictor& predictor, std::size_t index) {
               const LensMotionObservation& o = recording.observations[index];
               const Eigen::Vector2d r =
@@ -224,7 +191,7 @@ class ResidualBank {
     // Physical predictions first (the bank fits what they leave).
     std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
                                            Eigen::Vector2d::Constant(kNaN));
-    runOver(physical, recording, step_s_, warm_up_s,
+    visitCoveredObservations(physical, recording, step_s_, warm_up_s,
             [&](const LensShiftPredictor& predictor, std::size_t index) {
               const LensMotionObservation& o = recording.observations[index];
               predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
@@ -579,12 +546,39 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotio
   return review;
 }
 
+void visitCoveredObservations(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+                              double step_s, double warm_up_s,
+                              const std::function<void(const LensShiftPredictor&, std::size_t)>& visit,
+                              const std::function<void(LensShiftPredictor&)>& prepare) {
+  if (recording.rates.empty() || recording.observations.empty()) return;
+  double span = 0.0;
+  for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
+  LensShiftPredictor predictor(parameters, recording.focal_px, step_s, std::max(0.25, 2.0 * span));
+  predictor.max_gap_s = std::numeric_limits<double>::infinity();  // the recording's own gaps: fed
+  if (prepare) prepare(predictor);
+  // The observations by t_b: the order in which the predictor can answer them.
+  std::vector<std::size_t> order(recording.observations.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return recording.observations[a].t_b_s < recording.observations[b].t_b_s;
+  });
+  const double usable_from = recording.rates.front().stamp_s + warm_up_s;
+  std::size_t next_rate = 0;
+  for (std::size_t index : order) {
+    const LensMotionObservation& o = recording.observations[index];
+    while (next_rate < recording.rates.size() && (!predictor.started() || predictor.newestStamp() < o.t_b_s))
+      predictor.addRate(recording.rates[next_rate++]);
+    if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
+    visit(predictor, index);
+  }
+}
+
 std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
                                                const StabiliserFitRecording& recording,
                                                double step_s, double warm_up_s) {
   std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
                                          Eigen::Vector2d::Constant(kNaN));
-  runOver(parameters, recording, step_s, warm_up_s,
+  visitCoveredObservations(parameters, recording, step_s, warm_up_s,
           [&](const LensShiftPredictor& predictor, std::size_t index) {
             const LensMotionObservation& o = recording.observations[index];
             predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);

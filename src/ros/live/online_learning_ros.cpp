@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <sstream>
 
 #include <deep_ois/CompensationPairCheck.h>
@@ -70,7 +71,15 @@ OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParam
   } else {
     diagnostics_.setValue("online calibration", "off (~online_calibration)");
   }
+  // The learner's figures change while no pair comes (a fit ends after a bag stops or pauses):
+  // refreshed on /diagnostics' own period as well as every 15 pairs, so that they are never stale.
+  diagnostics_timer_ = nh_.createWallTimer(ros::WallDuration(diagnostics_.periodS()), [this](const ros::WallTimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    updateDiagnostics();
+  });
 }
+
+OnlineLearningRos::~OnlineLearningRos() { diagnostics_timer_.stop(); }
 
 void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   learner_.reset();  // its threads stop before the calibration restarts for this camera
@@ -151,6 +160,7 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
 }
 
 void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensator& compensator) {
+  std::lock_guard<std::mutex> lock(mutex_);
   const bool new_camera = !learner_ || gyro.header.frame_id != frame_id_ ||
                           learnedModelPath(params_.learning_dir, params_.learning_key, gyro) != model_path_;
   if (new_camera) {
@@ -182,6 +192,7 @@ void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensat
 void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                                   const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
                                   const std::vector<Eigen::Matrix3d>& gyro_homographies) {
+  std::lock_guard<std::mutex> lock(mutex_);
   if (!learner_) return;
   ++pairs_;
   if (!trackableEncoding(image_a->encoding) || !trackableEncoding(image_b->encoding)) {
@@ -209,7 +220,7 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.image_b = alive->b->image;
     pair.keep_alive = alive;
     // Before the submit: the tracking thread looks up the lens the compensation used for the pair.
-    if (calibration_) calibration_->rememberLens(gyro, result, fallingBack() || result.homographies.empty());
+    if (calibration_) calibration_->rememberLens(gyro, result, fallingBackLocked() || result.homographies.empty());
     learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
   }
   if (calibration_) calibration_->afterPair(gyro);
@@ -247,15 +258,22 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
 }
 
 bool OnlineLearningRos::fallingBack() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return fallingBackLocked();
+}
+
+bool OnlineLearningRos::fallingBackLocked() const {
   return params_.fallback_to_gyro && learner_ && learner_->fallingBack();
 }
 
 void OnlineLearningRos::timeWentBack() {
+  std::lock_guard<std::mutex> lock(mutex_);
   if (learner_) learner_->restartTimeline();
   if (calibration_) calibration_->timeWentBack();
 }
 
 void OnlineLearningRos::setLearning(bool on, double cpu_share) {
+  std::lock_guard<std::mutex> lock(mutex_);
   params_.learning = on;
   params_.learning_cpu_share = cpu_share;
   if (!learner_) return;
@@ -263,7 +281,16 @@ void OnlineLearningRos::setLearning(bool on, double cpu_share) {
   learner_->setCpuShare(cpu_share);
 }
 
-bool OnlineLearningRos::waitIdle(double timeout_s) { return !learner_ || learner_->waitIdle(timeout_s); }
+bool OnlineLearningRos::waitIdle(double timeout_s) {
+  OnlineStabiliserLearner* learner = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    learner = learner_.get();
+  }
+  // Not under the lock: the pairs keep coming while this waits (the learner lives until the next
+  // camera, which the caller does not switch to meanwhile).
+  return !learner || learner->waitIdle(timeout_s);
+}
 
 void OnlineLearningRos::updateDiagnostics() {
   if (!learner_) return;

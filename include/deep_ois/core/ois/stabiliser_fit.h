@@ -13,6 +13,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -166,5 +168,15 @@ StabiliserParameters noLensMotion();
 std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
                                                const StabiliserFitRecording& recording,
                                                double step_s = 1e-3, double warm_up_s = 1.0);
+
+// How the fit and every closed-form stage fit see a recording: a predictor of `parameters` fed
+// `recording`'s gyro (its own gaps fed, not restarted) in the order of the observations' ends, and
+// `visit(predictor, observation index)` for each observation past the warm-up whose two ends the
+// predictor covers. `prepare`, when given, runs on the new predictor before the first rate (for
+// example to record its features or its learned state).
+void visitCoveredObservations(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+                              double step_s, double warm_up_s,
+                              const std::function<void(const LensShiftPredictor&, std::size_t)>& visit,
+                              const std::function<void(LensShiftPredictor&)>& prepare = {});
 
 }  // namespace deep_ois

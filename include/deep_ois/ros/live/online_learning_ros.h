@@ -18,6 +18,7 @@
 
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "deep_ois/core/online/online_stabiliser_learner.h"
@@ -40,6 +41,9 @@ class OnlineLearningRos {
   OnlineLearningRos(ros::NodeHandle nh, const CompensationParameters& params, StabiliserModelFile shipped,
                     LiveDiagnostics& diagnostics, const std::string& log_name,
                     std::function<void()> on_check_subscribers = {});
+  ~OnlineLearningRos();
+  OnlineLearningRos(const OnlineLearningRos&) = delete;
+  OnlineLearningRos& operator=(const OnlineLearningRos&) = delete;
 
   // Whether compensation_check has a subscriber.
   bool checksWanted() const { return check_pub_.getNumSubscribers() > 0; }
@@ -63,7 +67,13 @@ class OnlineLearningRos {
 
  private:
   void startFor(const GyroFlow& gyro);
-  void updateDiagnostics();
+  void updateDiagnostics();         // with mutex_ held
+  bool fallingBackLocked() const;  // with mutex_ held
+
+  // The pair callbacks and the /diagnostics timer run on the manager's worker threads: one lock
+  // for the learner (made anew per camera) and the counts said in the log.
+  mutable std::mutex mutex_;
+  ros::WallTimer diagnostics_timer_;
 
   ros::NodeHandle nh_;
   CompensationParameters params_;

@@ -122,26 +122,11 @@ std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lensAtObservations(
   const Eigen::Vector2d nan = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lens(recording.observations.size(),
                                                                 {nan, nan});
-  if (recording.rates.empty()) return lens;
-  double span = 0.0;
-  for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
-  LensShiftPredictor predictor(p, recording.focal_px, options.step_s, std::max(0.25, 2.0 * span));
-  predictor.max_gap_s = std::numeric_limits<double>::infinity();  // as the fit: gaps are fed
-  std::vector<std::size_t> order(recording.observations.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return recording.observations[a].t_b_s < recording.observations[b].t_b_s;
-  });
-  const double usable_from = recording.rates.front().stamp_s + options.warm_up_s;
-  std::size_t next_rate = 0;
-  for (std::size_t index : order) {
-    const LensMotionObservation& o = recording.observations[index];
-    while (next_rate < recording.rates.size() &&
-           (!predictor.started() || predictor.newestStamp() < o.t_b_s))
-      predictor.addRate(recording.rates[next_rate++]);
-    if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
-    lens[index] = {predictor.lensShiftAt(o.t_a_s), predictor.lensShiftAt(o.t_b_s)};
-  }
+  visitCoveredObservations(p, recording, options.step_s, options.warm_up_s,
+                           [&](const LensShiftPredictor& predictor, std::size_t index) {
+                             const LensMotionObservation& o = recording.observations[index];
+                             lens[index] = {predictor.lensShiftAt(o.t_a_s), predictor.lensShiftAt(o.t_b_s)};
+                           });
   return lens;
 }
 
