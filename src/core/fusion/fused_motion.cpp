@@ -106,6 +106,8 @@ std::string FusionOptions::validate() const {
     why << "consistency_sigmas must be positive (got " << consistency_sigmas << ")";
   else if (!(smoothness_px > 0.0) || !std::isfinite(smoothness_px))
     why << "smoothness_px must be positive (got " << smoothness_px << ")";
+  else if (!(min_sigma_px > 0.0) || !std::isfinite(min_sigma_px))
+    why << "min_sigma_px must be positive (got " << min_sigma_px << ")";
   else if (min_tracks < 1) why << "min_tracks must be at least 1 (got " << min_tracks << ")";
   else if (!(min_consistent_share >= 0.0 && min_consistent_share <= 1.0))
     why << "min_consistent_share must be in [0, 1] (got " << min_consistent_share << ")";
@@ -139,8 +141,6 @@ FusedMotion fuseMotion(const CameraModel& camera, const MotionPrior& prior, cons
   fused.tracks = static_cast<int>(matches.size());
   fused.prior_residual_px = fused.fused_residual_px = nan;
 
-  // The consistency test against the prior: far beyond its uncertainty is not this motion.
-  const double consistency_px = options.consistency_sigmas * std::hypot(prior.sigma_px, options.track_noise_px);
   // Undistorted in one call per frame (what per-frame code does: camera_model.h).
   std::vector<Eigen::Vector2d> a_px, b_px;
   std::vector<int> patch_of;
@@ -153,12 +153,35 @@ FusedMotion fuseMotion(const CameraModel& camera, const MotionPrior& prior, cons
   }
   camera.undistortPoints(a_px);
   camera.undistortPoints(b_px);
-  std::vector<Track> tracks;
+  std::vector<Track> all;
+  std::vector<double> prior_error_px;
   for (std::size_t k = 0; k < a_px.size(); ++k) {
     const Track track{patch_of[k], a_px[k], b_px[k]};
     const double error = (transfer(prior.homographies[track.patch], track.a_px) - track.b_px).norm();
-    if (std::isfinite(error) && error <= consistency_px) tracks.push_back(track);
+    if (!std::isfinite(error)) continue;
+    all.push_back(track);
+    prior_error_px.push_back(error);
   }
+  // The prior's uncertainty on this pair: the given sigma, or less where the pair's own tracks show
+  // the prior closer than that. The lower quartile of their transfer errors is 0.7585 sigma for a
+  // 2-D Gaussian error of sigma per axis (the tracks' noise included), and is robust to a moving
+  // object on up to three quarters of the tracks (the simulator's MF pairs often have more than half
+  // of their tracks on the object). A sigma from recent checks holds their moving objects too.
+  fused.sigma_px = prior.sigma_px;
+  if (!prior_error_px.empty()) {
+    std::vector<double> sorted = prior_error_px;
+    const std::size_t quartile = sorted.size() / 4;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(quartile), sorted.end());
+    const double scale_px = sorted[quartile] / 0.7585;
+    const double pair_sigma_px =
+        std::sqrt(std::max(0.0, scale_px * scale_px - options.track_noise_px * options.track_noise_px));
+    fused.sigma_px = std::min(prior.sigma_px, std::max(options.min_sigma_px, pair_sigma_px));
+  }
+  // The consistency test against the prior: far beyond its uncertainty is not this motion.
+  const double consistency_px = options.consistency_sigmas * std::hypot(fused.sigma_px, options.track_noise_px);
+  std::vector<Track> tracks;
+  for (std::size_t k = 0; k < all.size(); ++k)
+    if (prior_error_px[k] <= consistency_px) tracks.push_back(all[k]);
   fused.consistent_tracks = static_cast<int>(tracks.size());
   if (fused.tracks == 0) return priorKept(prior, fused, "no tracks");
   if (fused.consistent_tracks < options.min_tracks) {
@@ -192,7 +215,7 @@ FusedMotion fuseMotion(const CameraModel& camera, const MotionPrior& prior, cons
   Eigen::MatrixXd targets(rows, 2);
   Eigen::VectorXd weights(rows);
   const double track_weight = 1.0 / (options.track_noise_px * options.track_noise_px);
-  const double prior_weight = 1.0 / (prior.sigma_px * prior.sigma_px);
+  const double prior_weight = 1.0 / (fused.sigma_px * fused.sigma_px);
   const double smooth_weight = 1.0 / (options.smoothness_px * options.smoothness_px);
   for (int iteration = 0; iteration < options.iterations; ++iteration) {
     // In the second half of the passes, the tracks the fit cannot explain are out.

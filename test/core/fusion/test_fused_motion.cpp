@@ -144,6 +144,28 @@ TEST(FusedMotion, IgnoresAMovingObjectCoveringAThirdOfTheFrame) {
   }
 }
 
+// The object is textured and the background is not: most tracks are on the object, and the prior's
+// sigma comes from checks the object inflated too (1 px). The pair's own scale (its tracks' lower
+// quartile) keeps the object out.
+TEST(FusedMotion, IgnoresAMovingObjectThatHoldsMostTracks) {
+  const CameraModel camera = testCamera();
+  MotionPrior prior{priorHomographies(camera), 1.0};
+  const std::vector<Eigen::Matrix3d> truth = correctedMotion(camera, prior.homographies, trueCorrections());
+  const cv::Rect2d object(0.0, 0.2 * camera.height(), 0.55 * camera.width(), 0.55 * camera.height());
+  // Every object track and one background track in three: 56 % of the tracks on the object.
+  std::vector<FeatureMatch> matches;
+  int background = 0;
+  for (const FeatureMatch& m : syntheticTracks(camera, truth, 1200, 0.15, 21, object, Eigen::Vector2d(3.0, 2.0)))
+    if (object.contains(cv::Point2d(m.point_a_px.x, m.point_a_px.y)) || background++ % 3 == 0) matches.push_back(m);
+  int on_object = 0;
+  for (const FeatureMatch& m : matches) on_object += object.contains(cv::Point2d(m.point_a_px.x, m.point_a_px.y));
+  ASSERT_GT(on_object, 0.55 * matches.size());
+  const FusedMotion fused = fuseMotion(camera, prior, matches);
+  ASSERT_TRUE(fused.refined) << fused.reason;
+  EXPECT_LT(fused.sigma_px, 0.8);
+  EXPECT_LT(meanDistancePx(camera, fused.homographies, truth), 0.1) << fused.reason;
+}
+
 TEST(FusedMotion, TexturelessPairGivesThePrior) {
   const CameraModel camera = testCamera();
   MotionPrior prior{priorHomographies(camera), 0.6};

@@ -21,7 +21,8 @@
 // (fitLinearDynamicsCoefficients).
 //
 // Moving objects and mismatches are rejected twice: a track whose transfer error under the prior
-// lies far beyond the prior's uncertainty never enters (the consistency test), and the Cauchy loss
+// lies far beyond the prior's uncertainty (the given one, or the pair's own robust scale where that
+// is smaller) never enters (the consistency test), and the Cauchy loss
 // and a hard cut in the last passes drops the tracks the fit cannot explain. Too few
 // consistent tracks, a small share of them, or a fit that does not explain the tracks better than
 // the prior: the prior is returned unchanged (bit for bit), with the reason. Pure Eigen/OpenCV
@@ -62,6 +63,10 @@ struct FusionOptions {
   // A track whose transfer error under the prior exceeds consistency_sigmas * sqrt(sigma^2 +
   // noise^2) (sigma = the prior's, noise = track_noise_px) disagrees with the prior: left out.
   double consistency_sigmas = 3.0;
+  // The prior's sigma on a pair is the given one, or less where the lower quartile of the pair's
+  // transfer errors under the prior shows it closer (a sigma from recent checks also holds their
+  // moving objects); never below this, pixels.
+  double min_sigma_px = 0.05;
   // 1-sigma of the change of the correction between neighbouring patches, in pixels of image
   // displacement per component.
   double smoothness_px = 0.1;
@@ -91,6 +96,8 @@ struct FusedMotion {
   int tracks = 0;             // given
   int consistent_tracks = 0;  // within the prior's consistency test
   int inliers = 0;            // used by the final pass
+  // The prior's sigma used on this pair (options.min_sigma_px), pixels; the given one without tracks.
+  double sigma_px = 0.0;
   // How far the fused motion moved from the prior, over a grid of the frame, pixels (0: not refined).
   double mean_correction_px = 0.0;
   double max_correction_px = 0.0;
