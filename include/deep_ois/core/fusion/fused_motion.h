@@ -22,8 +22,8 @@
 //
 // Moving objects and mismatches are rejected twice: a track whose transfer error under the prior
 // lies far beyond the prior's uncertainty (the given one, or the pair's own robust scale where that
-// is smaller) never enters (the consistency test), and the Cauchy loss
-// and a hard cut in the last passes drops the tracks the fit cannot explain. Too few
+// is smaller) never enters (the consistency test), and the Cauchy loss with a hard cut in the last
+// passes drops the tracks the fit cannot explain. Too few
 // consistent tracks, a small share of them, or a fit that does not explain the tracks better than
 // the prior: the prior is returned unchanged (bit for bit), with the reason. Pure Eigen/OpenCV
 // types: no ROS, no torch.
@@ -44,8 +44,9 @@ namespace deep_ois {
 struct MotionPrior {
   std::vector<Eigen::Matrix3d> homographies;
   // The prior's 1-sigma transfer error at a pixel, per axis, pixels: e.g. the model residual of the
-  // compensation's recent per-pair checks (compensation_check.h), which also holds the tracks'
-  // noise and so errs on the safe side.
+  // compensation's recent per-pair checks (compensation_check.h; benchmark_fusion takes the median
+  // of the last 10), which also holds the tracks' noise and so errs on the large side; each pair
+  // lowers it to what its own tracks show (FusionOptions::min_sigma_px).
   double sigma_px = 0.5;
 };
 
