@@ -12,7 +12,7 @@ tools=(simulate sim_contact_sheet convert_recording annotate_pairs calibrate mak
   fundamental_mixtures train evaluate
   evaluate_fundamental_mixtures evaluate_lens_shift_ground_truth gyro_flow_summary bag_static_transforms
   live_rate_monitor recover_bag benchmark_gyro_flow benchmark_compensation benchmark_fundamental_mixtures
-  benchmark_simulator benchmark_online_learning benchmark_online_calibration)
+  benchmark_simulator benchmark_online_learning benchmark_online_calibration benchmark_fusion)
 listed="$(sed -n '/^set(DEEP_OIS_TOOLS/,/^endif()/p' "$repo/CMakeLists.txt" | tr -s ' ()\n' '\n' |
   grep -E '^[a-z_]+$' | grep -vE '^(set|if|endif|list|APPEND|DEEP_OIS_TOOLS|Torch_FOUND)$' | sort)"
 if [ "$listed" != "$(printf '%s\n' "${tools[@]}" | sort)" ]; then
