@@ -11,6 +11,7 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/pipeline/frame_pair_processor.h"
+#include "ois/known_stabiliser.h"
 
 namespace deep_ois {
 namespace {
@@ -18,19 +19,6 @@ namespace {
 constexpr double kFramePeriodS = 1.0 / 30.0;
 constexpr double kFirstStampS = 1.5;  // the first pair's frame a (after a second of gyro: the warm-up)
 constexpr int kPairs = 24;
-
-// A stabiliser with every usual part (the shape of core/ois tests' known stabiliser).
-StabiliserParameters knownStabiliser() {
-  StabiliserParameters p;
-  p.gain << 0.0, 0.9, -1.05, 0.0;
-  p.highpass_corner_hz = 0.8;
-  p.actuator_natural_hz = 30.0;
-  p.actuator_damping = 0.6;
-  p.sensor_lag_s = 0.002;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 1.2;
-  return p;
-}
 
 // A hand-held camera: a few sines per axis (IMU frame, rad/s).
 Eigen::Vector3d angularVelocity(double t_s) {
