@@ -10,7 +10,6 @@
 
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
-#include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
 #include "deep_ois/core/pipeline/frame_pair_processor.h"
 #include "deep_ois/ros/live/callback_guard.h"

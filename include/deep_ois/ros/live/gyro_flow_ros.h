@@ -24,7 +24,6 @@
 #include "deep_ois/core/common/drop_tally.h"
 #include "deep_ois/core/common/stamp_clock_check.h"
 #include "deep_ois/core/gyro/frame_pair_rules.h"
-#include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/ois/lens_shift_log.h"
 #include "deep_ois/core/pipeline/frame_pair_processor.h"
