@@ -26,6 +26,7 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "known_stabiliser.h"
 
 namespace deep_ois {
 namespace {
@@ -51,18 +52,6 @@ std::vector<CameraRateSample> shake(double t0, double duration_s, unsigned seed)
     rates.push_back(sample);
   }
   return rates;
-}
-
-StabiliserParameters knownStabiliser() {
-  StabiliserParameters p;
-  p.gain << 0.0, 0.9, -1.05, 0.0;
-  p.highpass_corner_hz = 0.8;
-  p.actuator_natural_hz = 30.0;
-  p.actuator_damping = 0.6;
-  p.sensor_lag_s = 0.002;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 1.2;
-  return p;
 }
 
 TEST(LensShiftPredictor, FeedingFrameByFrameCarriesTheStateExactly) {

@@ -1,7 +1,8 @@
 // The compensation nodelet's stabiliser-model path: a GyroFlow message in, the compensated
-// per-patch homographies and the compensated flow on the message's grid out. It carries the
-// learned stabiliser's state (core/ois/stabiliser_compensator.h) from message to message on the
-// gyro stream the messages carry (GyroFlow.angular_velocity*). Torch-free.
+// per-patch homographies and the compensated flow on the message's grid out. It reads the message
+// into a frame pair for the frame-pair processor (core/pipeline/frame_pair_processor.h), which
+// carries the learned stabiliser's state from message to message on the gyro stream the messages
+// carry (GyroFlow.angular_velocity*). Torch-free.
 #pragma once
 
 #include <Eigen/Core>
@@ -16,6 +17,7 @@
 #include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
+#include "deep_ois/core/pipeline/frame_pair_processor.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include <deep_ois/GyroFlow.h>
 
@@ -37,7 +39,8 @@ struct StabiliserFlowResult {
 
 class StabiliserFlowCompensator {
  public:
-  explicit StabiliserFlowCompensator(StabiliserModelFile model) : model_(std::move(model)) {}
+  explicit StabiliserFlowCompensator(StabiliserModelFile model)
+      : model_(std::move(model)), processor_(model_.parameters) {}
 
   // Feeds the message's gyro stream and compensates its pair. A message without a gyro stream (an
   // older publisher) or whose stream does not cover the pair is not ok, with the reason.
@@ -51,30 +54,26 @@ class StabiliserFlowCompensator {
   // next message, warmed up on the gyro history it carries.
   void setModel(StabiliserModelFile model) {
     model_ = std::move(model);
-    compensator_.reset();
+    processor_.setModel(model_.parameters);
   }
-  int stateResets() const { return compensator_ ? compensator_->stateResets() : 0; }
-  int timeJumps() const { return compensator_ ? compensator_->timeJumps() : 0; }
+  int stateResets() const { return processor_.stateResets(); }
+  int timeJumps() const { return processor_.timeJumps(); }
   // Applied calibrations (GyroFlow.calibration_epoch changed) the state was carried across, and of
   // those the ones that moved back beyond the model's history (restarted).
-  int calibrationChanges() const { return compensator_ ? compensator_->calibrationChanges() : 0; }
-  int calibrationRestarts() const { return compensator_ ? compensator_->calibrationRestarts() : 0; }
+  int calibrationChanges() const { return processor_.calibrationChanges(); }
+  int calibrationRestarts() const { return processor_.calibrationRestarts(); }
 
  private:
-  // The compensator for the message's camera (rebuilt when K changes), restarted when time went
-  // back (*time_jump_back_s, seconds), then fed with the message's gyro stream. A message of
-  // another calibration epoch than the last moved its IMU times by the change of time_offset:
-  // that is told to the compensator, which carries its state across.
-  StabiliserCompensator& compensatorFor(const GyroFlow& msg, std::string* problem,
-                                        double* time_jump_back_s);
+  // The message's pair for the processor: its timing, camera and gyro stream (both must outlive
+  // the pair) and, from a new calibration epoch, how far the applied calibration moved the frames'
+  // IMU times (remembers the message's epoch).
+  FramePair pairOf(const GyroFlow& msg, const CameraModel& camera, const std::vector<CameraRateSample>& rates);
 
   StabiliserModelFile model_;
-  std::unique_ptr<StabiliserCompensator> compensator_;
-  Eigen::Matrix3d K_ = Eigen::Matrix3d::Zero();
+  FramePairProcessor processor_;
   // The calibration of the last message (GyroFlow.calibration_epoch and time_offset, seconds).
   std::optional<std::uint32_t> last_epoch_;
   double last_time_offset_s_ = 0.0;
-  std::unique_ptr<HomographyFlowRenderer> renderer_;
 };
 
 }  // namespace deep_ois
