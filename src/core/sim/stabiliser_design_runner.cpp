@@ -13,51 +13,31 @@ namespace deep_ois {
 namespace sim {
 
 StabiliserParameters designModel(const StabiliserDesign& design) {
+  // Each stage's values in the order its struct declares them (core/ois/stabiliser_model.h).
+  const GyroMountStage& mount = design.mount;
+  const EstimatorStage& estimator = design.estimator;
+  const ModeStage& mode = design.mode;
+  const GainStage& gain = design.gain;
+  const StrokeStage& stroke = design.stroke;
+  const ActuatorStage& actuator = design.actuator;
   StabiliserParameters p;
-  GyroLoopValues& loop = p.gyro_loop.emplace();
-  loop.roll_deg = design.mount.roll_deg;
-  loop.tilt_deg = design.mount.tilt_deg;
-  loop.pan_deg = design.mount.pan_deg;
-  loop.rate_hz = design.loop.rate_hz;
-  loop.averaged = design.loop.sampling == GyroSampling::kAveraged;
-  MotionModeValues& mode = p.motion_mode.emplace();
-  mode.action = toString(design.mode.action);
-  mode.threshold_rad_s = design.mode.threshold_rad_s;
-  mode.time_constant_s = design.mode.time_constant_s;
-  mode.release_factor = design.mode.release_factor;
-  mode.hold_time_constant_s = design.mode.hold_time_constant_s;
-  mode.schedule_depth = design.gain.schedule_depth;
-  mode.schedule_start_rad_s = design.gain.schedule_start_rad_s;
-  mode.schedule_span_rad_s = design.gain.schedule_span_rad_s;
-  mode.schedule_time_constant_s = design.gain.schedule_time_constant_s;
-  IntendedMotionValues& estimator = p.intended_motion.emplace();
-  estimator.kind = toString(design.estimator.kind);
-  estimator.corner_hz = design.estimator.corner_hz;
-  estimator.damping = design.estimator.damping;
-  estimator.rate_corner_hz = design.estimator.rate_corner_hz;
-  estimator.excursion_gain = design.estimator.excursion_gain;
-  estimator.excursion_power = design.estimator.excursion_power;
-  estimator.gain_x = design.gain.gain_x;
-  estimator.gain_y = design.gain.gain_y;
-  TravelValues& travel = p.travel.emplace();
-  travel.shape = toString(design.stroke.kind);
-  travel.x_positive_deg = design.stroke.x_positive_deg;
-  travel.x_negative_deg = design.stroke.x_negative_deg;
-  travel.y_positive_deg = design.stroke.y_positive_deg;
-  travel.y_negative_deg = design.stroke.y_negative_deg;
-  travel.anti_windup = toString(design.anti_windup.kind);
-  travel.back_calculation_rate_per_s = design.anti_windup.back_calculation_rate_per_s;
-  travel.quantiser_bits = design.output.quantiser_bits;
-  HallActuatorValues& actuator = p.hall_actuator.emplace();
-  actuator.delay_s = design.output.delay_s;
-  actuator.order = design.actuator.order == ActuatorOrder::kFirst ? "first" : "second";
-  actuator.bandwidth_hz = design.actuator.bandwidth_hz;
-  actuator.damping = design.actuator.damping;
-  actuator.rate_limit_deg_s = design.actuator.rate_limit_deg_s;
-  actuator.stiction_fraction = design.actuator.stiction_fraction;
-  actuator.end_stop_margin = design.actuator.end_stop_margin;
-  actuator.hall_c2 = design.hall.c2;
-  actuator.hall_c3 = design.hall.c3;
+  p.gyro_loop = GyroLoopValues{mount.roll_deg, mount.tilt_deg, mount.pan_deg, design.loop.rate_hz,
+                               design.loop.sampling == GyroSampling::kAveraged};
+  p.motion_mode = MotionModeValues{toString(mode.action), mode.threshold_rad_s, mode.time_constant_s,
+                                   mode.release_factor, mode.hold_time_constant_s, gain.schedule_depth,
+                                   gain.schedule_start_rad_s, gain.schedule_span_rad_s,
+                                   gain.schedule_time_constant_s};
+  p.intended_motion = IntendedMotionValues{toString(estimator.kind), estimator.corner_hz, estimator.damping,
+                                           estimator.rate_corner_hz, estimator.excursion_gain,
+                                           estimator.excursion_power, gain.gain_x, gain.gain_y};
+  p.travel = TravelValues{toString(stroke.kind), stroke.x_positive_deg, stroke.x_negative_deg,
+                          stroke.y_positive_deg, stroke.y_negative_deg, toString(design.anti_windup.kind),
+                          design.anti_windup.back_calculation_rate_per_s,
+                          static_cast<double>(design.output.quantiser_bits)};
+  p.hall_actuator = HallActuatorValues{design.output.delay_s, actuator.order == ActuatorOrder::kFirst ? "first" : "second",
+                                       actuator.bandwidth_hz, actuator.damping, actuator.rate_limit_deg_s,
+                                       actuator.stiction_fraction, actuator.end_stop_margin, design.hall.c2,
+                                       design.hall.c3};
   p.stages = {"gyro_loop", "motion_mode", "intended_motion", "travel", "hall_actuator"};
   return p;
 }

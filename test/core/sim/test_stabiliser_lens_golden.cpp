@@ -107,6 +107,7 @@ void checkAgainstGolden(const std::string& file, const Track& track) {
       worst_key = track.keys[i];
     }
   }
+  std::printf("%s: worst deviation %.3g px over %zu samples\n", file.c_str(), worst, track.keys.size());
   EXPECT_LE(worst, kTolerancePx) << "worst at " << worst_key << " (" << path << ")";
 }
 
@@ -169,6 +170,8 @@ TEST(StabiliserLensGolden, AGeneratedDesignSavedAsAModelFilePredictsItsOwnLens) 
       worst = std::max(worst, (predictor.lensShiftAt(t) - truth).cwiseAbs().maxCoeff());
       largest = std::max(largest, truth.cwiseAbs().maxCoeff());
     }
+    std::printf("design %u (%s) as a model file: worst deviation %.3g px, lens up to %.1f px\n", seed,
+                designClass(design), worst, largest);
     EXPECT_LE(worst, kTolerancePx) << "seed " << seed;
     EXPECT_GT(largest, 1.0) << "seed " << seed << ": the lens hardly moved; the check says little";
   }
