@@ -36,7 +36,10 @@ bool acts(const StabiliserParameters& p) {
 class MotionModeRunner final : public StabiliserStageRunner {
  public:
   MotionModeRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : v_(*p.motion_mode), T_(stage_numerics::controlPeriod(p, context)) {}
+      : v_(*p.motion_mode),
+        detects_(v_.action != "none"),
+        releases_(v_.action == "release"),
+        T_(stage_numerics::controlPeriod(p, context)) {}
   void reset(StabiliserSignal& signal) override {
     sustained_rate_.setZero();
     panning_ = false;
@@ -48,13 +51,13 @@ class MotionModeRunner final : public StabiliserStageRunner {
     if (!signal.control_tick) return;
     const Eigen::Vector2d& rate = signal.sampled_rate_rad_s;
     double release = 1.0;
-    if (v_.action != "none") {
+    if (detects_) {
       sustained_rate_ += -std::expm1(-T_ / v_.time_constant_s) * (rate - sustained_rate_);
       const double level = sustained_rate_.norm();
       if (!panning_ && level > v_.threshold_rad_s) panning_ = true;
       if (panning_ && level < 0.7 * v_.threshold_rad_s) panning_ = false;
-      if (v_.action == "release" && panning_) release = v_.release_factor;
-      if (v_.action == "hold")
+      if (releases_ && panning_) release = v_.release_factor;
+      if (!releases_)
         hold_gain_ += -std::expm1(-T_ / v_.hold_time_constant_s) * ((panning_ ? 0.0 : 1.0) - hold_gain_);
     }
     double schedule = 1.0;
@@ -70,6 +73,7 @@ class MotionModeRunner final : public StabiliserStageRunner {
 
  private:
   MotionModeValues v_;
+  bool detects_, releases_;  // a pan is detected; it releases (else holds)
   double T_;
   Eigen::Vector2d sustained_rate_ = Eigen::Vector2d::Zero();
   bool panning_ = false;

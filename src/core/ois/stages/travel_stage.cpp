@@ -32,7 +32,8 @@ class TravelRunner final : public StabiliserStageRunner {
   TravelRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
       : v_(*p.travel),
         elliptic_(v_.shape == "ellipse" || v_.shape == "soft_ellipse"),
-        soft_(v_.shape == "soft_box" || v_.shape == "soft_ellipse") {
+        soft_(v_.shape == "soft_box" || v_.shape == "soft_ellipse"),
+        anti_windup_(v_.anti_windup != "none") {
     const double T = stage_numerics::controlPeriod(p, context);
     auto px = [&](double deg) { return context.focal_px * std::tan(deg * stage_numerics::kDegToRad); };
     x_pos_ = px(v_.x_positive_deg), x_neg_ = px(v_.x_negative_deg);
@@ -47,7 +48,7 @@ class TravelRunner final : public StabiliserStageRunner {
   void advance(StabiliserSignal& signal) override {
     if (!signal.control_tick) return;
     Eigen::Vector2d raw = signal.raw_command_px;
-    if (v_.anti_windup != "none" && signal.gain_scale > 0.05) {
+    if (anti_windup_ && signal.gain_scale > 0.05) {
       const Eigen::Vector2d limited = hardStroke(raw);
       if (limited != raw) {
         // The angle that would command the stroke itself; the intended-motion state is moved
@@ -87,7 +88,7 @@ class TravelRunner final : public StabiliserStageRunner {
   }
 
   TravelValues v_;
-  bool elliptic_, soft_;
+  bool elliptic_, soft_, anti_windup_;
   double x_pos_, x_neg_, y_pos_, y_neg_;  // px
   double lsb_px_ = 0.0;
   double fraction_;  // of the way back to the stroke per update
