@@ -44,17 +44,14 @@ LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, d
         "stabiliser model: focal_px and step_s must be positive and history_s > step_s");
   }
   history_steps_ = static_cast<std::size_t>(std::ceil(history_s / step_s)) + 2;
-  runners_ = stabiliserRunners(parameters, {focal_px, step_s});
+  chain_ = StabiliserChain(stabiliserRunners(parameters, {focal_px, step_s}));
   reset();
   resets_ = 0;
 }
 
 void LensShiftPredictor::reset() {
   started_ = false;
-  const bool want_learned_state = signal_.want_learned_state;
-  signal_ = StabiliserSignal();
-  signal_.want_learned_state = want_learned_state;
-  for (const auto& runner : runners_) runner->reset(signal_);
+  chain_.reset();
   shifts_.clear();
   feature_history_.clear();
   learned_history_.clear();
@@ -76,9 +73,9 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
     steps_ = 0;
     clock_s_ = sample.stamp_s;
     shifts_.push_back(Eigen::Vector2d::Zero());
-    if (record_features_) feature_history_.push_back(signal_.features);
-    if (record_learned_ && signal_.learned_state.size() > 0)
-      learned_history_.push_back(signal_.learned_state);
+    if (record_features_) feature_history_.push_back(chain_.signal().features);
+    if (record_learned_ && chain_.signal().learned_state.size() > 0)
+      learned_history_.push_back(chain_.signal().learned_state);
     return true;
   }
   // Internal steps up to the new sample, the rate interpolated at each step's middle.
@@ -97,34 +94,29 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
 
 void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s,
                               const Eigen::Vector3d& end_rate_rad_s) {
-  signal_.rate_rad_s = rate_rad_s;
-  signal_.end_rate_rad_s = end_rate_rad_s;
-  signal_.step_index = ++steps_;
-  // The stages that write the raw command set it (centring) or add to it (linear dynamics).
-  signal_.raw_command_px.setZero();
-  for (const auto& runner : runners_) runner->advance(signal_);
+  shifts_.push_back(chain_.step(rate_rad_s, end_rate_rad_s));
+  ++steps_;
   // From an integer step count: summing step_s_ on epoch-sized stamps would drift (ulp ~ 2e-7 s).
   clock_s_ = start_s_ + static_cast<double>(steps_) * step_s_;
-  shifts_.push_back(signal_.lens_px);
   while (shifts_.size() > history_steps_) shifts_.pop_front();
   if (record_features_) {
-    feature_history_.push_back(signal_.features);
+    feature_history_.push_back(chain_.signal().features);
     while (feature_history_.size() > history_steps_) feature_history_.pop_front();
   }
-  if (record_learned_ && signal_.learned_state.size() > 0) {
-    learned_history_.push_back(signal_.learned_state);
+  if (record_learned_ && chain_.signal().learned_state.size() > 0) {
+    learned_history_.push_back(chain_.signal().learned_state);
     while (learned_history_.size() > history_steps_) learned_history_.pop_front();
   }
 }
 
 Eigen::VectorXd LensShiftPredictor::featuresAt(double t_s) const {
-  if (feature_history_.empty()) return signal_.features;
+  if (feature_history_.empty()) return chain_.signal().features;
   const double last = static_cast<double>(feature_history_.size() - 1);
   return interpolateOnUniformGrid(feature_history_, last - (clock_s_ - t_s) / step_s_);
 }
 
 Eigen::VectorXd LensShiftPredictor::learnedStateAt(double t_s) const {
-  if (learned_history_.empty()) return signal_.learned_state;
+  if (learned_history_.empty()) return chain_.signal().learned_state;
   const double last = static_cast<double>(learned_history_.size() - 1);
   return interpolateOnUniformGrid(learned_history_, last - (clock_s_ - t_s) / step_s_);
 }

@@ -40,6 +40,12 @@ StabiliserParameters everyMechanism() {
   p.linear_dynamics.basis.pole_hz = 2.0;
   p.linear_dynamics.basis.order = 2;
   p.linear_dynamics.coefficients = Eigen::MatrixXd::Constant(2, 6, 0.01);
+  // A sampled controller's stages (a generated design's).
+  p.gyro_loop.emplace().roll_deg = 3.0;
+  p.motion_mode.emplace().action = "hold";
+  p.intended_motion.emplace().kind = "kalman_cv";
+  p.travel.emplace().anti_windup = "clamp";
+  p.hall_actuator.emplace().hall_c3 = 0.05;
   return p;
 }
 

@@ -52,6 +52,41 @@ struct LinearDynamicsValues {
   bool active() const { return coefficients.size() != 0; }
 };
 
+// The stages of a sampled digital controller, as the simulator's generated designs are built
+// (core/sim/stabiliser_design.h says what each mechanism does; its ranges bound them). Each stage
+// acts when its values are set. Words as the design names them.
+struct GyroLoopValues {  // gyro_loop: the stabiliser's own gyro and when the controller samples it
+  double roll_deg = 0.0, tilt_deg = 0.0, pan_deg = 0.0;  // camera -> gyro: roll, then tilt, pan
+  double rate_hz = 4000.0;  // controller rate; the step's rate is a multiple of it
+  bool averaged = false;    // the mean rate over its period (else the newest sample)
+};
+struct MotionModeValues {  // motion_mode: pan detection (release, hold) and the gain schedule
+  std::string action = "none";  // none, release, hold
+  double threshold_rad_s = 0.2, time_constant_s = 0.2, release_factor = 6.0, hold_time_constant_s = 0.1;
+  double schedule_depth = 0.0;  // 0 = not scheduled
+  double schedule_start_rad_s = 0.1, schedule_span_rad_s = 0.3, schedule_time_constant_s = 0.1;
+};
+struct IntendedMotionValues {  // intended_motion: the angle to cancel, its gain
+  // highpass_first_order, highpass_second_order, velocity_loop, kalman_cv, alpha_beta
+  std::string kind = "highpass_first_order";
+  double corner_hz = 0.6, damping = 0.8, rate_corner_hz = 0.5;
+  double excursion_gain = 0.0, excursion_power = 2.0;  // 0 = a fixed corner
+  double gain_x = 1.0, gain_y = 1.0;
+};
+struct TravelValues {  // travel: the stroke per axis and direction, anti-windup, the DAC
+  std::string shape = "box";  // box, ellipse, soft_box, soft_ellipse
+  double x_positive_deg = 1.0, x_negative_deg = 1.0, y_positive_deg = 1.0, y_negative_deg = 1.0;
+  std::string anti_windup = "none";  // none, clamp, back_calculation
+  double back_calculation_rate_per_s = 20.0;
+  double quantiser_bits = 0.0;  // 0 = not quantised
+};
+struct HallActuatorValues {  // hall_actuator: transport delay, the lens' position loop, Hall sensor
+  double delay_s = 0.0;
+  std::string order = "second";  // first, second
+  double bandwidth_hz = 35.0, damping = 0.7, rate_limit_deg_s = 0.0, stiction_fraction = 0.0;
+  double end_stop_margin = 1.1, hall_c2 = 0.0, hall_c3 = 0.0;
+};
+
 struct StabiliserParameters {
   // Commanded shift = focal_px * gain * (tan theta_x, tan theta_y) for the high-passed pan/tilt
   // angles theta (rad, camera optical frame). An ideal stabiliser of this package's convention has
@@ -107,6 +142,11 @@ struct StabiliserParameters {
   Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
   LearnedLensDynamics learned_dynamics;
   LinearDynamicsValues linear_dynamics;
+  std::optional<GyroLoopValues> gyro_loop;
+  std::optional<MotionModeValues> motion_mode;
+  std::optional<IntendedMotionValues> intended_motion;
+  std::optional<TravelValues> travel;
+  std::optional<HallActuatorValues> hall_actuator;
   // The model's stages by name, when it is not the default chain ({"linear_dynamics", "stroke",
   // "actuator"}: no centring); only these run (each still only when its values make it act).
   // Empty: every stage whose values make it act (centring, stroke and actuator always), as every
@@ -167,7 +207,7 @@ class LensShiftPredictor {
   // of the network's output layer regresses on (core/ois/lens_dynamics_adaptation.h).
   void recordLearnedState() {
     record_learned_ = true;
-    signal_.want_learned_state = true;
+    chain_.signal().want_learned_state = true;
   }
   Eigen::VectorXd learnedStateAt(double t_s) const;
 
@@ -180,9 +220,8 @@ class LensShiftPredictor {
 
   double step_s_;
   std::size_t history_steps_;
-  // The stages that act for the parameters (core/ois/stabiliser_stage.h) and their signal.
-  std::vector<std::unique_ptr<StabiliserStageRunner>> runners_;
-  StabiliserSignal signal_;
+  // The runners of the stages that act for the parameters (core/ois/stabiliser_stage.h).
+  StabiliserChain chain_;
 
   // State.
   bool started_ = false;

@@ -5,6 +5,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
+#include <utility>
+#include <vector>
 
 namespace deep_ois {
 
@@ -35,6 +38,23 @@ struct StabiliserSignal {
   Eigen::Vector2d command_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d actuator_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d lens_px = Eigen::Vector2d::Zero();
+  // The stages of a sampled controller (a generated design, core/sim/stabiliser_design_runner.h).
+  // Inputs a simulator fills: its stabiliser's own sensors' noise over the step (its gyro's, rad/s
+  // in the gyro's axes; the Hall reading's, px); zero in a model.
+  Eigen::Vector2d gyro_noise_rad_s = Eigen::Vector2d::Zero();
+  Eigen::Vector2d hall_noise_px = Eigen::Vector2d::Zero();
+  // gyro_loop: whether the controller updates at the end of this step, and the pan/tilt rate it
+  // samples then (rad/s, its gyro's axes); between updates the command is held.
+  bool control_tick = true;
+  Eigen::Vector2d sampled_rate_rad_s = Eigen::Vector2d::Zero();
+  // motion_mode: the gain's multiplier (a hold ramps it to 0, a schedule lowers it with the motion).
+  double gain_scale = 1.0;
+  // intended_motion -> travel: the command per tan(angle) (px, x and y; angle_rad is the angle
+  // cancelled); travel -> intended_motion: how much its anti-windup moves that angle (rad, applied
+  // at the next update) and |raw command| / stroke per axis after it (carried over).
+  Eigen::Vector2d command_gain_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d angle_correction_rad = Eigen::Vector2d::Zero();
+  Eigen::Vector2d excursion = Eigen::Vector2d::Zero();
   // The learned residual's features (focal units; sized by its runner's reset) and the learned
   // dynamics' state (filled only when want_learned_state), for refits of those stages.
   Eigen::VectorXd features;
@@ -57,6 +77,40 @@ class StabiliserStageRunner {
   virtual void reset(StabiliserSignal& signal) = 0;
   // One internal step: reads the signal the stages before it wrote, writes its own fields.
   virtual void advance(StabiliserSignal& signal) = 0;
+};
+
+// The chain of runners and the signal between them: the one loop every stabiliser runs through, the
+// model's predictor (core/ois/stabiliser_model.h) and the simulator's generated designs alike.
+class StabiliserChain {
+ public:
+  StabiliserChain() = default;
+  explicit StabiliserChain(std::vector<std::unique_ptr<StabiliserStageRunner>> runners)
+      : runners_(std::move(runners)) {}
+
+  // A stabiliser switched on; keeps the signal's want_learned_state.
+  void reset() {
+    const bool want_learned_state = signal_.want_learned_state;
+    signal_ = StabiliserSignal();
+    signal_.want_learned_state = want_learned_state;
+    for (const auto& runner : runners_) runner->reset(signal_);
+  }
+  // One internal step from the rate at its middle and at its end (rad/s, camera frame); set the
+  // simulator's noise inputs in signal() before. Returns the lens (px).
+  const Eigen::Vector2d& step(const Eigen::Vector3d& rate_rad_s, const Eigen::Vector3d& end_rate_rad_s) {
+    signal_.rate_rad_s = rate_rad_s;
+    signal_.end_rate_rad_s = end_rate_rad_s;
+    ++signal_.step_index;
+    // The stages that write the raw command set it (centring) or add to it (linear dynamics).
+    signal_.raw_command_px.setZero();
+    for (const auto& runner : runners_) runner->advance(signal_);
+    return signal_.lens_px;
+  }
+  StabiliserSignal& signal() { return signal_; }
+  const StabiliserSignal& signal() const { return signal_; }
+
+ private:
+  std::vector<std::unique_ptr<StabiliserStageRunner>> runners_;
+  StabiliserSignal signal_;
 };
 
 }  // namespace deep_ois

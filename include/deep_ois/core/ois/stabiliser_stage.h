@@ -11,10 +11,12 @@
 // builds its parameter vector from the stages' fitted parameters (by name), the review checks
 // their bounds, and the file and validate() run over the stages.
 //
-// The stages, in the order the signal passes them (stabiliserStages()): pan detection, excursion
-// re-centring, centring (gain and corner), stroke (limits, shape, soft, anti-windup), actuator
-// (bandwidth, damping, sensor lag), actuator coupling, linear residual, learned residual, learned
-// lens dynamics. docs/stabiliser_model.md ("The stage library") tabulates them for users and shows
+// The stages, in the order the signal passes them (stabiliserStages()): gyro loop, pan detection,
+// motion mode, excursion re-centring, centring (gain and corner), intended motion, linear
+// dynamics, stroke (limits, shape, soft, anti-windup), travel, actuator (bandwidth, damping, sensor
+// lag), Hall actuator, actuator coupling, linear residual, learned residual, learned lens dynamics.
+// The gyro loop, motion mode, intended motion, travel and Hall actuator are a sampled controller's:
+// the simulator's generated designs are built from them (core/sim/stabiliser_design_runner.h). docs/stabiliser_model.md ("The stage library") tabulates them for users and shows
 // how to add one.
 #pragma once
 

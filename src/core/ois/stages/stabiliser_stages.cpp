@@ -20,15 +20,25 @@ const StabiliserStage& actuatorCouplingStage();
 const StabiliserStage& linearResidualStage();
 const StabiliserStage& learnedResidualStage();
 const StabiliserStage& learnedLensDynamicsStage();
+const StabiliserStage& gyroLoopStage();
+const StabiliserStage& motionModeStage();
+const StabiliserStage& intendedMotionStage();
+const StabiliserStage& travelStage();
+const StabiliserStage& hallActuatorStage();
 
 const std::vector<StabiliserStage>& stabiliserStages() {
   static const std::vector<StabiliserStage> stages = {
+      gyroLoopStage(),          // the stabiliser's gyro, sampled by a controller
       panDetectionStage(),      // decides whether the angle re-centres fast (a pan)
+      motionModeStage(),        // release or hold on a pan, gain schedule
       excursionCentringStage(), // scales the centring's corner with the excursion
       centringStage(),          // rate -> angle -> raw command
+      intendedMotionStage(),    // sampled rate -> angle to cancel -> raw command
       linearDynamicsStage(),    // + a linear filter of the rate to the raw command
       strokeStage(),            // raw command -> command
+      travelStage(),            // raw command -> command (asymmetric, anti-windup, DAC)
       actuatorStage(),          // command -> lens
+      hallActuatorStage(),      // command -> delay -> position loop, Hall sensor -> lens
       actuatorCouplingStage(),  // the actuator's axes -> the image's
       linearResidualStage(),    // + residual of leaky rate integrals
       learnedResidualStage(),   // + residual of the chain's features
