@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <functional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "deep_ois/core/calibration/rotation_alignment.h"
@@ -304,20 +305,22 @@ int main(int argc, char** argv) {
                          "after a jump, seconds of the newest pairs fitted at once (0: restart from the window that "
                          "showed it)")
       ->check(deep_ois::atLeast(0.0));
-  command_line.addNumber("--offset-walk", g_clock.offset_random_walk_s_per_sqrt_s,
-                         "the clock model's offset random walk, s per sqrt(s) (clock.offset_random_walk_s_per_sqrt_s)")
-      ->check(deep_ois::atLeast(0.0));
-  command_line.addNumber("--rate-walk", g_clock.rate_random_walk_per_sqrt_s,
-                         "the clock model's drift-rate random walk, s/s per sqrt(s) (clock.rate_random_walk_per_sqrt_s)")
-      ->check(deep_ois::atLeast(0.0));
-  command_line.addNumber("--systematic-sigma", g_clock.systematic_sigma_s,
-                         "the windows' persistent error added to the reported 1-sigma, s (clock.systematic_sigma_s)")
-      ->check(deep_ois::atLeast(0.0));
-  command_line.addNumber("--refine-offset", g_refine_offset_s,
-                         "an offset this far (s) from the one in use is applied when no worse (refine_offset_s)")
-      ->check(deep_ois::atLeast(0.0));
+  // The clock model's and the applying's settings, each a non-negative number of seconds (per
+  // sqrt(s) for the walks).
+  const std::vector<std::tuple<const char*, double*, const char*>> clock_flags = {
+      {"--offset-walk", &g_clock.offset_random_walk_s_per_sqrt_s,
+       "the clock model's offset random walk, s per sqrt(s) (clock.offset_random_walk_s_per_sqrt_s)"},
+      {"--rate-walk", &g_clock.rate_random_walk_per_sqrt_s,
+       "the clock model's drift-rate random walk, s/s per sqrt(s) (clock.rate_random_walk_per_sqrt_s)"},
+      {"--systematic-sigma", &g_clock.systematic_sigma_s,
+       "the windows' persistent error added to the reported 1-sigma, s (clock.systematic_sigma_s)"},
+      {"--refine-offset", &g_refine_offset_s,
+       "an offset this far (s) from the one in use is applied when no worse (refine_offset_s)"}};
+  for (const auto& [flag, value, description] : clock_flags) {
+    command_line.addNumber(flag, *value, description)->check(deep_ois::atLeast(0.0));
+  }
   app.add_flag("--trace", g_trace, "drift and jump: one line per calibration window (its error, the estimate's, the "
-               "calibration in use's)");
+               "calibration in use's, the drift rate, the innovation) and one per applied calibration");
   command_line.addNumber("--seed", seed, "the first recording's seed (+1 per camera)");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 

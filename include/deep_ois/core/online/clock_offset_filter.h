@@ -16,7 +16,7 @@
 //    innovations' lag-1 correlation r): a window then counts for (1 - r) / (1 + r) of one.
 //  - Part of a window's error is shared by every window of a recording for tens of seconds (the
 //    scene's parallax, the lens model's misfit, the offset-readout ridge): on the simulator the
-//    windows of one 60 s recording were off by -0.14 to +0.19 ms on average (seed 1). The innovations
+//    windows of one 60 s recording were off by -0.12 to +0.19 ms on average (seed 1). The innovations
 //    cannot show it (the filter takes it for the offset), and no number of windows averages it
 //    away, so the reported 1-sigma adds systematic_sigma_s to the filter's in quadrature.
 //  - The reported 1-sigma is the filter's, carried to the moment it is asked for, with that floor.
