@@ -141,7 +141,8 @@ struct CoverageProbe {
 
 // The run's verdicts against issue 40's targets, summed over the runs.
 struct Summary {
-  int drift_runs = 0, drift_met = 0, drift_line_met = 0, jump_runs = 0, jump_met = 0, start_runs = 0, start_met = 0, alignment_met = 0;
+  int drift_runs = 0, drift_met = 0, drift_line_met = 0, jump_runs = 0, jump_met = 0;
+  int start_runs = 0, start_met = 0, alignment_met = 0;
   double worst_drift_ms = 0.0, slowest_jump_s = 0.0, worst_cpu = 0.0;
   Coverage coverage, windows;
 };
@@ -421,7 +422,8 @@ int main(int argc, char** argv) {
               if (now.version != version_seen) {
                 version_seen = now.version;
                 last_swap_s = t;
-                if (g_trace) std::printf("  t %6.2f  applied: in use err %+.3f ms\n", t, (now.in_use.time_offset_s - truth_s) * 1e3);
+                if (g_trace)
+                  std::printf("  t %6.2f  applied: in use err %+.3f ms\n", t, (now.in_use.time_offset_s - truth_s) * 1e3);
               }
               if (drift && t >= 10.0) {
                 worst_estimate_ms =
@@ -448,7 +450,8 @@ int main(int argc, char** argv) {
               std::printf("%s, drift: the clock model's line at the pair within %.3f ms of the truth after 10 s; "
                           "the calibration in use within %.3f ms of the line; at the worst moment the line was "
                           "%+.3f ms off and the calibration in use %+.3f ms from it; innovations after 10 s: %zu, "
-                          "RMS %.2f of their sigma, lag-1 correlation %.2f; the worst at %.1f s, %.1f s after the last swap (%s)\n",
+                          "RMS %.2f of their sigma, lag-1 correlation %.2f; the worst at %.1f s, %.1f s after the "
+                          "last swap (%s)\n",
                           label.c_str(), worst_line_ms, worst_lag_ms, line_at_worst_ms, lag_at_worst_ms, innovations,
                           innovations ? std::sqrt(innovation_square / innovations) : 0.0,
                           innovation_square > 0.0 ? innovation_lag / innovation_square : 0.0, worst_at_s,
@@ -484,11 +487,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   const Summary& s = g_summary;
-  std::printf("\nSummary (seed %u): wrong start within 0.5 ms / 1 ms at 30 s on %d of %d, aligning within 3 %% of the true calibration in the last window on %d; drift in use within 0.5 ms "
-              "after 10 s on %d of %d (worst %.3f ms; the clock model's line at the pair on %d); jump back within 0.5 ms within 10 s on %d of %d (slowest "
-              "%.1f s); CPU at most %.1f %% of a core; the estimate's offset 1-sigma coverage over %s; the windows' own "
-              "(as they report it) over %s\n",
-              seed, s.start_met, s.start_runs, s.alignment_met, s.drift_met, s.drift_runs, s.worst_drift_ms, s.drift_line_met, s.jump_met, s.jump_runs,
-              s.slowest_jump_s, s.worst_cpu, s.coverage.text().c_str(), s.windows.text().c_str());
+  std::printf("\nSummary (seed %u): wrong start within 0.5 ms / 1 ms at 30 s on %d of %d, aligning within 3 %% of "
+              "the true calibration in the last window on %d; drift in use within 0.5 ms after 10 s on %d of %d "
+              "(worst %.3f ms; the clock model's line at the pair on %d); jump back within 0.5 ms within 10 s on %d "
+              "of %d (slowest %.1f s); CPU at most %.1f %% of a core; the estimate's offset 1-sigma coverage over %s; "
+              "the windows' own (as they report it) over %s\n",
+              seed, s.start_met, s.start_runs, s.alignment_met, s.drift_met, s.drift_runs, s.worst_drift_ms,
+              s.drift_line_met, s.jump_met, s.jump_runs, s.slowest_jump_s, s.worst_cpu, s.coverage.text().c_str(),
+              s.windows.text().c_str());
   return 0;
 }

@@ -37,7 +37,7 @@ struct ClockModelOptions {
   // The offset walks by offset_random_walk_s_per_sqrt_s (s per sqrt(s)) and the rate by
   // rate_random_walk_per_sqrt_s (s/s per sqrt(s)); the rate starts at 0 with initial_rate_sigma
   // (s/s: 1e-4 = 6 ms a minute). Small walks make the line a fit over many windows (the rate's
-  // walk of 5e-6 lets it change by 0.3 ms a minute in a minute): a window's error, 0.1-0.25 ms
+  // walk of 5e-6 lets it change by 2.3 ms a minute in a minute, 1-sigma): a window's error, 0.1-0.25 ms
   // and alike for neighbours, then moves the line much less than with 3e-5 and 1.5e-5, which
   // let the rate swing between 20 and 90 us/s around a true 50 (benchmark_online_calibration,
   // drift, seed 1). A jump is not a walk: it is told apart and restarts the line.
