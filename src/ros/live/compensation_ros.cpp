@@ -92,7 +92,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
       CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.warp_threads,
-                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share},
+                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share, params_.fusion},
       [this](const CompensationLiveParameters& live) {
         std::lock_guard<std::mutex> lock(mutex_);
         params_.color_max_flow_px = live.color_max_flow_px;
@@ -107,6 +107,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         params_.learning = live.learning;
         params_.learning_cpu_share = live.learning_cpu_share;
         if (learning_) learning_->setLearning(live.learning, live.learning_cpu_share);
+        params_.fusion = live.fusion;
+        if (stabiliser_) diagnostics_->setValue("fusion", live.fusion ? "on" : "off");
       });
   // Held across every advertise (compensation_check's too): a subscriber connecting meanwhile
   // waits in connectCallback until the publishers exist.
