@@ -78,7 +78,6 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
     diagnostics_->setValue("torch threads", std::to_string(params_.torch_threads));
   } else {
     diagnostics_->setValue("model kind", "learned stabiliser model");
-    if (params_.fusion) diagnostics_->setValue("fusion: last prior kept", "none yet");
   }
   if (params_.fusion && model_) {
     ROS_WARN_NAMED("compensation", "%s: ~fusion applies to a stabiliser model's per-patch motion only: the network's "
@@ -109,6 +108,9 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         if (learning_) learning_->setLearning(live.learning, live.learning_cpu_share);
         params_.fusion = live.fusion;
         if (stabiliser_) diagnostics_->setValue("fusion", live.fusion ? "on" : "off");
+        // Said from the moment the fusion is on (the reconfigure applies the loaded values at start).
+        if (stabiliser_ && live.fusion && fusion_counts_.pairs == 0)
+          diagnostics_->setValue("fusion: last prior kept", "none yet");
       });
   // Held across every advertise (compensation_check's too): a subscriber connecting meanwhile
   // waits in connectCallback until the publishers exist.
