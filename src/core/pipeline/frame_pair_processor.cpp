@@ -130,10 +130,30 @@ FramePairMotion FramePairProcessor::process(FramePair pair, cv::Size grid) {
     motion.homographies = pair.gyro_homographies;
   }
 
-  // 3. The render.
+  // 3. The fusion with the pair's tracks: the motion above is the prior.
+  if (pair.fusion && pair.tracks) fuse(pair, motion);
+
+  // 4. The render.
   if (!grid.empty()) render(*pair.camera, grid, motion.homographies, motion.flow);
   motion.ok = true;
   return motion;
+}
+
+void FramePairProcessor::fuse(const FramePair& pair, FramePairMotion& motion) {
+  motion.prior_homographies = motion.homographies;
+  try {
+    motion.fused = fuseMotion(*pair.camera, MotionPrior{motion.homographies, pair.prior_sigma_px}, *pair.tracks,
+                              *pair.fusion);
+    motion.homographies = motion.fused->homographies;
+  } catch (const std::exception& e) {
+    // A bad prior or option is the caller's to fix, but the pair keeps its motion meanwhile.
+    motion.fused = FusedMotion();
+    motion.fused->homographies = motion.prior_homographies;
+    motion.fused->tracks = static_cast<int>(pair.tracks->size());
+    motion.fused->sigma_px = pair.prior_sigma_px;
+    motion.fused->reason = std::string("prior kept: the fusion failed: ") + e.what();
+    motion.fusion_failed = true;
+  }
 }
 
 void FramePairProcessor::render(const CameraModel& camera, cv::Size grid,

@@ -6,10 +6,12 @@
 
 #include <boost/make_shared.hpp>
 #include <opencv2/core/utility.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 
+#include "deep_ois/core/common/printf_text.h"
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
@@ -27,6 +29,9 @@ constexpr double kWarnPeriodS = 2.0;
 // flow nodelet's ~time_jump_reset default).
 constexpr double kTimelineJumpS = 1.0;
 // The optional outputs shed under overload (OutputShedding indices), costliest first as measured.
+// ~fusion: the least prior sigma taken from the per-pair checks, pixels (their residual holds the
+// tracks' noise; benchmark_fusion's floor).
+constexpr double kMinFusionPriorSigmaPx = 0.1;
 constexpr std::size_t kShedColour = 0, kShedAligned = 1, kShedGhost = 2;
 // Shedding starts at a quarter of ~max_lag and ends below a tenth: the plain compensated flow keeps
 // up well before a pair would be dropped.
@@ -74,6 +79,10 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   } else {
     diagnostics_->setValue("model kind", "learned stabiliser model");
   }
+  if (params_.fusion && model_) {
+    ROS_WARN_NAMED("compensation", "%s: ~fusion applies to a stabiliser model's per-patch motion only: the network's "
+                   "flow %s is published unfused", log_name_.c_str(), params_.model_path.c_str());
+  }
   // A generic model (trained on several cameras, or before models recorded theirs) cannot be
   // checked against the stream; say so rather than "matches".
   diagnostics_->setValue("model camera", modelCamera().known() ? modelCamera().summary()
@@ -82,7 +91,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
       CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.warp_threads,
-                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share},
+                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share, params_.fusion},
       [this](const CompensationLiveParameters& live) {
         std::lock_guard<std::mutex> lock(mutex_);
         params_.color_max_flow_px = live.color_max_flow_px;
@@ -97,6 +106,11 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         params_.learning = live.learning;
         params_.learning_cpu_share = live.learning_cpu_share;
         if (learning_) learning_->setLearning(live.learning, live.learning_cpu_share);
+        params_.fusion = live.fusion;
+        if (stabiliser_) diagnostics_->setValue("fusion", live.fusion ? "on" : "off");
+        // Said from the moment the fusion is on (the reconfigure applies the loaded values at start).
+        if (stabiliser_ && live.fusion && fusion_counts_.pairs == 0)
+          diagnostics_->setValue("fusion: last prior kept", "none yet");
       });
   // Held across every advertise (compensation_check's too): a subscriber connecting meanwhile
   // waits in connectCallback until the publishers exist.
@@ -402,7 +416,11 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::withStabilise
     const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a, const sensor_msgs::ImageConstPtr& image_b,
     const std::vector<Eigen::Matrix3d>& gyro_homographies, const cv::Mat& gyro_flow) {
   if (learning_) learning_->beforePair(gyro, *stabiliser_);  // the model in use (a swap is said once)
-  StabiliserFlowResult result = stabiliser_->compensate(gyro);
+  std::vector<FeatureMatch> tracks;
+  const std::optional<PairFusion> fusion = params_.fusion ? fusionFor(image_a, image_b, tracks) : std::nullopt;
+  const auto compensate_start = std::chrono::steady_clock::now();
+  StabiliserFlowResult result = stabiliser_->compensate(gyro, fusion ? &*fusion : nullptr);
+  if (fusion && result.ok) countFusion(result, secondsSince(compensate_start));
   sayTimeJump(gyro, result.time_jump_back_s);
   sayCalibrationChange(gyro);
   if (!result.ok) {
@@ -411,12 +429,63 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::withStabilise
     countDrop("stabiliser model: " + result.reason);
     return std::nullopt;
   }
-  if (learning_) learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies);
+  if (learning_) learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies, fusion ? &tracks : nullptr);
   // The checks found the model worse than the plain gyro: the gyro's motion is published.
   if (publishesPlainGyro(CompensationMethod::kStabiliserModel, learning_ && learning_->fallingBack())) {
     return CompensatedMotion{gyro_flow.clone(), gyro_homographies, result.camera};
   }
   return CompensatedMotion{result.flow, std::move(result.homographies), result.camera};
+}
+
+std::optional<PairFusion> CompensationRos::fusionFor(const sensor_msgs::ImageConstPtr& image_a,
+                                                     const sensor_msgs::ImageConstPtr& image_b,
+                                                     std::vector<FeatureMatch>& tracks) {
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    tracks = fusion_tracker_.matchAtWidth(cv_bridge::toCvShare(image_a)->image, cv_bridge::toCvShare(image_b)->image,
+                                          params_.learning_tracking_width_px);
+  } catch (const std::exception& e) {  // an encoding the tracker cannot read (cv_bridge, toGray8)
+    diagnostics_->setValue("fusion: pairs not tracked (model's motion published)",
+                           std::to_string(++fusion_counts_.untracked));
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: ~fusion: cannot track the %s frames on %s (%s): the "
+                            "model's motion is published", log_name_.c_str(), image_b->encoding.c_str(),
+                            image_sub_.getTopic().c_str(), e.what());
+    return std::nullopt;
+  }
+  fusion_counts_.tracking_s += secondsSince(start);
+  PairFusion fusion;
+  fusion.options = &fusion_options_;
+  fusion.tracks = &tracks;
+  // The prior's sigma: the median model residual of the recent per-pair checks (never below 0.1
+  // px: it holds the tracks' noise), as benchmark_fusion takes it; the default before the first.
+  const std::optional<double> recent = learning_ ? learning_->recentModelResidualPx() : std::nullopt;
+  if (recent) fusion.prior_sigma_px = std::max(kMinFusionPriorSigmaPx, *recent);
+  return fusion;
+}
+
+void CompensationRos::countFusion(const StabiliserFlowResult& result, double compensate_s) {
+  FusionCounts& c = fusion_counts_;
+  ++c.pairs;
+  c.compensate_s += compensate_s;
+  if (result.fusion_failed) {
+    ++c.failed;
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: ~fusion: %s", log_name_.c_str(),
+                            result.fused->reason.c_str());
+  }
+  if (result.fused && result.fused->refined) {
+    ++c.refined;
+    c.correction_sum_px += result.fused->mean_correction_px;
+  } else if (result.fused) {
+    diagnostics_->setValue("fusion: last prior kept", result.fused->reason);
+  }
+  const auto fixed = [](double value, int digits) { return printfText("%.*f", digits, value); };
+  diagnostics_->setValue("fusion: pairs refined [%]", fixed(100.0 * c.refined / c.pairs, 1) + " (" +
+                                                          std::to_string(c.refined) + " of " +
+                                                          std::to_string(c.pairs) + ")");
+  diagnostics_->setValue("fusion: mean correction [px]", c.refined ? fixed(c.correction_sum_px / c.refined, 3) : "-");
+  diagnostics_->setValue("fusion: failures (model's motion published)", std::to_string(c.failed));
+  diagnostics_->setValue("fusion: tracking a pair [ms]", fixed(1e3 * c.tracking_s / c.pairs, 2));
+  diagnostics_->setValue("fusion: model and fusion a pair [ms]", fixed(1e3 * c.compensate_s / c.pairs, 2));
 }
 
 std::optional<CompensationRos::CompensatedMotion> CompensationRos::withNetwork(const GyroFlow& gyro,

@@ -13,6 +13,7 @@
 
 #include <deep_ois/CompensationPairCheck.h>
 
+#include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/ros/messages/conversions.h"
 #include "deep_ois/ros/messages/message_validation.h"
 
@@ -191,7 +192,8 @@ void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensat
 
 void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                                   const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
-                                  const std::vector<Eigen::Matrix3d>& gyro_homographies) {
+                                  const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                                  const std::vector<FeatureMatch>* tracks) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!learner_) return;
   ++pairs_;
@@ -210,7 +212,14 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.camera = result.camera;
     pair.rotations = result.rotations;
     pair.gyro_homographies = gyro_homographies;
-    pair.model_homographies = result.homographies;
+    // The check scores the model's motion: the fusion's prior when the pair was fused.
+    const std::vector<Eigen::Matrix3d>& model_homographies =
+        result.prior_homographies.empty() ? result.homographies : result.prior_homographies;
+    pair.model_homographies = model_homographies;
+    if (tracks) {  // tracked already (for the fusion): the learner does not track the frames again
+      pair.matches = *tracks;
+      pair.tracked = true;
+    }
     std::string problem;
     pair.rates = readGyroFlowRates(gyro, &problem);
     auto alive = std::make_shared<FramesAlive>();
@@ -220,11 +229,15 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.image_b = alive->b->image;
     pair.keep_alive = alive;
     // Before the submit: the tracking thread looks up the lens the compensation used for the pair.
-    if (calibration_) calibration_->rememberLens(gyro, result, fallingBackLocked() || result.homographies.empty());
+    if (calibration_) calibration_->rememberLens(gyro, result, fallingBackLocked() || model_homographies.empty());
     learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
   }
   if (calibration_) calibration_->afterPair(gyro);
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
+    if (verdict.check.usable && std::isfinite(verdict.check.model_residual_px)) {
+      recent_model_residuals_px_.push_back(verdict.check.model_residual_px);
+      if (recent_model_residuals_px_.size() > kRecentChecks) recent_model_residuals_px_.pop_front();
+    }
     if (check_pub_.getNumSubscribers() == 0) continue;
     auto msg = boost::make_shared<CompensationPairCheck>();
     msg->header.stamp.fromSec(verdict.stamp_b_s);
@@ -255,6 +268,12 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   } else if (learner_) {
     diagnostics_.setValue("learning", learner_->status().state);
   }
+}
+
+std::optional<double> OnlineLearningRos::recentModelResidualPx() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (recent_model_residuals_px_.empty()) return std::nullopt;
+  return median(std::vector<double>(recent_model_residuals_px_.begin(), recent_model_residuals_px_.end()));
 }
 
 bool OnlineLearningRos::fallingBack() const {

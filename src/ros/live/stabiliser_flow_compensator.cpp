@@ -69,7 +69,7 @@ double StabiliserFlowCompensator::observe(const GyroFlow& msg) {
   return processor_.observe(pairOf(msg, camera, rates));
 }
 
-StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) {
+StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg, const PairFusion* fusion) {
   StabiliserFlowResult result;
   std::vector<Eigen::Matrix3d> gyro_homographies;
   cv::Mat gyro_flow;
@@ -98,6 +98,11 @@ StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) 
     pair.rotations.push_back(R);
   }
   pair.gyro_homographies = gyro_homographies;
+  if (fusion) {
+    pair.fusion = fusion->options;
+    pair.tracks = fusion->tracks;
+    pair.prior_sigma_px = fusion->prior_sigma_px;
+  }
   FramePairMotion motion = processor_.process(std::move(pair), gyro_flow.size());
   result.time_jump_back_s = motion.time_jump_back_s;
   if (!motion.ok) {
@@ -110,6 +115,9 @@ StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) 
   result.shift_a_px = std::move(motion.shift_a_px);
   result.shift_b_px = std::move(motion.shift_b_px);
   result.rotations = std::move(motion.rotations);
+  result.fused = std::move(motion.fused);
+  result.prior_homographies = std::move(motion.prior_homographies);
+  result.fusion_failed = motion.fusion_failed;
   result.timing = timingOf(msg);
   result.ok = true;
   return result;

@@ -208,5 +208,53 @@ TEST(FramePairProcessor, SaysWhyWhenTheGyroDoesNotCoverThePair) {
   EXPECT_THROW(processor.process(no_camera), std::invalid_argument);
 }
 
+// Step 3: tracks that show the model's motion off by a lens shift move the output to them, the
+// prior is kept beside it; a fusion that throws keeps the prior and says so.
+TEST(FramePairProcessor, TheFusionRefinesTheModelsMotionWithTheTracksAndKeepsItWhenItFails) {
+  SyntheticCamera cam;
+  cam.camera = CameraModel(640, 480, cam.camera.K());  // no distortion: raw pixels are undistorted
+  FramePairProcessor plain(knownStabiliser()), fusing(knownStabiliser()), failing(knownStabiliser());
+  const FramePairMotion model = plain.process(cam.pair(0));
+  ASSERT_TRUE(model.ok);
+  // The truth: the model's motion with 0.8 px more shift across; tracks on a lattice.
+  Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
+  shift(0, 2) = 0.8;
+  std::vector<Eigen::Matrix3d> truth;
+  for (const Eigen::Matrix3d& H : model.homographies) truth.push_back(shift * H);
+  std::vector<FeatureMatch> tracks;
+  for (double y = 10.0; y < 470.0; y += 20.0)
+    for (double x = 20.0; x < 620.0; x += 25.0) {
+      const int patch = patchIndexOfRow(y, 480, cam.timing.patch_count);
+      const Eigen::Vector2d b = (truth[static_cast<std::size_t>(patch)] * Eigen::Vector3d(x, y, 1.0)).hnormalized();
+      tracks.push_back({cv::Point2f(static_cast<float>(x), static_cast<float>(y)),
+                        cv::Point2f(static_cast<float>(b.x()), static_cast<float>(b.y()))});
+    }
+  const FusionOptions options;
+  FramePair pair = cam.pair(0);
+  pair.fusion = &options;
+  pair.tracks = &tracks;
+  const FramePairMotion fused = fusing.process(pair, cv::Size(64, 48));
+  ASSERT_TRUE(fused.ok);
+  ASSERT_TRUE(fused.fused.has_value());
+  EXPECT_TRUE(fused.fused->refined) << fused.fused->reason;
+  EXPECT_FALSE(fused.fusion_failed);
+  EXPECT_EQ(fused.prior_homographies, model.homographies);
+  EXPECT_LT(largestDifferencePx(fused.homographies, truth), 0.1);
+  EXPECT_GT(largestDifferencePx(model.homographies, truth), 0.7);
+  // The render is the fused motion's.
+  cv::Mat expected;
+  fusing.render(cam.camera, cv::Size(64, 48), fused.homographies, expected);
+  EXPECT_EQ(cv::norm(fused.flow, expected, cv::NORM_INF), 0.0);
+
+  pair.prior_sigma_px = -1.0;  // fuseMotion refuses it
+  const FramePairMotion failed = failing.process(pair);
+  ASSERT_TRUE(failed.ok);
+  EXPECT_TRUE(failed.fusion_failed);
+  EXPECT_EQ(failed.homographies, model.homographies);
+  ASSERT_TRUE(failed.fused.has_value());
+  EXPECT_FALSE(failed.fused->refined);
+  EXPECT_EQ(failed.fused->reason.rfind("prior kept: the fusion failed", 0), 0u) << failed.fused->reason;
+}
+
 }  // namespace
 }  // namespace deep_ois

@@ -20,7 +20,11 @@
 //          loops) and carried across an applied calibration. A pair with the lens log still feeds
 //          the model, so it stays warm for the next pair without the log;
 //        - else nothing: the gyro's K R K^-1 (a camera without OIS, or the gyro flow nodelet).
-//   3. The render: the homographies as the dense CV_32FC2 flow on the working grid
+//   3. The fusion, when the pair carries tracks and fusion options: the motion of step 2 is the
+//      prior, refined by the tracks where they support it (core/fusion/fused_motion.h). A fusion
+//      that throws keeps the prior and says why (FramePairMotion::fusion_failed): never an error
+//      of the pair.
+//   4. The render: the homographies as the dense CV_32FC2 flow on the working grid
 //      (core/flow/homography_flow.h), when a grid is asked for.
 // The pair's gyro stream, from the warm-up before frame a's first patch to frame b's last patch,
 // is pairGyroStream(): what every GyroFlow message carries and the online learner is handed.
@@ -55,6 +59,7 @@
 
 #include "deep_ois/core/camera/camera_model.h"
 #include "deep_ois/core/flow/homography_flow.h"
+#include "deep_ois/core/fusion/fused_motion.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/lens_shift_log.h"
@@ -94,6 +99,11 @@ struct FramePair {
   // How far a calibration applied since the previous pair moved the IMU times of the frames (new
   // time offset minus old, seconds; StabiliserCompensator::followTimeline). 0 when unchanged.
   double calibration_shift_s = 0.0;
+  // Step 3, the fusion, when both are set: `tracks` on raw pixels of `camera`, frame a -> b, and
+  // the prior's 1-sigma transfer error (MotionPrior::sigma_px), pixels.
+  const FusionOptions* fusion = nullptr;
+  const std::vector<FeatureMatch>* tracks = nullptr;
+  double prior_sigma_px = MotionPrior().sigma_px;
 };
 
 // Where a pair's motion came from.
@@ -118,6 +128,11 @@ struct FramePairMotion {
   // Seconds time went back before this pair (the model restarted from a centred lens); 0 if not.
   double time_jump_back_s = 0.0;
   cv::Mat flow;  // CV_32FC2 on the grid asked for; empty when none was
+  // With the fusion: its result (`homographies` are its homographies, the prior's when not
+  // refined) and step 2's motion, the prior (what the per-pair check scores).
+  std::optional<FusedMotion> fused;
+  std::vector<Eigen::Matrix3d> prior_homographies;
+  bool fusion_failed = false;  // fuseMotion threw: the prior is kept, fused->reason says why
 };
 
 class FramePairProcessor {
@@ -137,7 +152,7 @@ class FramePairProcessor {
   // Step 1 alone: the gyro's per-patch rotations and homographies from `pair.imu`.
   static RollingShutterHomographies gyroMotion(const FramePair& pair);
 
-  // The pair's motion (steps 1 to 3), rendered on `grid` unless it is empty. Not ok, with the
+  // The pair's motion (steps 1 to 4), rendered on `grid` unless it is empty. Not ok, with the
   // reason, when the gyro or the model's gyro stream does not cover the pair. Throws
   // std::invalid_argument for a pair without a camera or without a gyro (no rotations, no IMU).
   FramePairMotion process(FramePair pair, cv::Size grid = cv::Size());
@@ -166,6 +181,8 @@ class FramePairProcessor {
   // The model's state for the pair's camera (rebuilt when K changes), its timeline followed and
   // fed with the pair's gyro stream up to frame b's last patch.
   StabiliserCompensator& feedModel(const FramePair& pair, double* time_jump_back_s);
+  // Step 3: motion.homographies become the fused ones; the prior is kept in prior_homographies.
+  static void fuse(const FramePair& pair, FramePairMotion& motion);
 
   std::optional<StabiliserParameters> model_;
   Timeline timeline_ = Timeline::kRestartWhenTimeGoesBack;

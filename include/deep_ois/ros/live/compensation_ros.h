@@ -117,6 +117,12 @@ class CompensationRos {
                                                        const sensor_msgs::ImageConstPtr& image_b,
                                                        const std::vector<Eigen::Matrix3d>& gyro_homographies,
                                                        const cv::Mat& gyro_flow);
+  // ~fusion: the pair's tracks (frames at ~learning_tracking_width) into `tracks` and the fusion's
+  // inputs; none (counted, said) when the frames cannot be tracked. Timed for /diagnostics.
+  std::optional<PairFusion> fusionFor(const sensor_msgs::ImageConstPtr& image_a,
+                                      const sensor_msgs::ImageConstPtr& image_b, std::vector<FeatureMatch>& tracks);
+  // Counts a fused pair (refined or prior kept) and updates its /diagnostics.
+  void countFusion(const StabiliserFlowResult& result, double compensate_s);
   std::optional<CompensatedMotion> withNetwork(const GyroFlow& gyro, const cv::Mat& gyro_flow);
   // Says once (per timeline) when the stamps on `topic` are far from ROS time (use_sim_time).
   void checkStampClock(const ros::Time& stamp, const std::string& topic);
@@ -141,6 +147,14 @@ class CompensationRos {
   std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
   // With a stabiliser model: the per-pair checks, the fallback and the online learning.
   std::unique_ptr<OnlineLearningRos> learning_;
+  // ~fusion: the tracker (the learner's options) and the counts for /diagnostics.
+  FeatureTracker fusion_tracker_{OnlineLearningOptions::learningCorners(), OnlineLearningOptions::learningKlt()};
+  FusionOptions fusion_options_;
+  struct FusionCounts {
+    std::size_t pairs = 0, refined = 0, failed = 0, untracked = 0;
+    double correction_sum_px = 0.0;       // over the refined pairs
+    double tracking_s = 0.0, compensate_s = 0.0;  // wall time, summed over the fused pairs
+  } fusion_counts_;
   // The model's camera against the stream's, checked on the first flow (and when the camera
   // changes): empty when they match, else the difference.
   std::string camera_check_;

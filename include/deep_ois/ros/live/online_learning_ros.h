@@ -16,7 +16,9 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
+#include <deque>
 #include <functional>
+#include <optional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -53,9 +55,16 @@ class OnlineLearningRos {
   void beforePair(const GyroFlow& gyro, StabiliserFlowCompensator& compensator);
   // After: hands the pair to the learner (dropped and counted when it is busy), publishes the
   // checks made since, updates /diagnostics. `gyro_homographies`: the plain gyro's per patch.
+  // `tracks`: the pair's tracks when the caller made them (the fusion), handed to the learner
+  // instead of the frames being tracked again. A fused pair is checked on its prior (the model's).
   void afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                  const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
-                 const std::vector<Eigen::Matrix3d>& gyro_homographies);
+                 const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                 const std::vector<FeatureMatch>* tracks = nullptr);
+  // The median model residual of the last usable per-pair checks (up to kRecentChecks), pixels:
+  // the fusion's prior sigma. None before the first.
+  std::optional<double> recentModelResidualPx() const;
+  static constexpr std::size_t kRecentChecks = 10;
   // Whether the plain gyro should be published instead of the model (~fallback_to_gyro and the
   // checks' hysteresis).
   bool fallingBack() const;
@@ -88,6 +97,7 @@ class OnlineLearningRos {
   std::string frame_id_;
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
+  std::deque<double> recent_model_residuals_px_;  // usable checks' model residuals, newest last
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
   // The learner's verdicts and replayed data already said in the log (each said once).
   std::size_t verdicts_logged_ = 0;

@@ -26,7 +26,12 @@ namespace deep_ois {
 struct StabiliserFlowResult {
   bool ok = false;
   std::string reason;  // why not, when !ok (a sentence for the drop tally)
-  std::vector<Eigen::Matrix3d> homographies;  // K(s_b) R K(s_a)^-1 per patch, undistorted px
+  std::vector<Eigen::Matrix3d> homographies;  // K(s_b) R K(s_a)^-1 per patch, undistorted px (fused, with the fusion)
+  // With the fusion (PairFusion): its result, and the model's homographies it started from (the
+  // prior, which the per-pair check scores). Empty / nullopt without.
+  std::optional<FusedMotion> fused;
+  std::vector<Eigen::Matrix3d> prior_homographies;
+  bool fusion_failed = false;  // the fusion threw: the prior is used, fused->reason says why
   std::vector<Eigen::Vector2d> shift_a_px, shift_b_px;
   std::vector<Eigen::Matrix3d> rotations;  // the gyro's R_b_a per patch
   RollingShutterConfig timing;             // the message's patch count, readout and time offset
@@ -37,6 +42,13 @@ struct StabiliserFlowResult {
   double time_jump_back_s = 0.0;
 };
 
+// The fusion of one pair with its tracks (the frame-pair processor's step 3).
+struct PairFusion {
+  const FusionOptions* options = nullptr;
+  const std::vector<FeatureMatch>* tracks = nullptr;  // raw pixels of the message's camera, a -> b
+  double prior_sigma_px = MotionPrior().sigma_px;
+};
+
 class StabiliserFlowCompensator {
  public:
   explicit StabiliserFlowCompensator(StabiliserModelFile model)
@@ -44,7 +56,8 @@ class StabiliserFlowCompensator {
 
   // Feeds the message's gyro stream and compensates its pair. A message without a gyro stream (an
   // older publisher) or whose stream does not cover the pair is not ok, with the reason.
-  StabiliserFlowResult compensate(const GyroFlow& msg);
+  // With `fusion`, the model's motion is refined by the pair's tracks (core/fusion/fused_motion.h).
+  StabiliserFlowResult compensate(const GyroFlow& msg, const PairFusion* fusion = nullptr);
   // Feeds the message's gyro stream only (a pair without an output still moved the camera).
   // Returns how far time went back before it (seconds; 0 when it did not), as in the result.
   double observe(const GyroFlow& msg);
