@@ -29,9 +29,6 @@ constexpr double kWarnPeriodS = 2.0;
 // flow nodelet's ~time_jump_reset default).
 constexpr double kTimelineJumpS = 1.0;
 // The optional outputs shed under overload (OutputShedding indices), costliest first as measured.
-// ~fusion: the least prior sigma taken from the per-pair checks, pixels (their residual holds the
-// tracks' noise; benchmark_fusion's floor).
-constexpr double kMinFusionPriorSigmaPx = 0.1;
 constexpr std::size_t kShedColour = 0, kShedAligned = 1, kShedGhost = 2;
 // Shedding starts at a quarter of ~max_lag and ends below a tenth: the plain compensated flow keeps
 // up well before a pair would be dropped.
@@ -456,10 +453,8 @@ std::optional<PairFusion> CompensationRos::fusionFor(const sensor_msgs::ImageCon
   PairFusion fusion;
   fusion.options = &fusion_options_;
   fusion.tracks = &tracks;
-  // The prior's sigma: the median model residual of the recent per-pair checks (never below 0.1
-  // px: it holds the tracks' noise), as benchmark_fusion takes it; the default before the first.
-  const std::optional<double> recent = learning_ ? learning_->recentModelResidualPx() : std::nullopt;
-  if (recent) fusion.prior_sigma_px = std::max(kMinFusionPriorSigmaPx, *recent);
+  // The prior's sigma from the recent per-pair checks (FusionPriorSigma: evaluate's fused row's rule).
+  if (learning_) fusion.prior_sigma_px = learning_->fusionPriorSigmaPx();
   return fusion;
 }
 

@@ -234,10 +234,7 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
   if (calibration_) calibration_->afterPair(gyro);
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
-    if (verdict.check.usable && std::isfinite(verdict.check.model_residual_px)) {
-      recent_model_residuals_px_.push_back(verdict.check.model_residual_px);
-      if (recent_model_residuals_px_.size() > kRecentChecks) recent_model_residuals_px_.pop_front();
-    }
+    fusion_prior_sigma_.add(verdict.check);
     if (check_pub_.getNumSubscribers() == 0) continue;
     auto msg = boost::make_shared<CompensationPairCheck>();
     msg->header.stamp.fromSec(verdict.stamp_b_s);
@@ -270,10 +267,9 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
 }
 
-std::optional<double> OnlineLearningRos::recentModelResidualPx() const {
+double OnlineLearningRos::fusionPriorSigmaPx() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (recent_model_residuals_px_.empty()) return std::nullopt;
-  return median(std::vector<double>(recent_model_residuals_px_.begin(), recent_model_residuals_px_.end()));
+  return fusion_prior_sigma_.sigmaPx();
 }
 
 bool OnlineLearningRos::fallingBack() const {

@@ -17,6 +17,7 @@
 
 #include "deep_ois/core/evaluation/table_row_method.h"
 #include "deep_ois/core/fusion/fused_motion.h"
+#include "deep_ois/core/fusion/fusion_prior_sigma.h"
 #include "deep_ois/core/online/compensation_check.h"
 
 namespace deep_ois {
@@ -24,10 +25,9 @@ namespace deep_ois {
 struct FusedRowOptions {
   FusionOptions fusion;
   CompensationCheckOptions check;
-  std::size_t recent_checks = 10;  // the prior's sigma: median of the last checks' model residuals
-  double initial_sigma_px = 0.5;   // before the recording's first usable check
-  double min_sigma_px = 0.1;       // the checks' residual holds the tracks' noise; never below this
-  double fixed_sigma_px = 0.0;     // > 0: this sigma on every pair instead of the checks'
+  // The prior's sigma from the recording's recent checks (the live compensation's rule).
+  FusionPriorSigmaOptions prior_sigma;
+  double fixed_sigma_px = 0.0;  // > 0: this sigma on every pair instead of the checks'
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;

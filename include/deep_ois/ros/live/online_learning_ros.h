@@ -16,13 +16,13 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
-#include <deque>
 #include <functional>
 #include <optional>
 #include <memory>
 #include <mutex>
 #include <string>
 
+#include "deep_ois/core/fusion/fusion_prior_sigma.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/ros/live/compensation_parameters.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
@@ -61,10 +61,8 @@ class OnlineLearningRos {
                  const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
                  const std::vector<Eigen::Matrix3d>& gyro_homographies,
                  const std::vector<FeatureMatch>* tracks = nullptr);
-  // The median model residual of the last usable per-pair checks (up to kRecentChecks), pixels:
-  // the fusion's prior sigma. None before the first.
-  std::optional<double> recentModelResidualPx() const;
-  static constexpr std::size_t kRecentChecks = 10;
+  // The fusion's prior sigma from the per-pair checks taken so far (FusionPriorSigma), pixels.
+  double fusionPriorSigmaPx() const;
   // Whether the plain gyro should be published instead of the model (~fallback_to_gyro and the
   // checks' hysteresis).
   bool fallingBack() const;
@@ -97,7 +95,7 @@ class OnlineLearningRos {
   std::string frame_id_;
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
-  std::deque<double> recent_model_residuals_px_;  // usable checks' model residuals, newest last
+  FusionPriorSigma fusion_prior_sigma_;  // from the checks taken so far (the fusion's prior)
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
   // The learner's verdicts and replayed data already said in the log (each said once).
   std::size_t verdicts_logged_ = 0;
