@@ -9,8 +9,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/vision/live_tracking.h"
 
 namespace deep_ois {
 namespace {
@@ -94,7 +94,7 @@ AlignmentMethod fusedAlignmentMethod(const std::string& name, AlignmentMethod pr
   if (!tally) tally = std::make_shared<FusionTally>();
   // The tracker and the recent checks live along one recording; pairs come in recording order.
   struct State {
-    FeatureTracker tracker{OnlineLearningOptions::learningCorners(), OnlineLearningOptions::learningKlt()};
+    FeatureTracker tracker{liveTrackingCorners(), liveTrackingKlt()};
     std::uint64_t recording = std::numeric_limits<std::uint64_t>::max();
     FusionPriorSigma prior_sigma;
     explicit State(const FusionPriorSigmaOptions& sigma) : prior_sigma(sigma) {}

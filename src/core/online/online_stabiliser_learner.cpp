@@ -87,21 +87,6 @@ void OnlineLearningOptions::useLensDynamics(std::shared_ptr<const LensDynamicsNe
   candidate_kinds.lens_dynamics_map = false;
 }
 
-CornerDetectorOptions OnlineLearningOptions::learningCorners() {
-  CornerDetectorOptions corners;
-  corners.min_corners_per_cell = 4;
-  corners.max_corners_per_cell = 4;
-  return corners;
-}
-
-KltOptions OnlineLearningOptions::learningKlt() {
-  KltOptions klt;
-  klt.window_size_px = 15;
-  klt.pyramid_levels = 2;
-  klt.max_iterations = 20;
-  return klt;
-}
-
 std::string OnlineLearningOptions::validate() const {
   std::ostringstream why;
   if (!(window_s > 0.1)) why << "window_s must be above 0.1 s (got " << window_s << ")";

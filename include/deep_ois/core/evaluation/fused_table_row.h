@@ -18,7 +18,7 @@
 #include "deep_ois/core/evaluation/table_row_method.h"
 #include "deep_ois/core/fusion/fused_motion.h"
 #include "deep_ois/core/fusion/fusion_prior_sigma.h"
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/compensation_check.h"
 
 namespace deep_ois {
 

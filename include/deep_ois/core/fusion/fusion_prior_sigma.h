@@ -1,5 +1,5 @@
 // The fused motion's prior sigma (MotionPrior::sigma_px) from the compensation's recent per-pair
-// checks (core/online/compensation_check.h): the median model residual of the last usable checks,
+// checks (core/vision/compensation_check.h): the median model residual of the last usable checks,
 // never below a floor (the residual holds the tracks' noise), a default before the first usable
 // check. One rule for the live compensation and evaluate's fused row, so that both give a pair the
 // same sigma. Pure C++: no ROS, no OpenCV calls.
@@ -9,7 +9,7 @@
 #include <deque>
 #include <string>
 
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/compensation_check.h"
 
 namespace deep_ois {
 

@@ -55,9 +55,10 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/online/atomic_file_write.h"
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/compensation_check.h"
 #include "deep_ois/core/online/confirmed_state.h"
 #include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/vision/live_tracking.h"
 
 namespace deep_ois {
 
@@ -77,11 +78,10 @@ struct OnlineLearningOptions {
   std::function<double()> budget_clock;
   // Pairs waiting for the tracking thread (each holds its two frames until tracked).
   std::size_t max_queued_pairs = 10;
-  int tracking_width_px = 480;       // frames wider than this are tracked on a reduced copy
-  // The tracker: fewer corners and a smaller KLT than the offline ground truth's (the learning
-  // runs within a CPU budget; ~190 tracks a pair still give ~30 per row patch).
-  CornerDetectorOptions corners = learningCorners();
-  KltOptions klt = learningKlt();
+  // The tracker: the live pipeline's (core/vision/feature_tracker.h), within the CPU budget.
+  int tracking_width_px = kLiveTrackingWidthPx;  // frames wider than this are tracked on a reduced copy
+  CornerDetectorOptions corners = liveTrackingCorners();
+  KltOptions klt = liveTrackingKlt();
   StabiliserFitOptions fit = onlineFitOptions();
   // The candidates built from each fit besides the chain (train_stabiliser's, stabiliser_candidates.h).
   StabiliserCandidateKinds candidate_kinds = onlineCandidateKinds();
@@ -110,8 +110,6 @@ struct OnlineLearningOptions {
   // fit, adapted as the live budget allows (the conditioning, then the output layer: a few seconds
   // of a core per fit); null = the chain's candidates alone.
   void useLensDynamics(std::shared_ptr<const LensDynamicsNetwork> network);
-  static CornerDetectorOptions learningCorners();
-  static KltOptions learningKlt();
   std::string validate() const;
 };
 

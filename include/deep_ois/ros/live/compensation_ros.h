@@ -28,6 +28,7 @@
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
+#include "deep_ois/core/vision/live_tracking.h"
 #include "deep_ois/ros/live/online_learning_ros.h"
 
 namespace deep_ois {
@@ -148,7 +149,7 @@ class CompensationRos {
   // With a stabiliser model: the per-pair checks, the fallback and the online learning.
   std::unique_ptr<OnlineLearningRos> learning_;
   // ~fusion: the tracker (the learner's options) and the counts for /diagnostics.
-  FeatureTracker fusion_tracker_{OnlineLearningOptions::learningCorners(), OnlineLearningOptions::learningKlt()};
+  FeatureTracker fusion_tracker_{liveTrackingCorners(), liveTrackingKlt()};
   FusionOptions fusion_options_;
   struct FusionCounts {
     std::size_t pairs = 0, refined = 0, failed = 0, untracked = 0;
