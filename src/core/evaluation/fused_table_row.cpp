@@ -43,6 +43,7 @@ std::string FusedRowOptions::validate() const {
   if (!fusion_problem.empty()) return fusion_problem;
   const std::string sigma_problem = prior_sigma.validate();
   if (!sigma_problem.empty()) return "prior_sigma: " + sigma_problem;
+  if (tracking_width_px < 64) return "tracking_width_px must be at least 64";
   if (!(fixed_sigma_px >= 0.0) || !std::isfinite(fixed_sigma_px)) return "fixed_sigma_px must be >= 0 (0: from the checks)";
   return "";
 }
@@ -113,7 +114,7 @@ AlignmentMethod fusedAlignmentMethod(const std::string& name, AlignmentMethod pr
             }
             const double sigma_px = options.fixed_sigma_px > 0.0 ? options.fixed_sigma_px : state->prior_sigma.sigmaPx();
             auto start = std::chrono::steady_clock::now();
-            const std::vector<FeatureMatch> matches = state->tracker.match(pair.gray_a, pair.gray_b);
+            const std::vector<FeatureMatch> matches = state->tracker.matchAtWidth(pair.gray_a, pair.gray_b, options.tracking_width_px);
             tally->tracking_s += secondsSince(start);
             start = std::chrono::steady_clock::now();
             const FusedMotion fused = fuseMotion(*pair.camera, {prior.homographies, sigma_px}, matches, options.fusion);

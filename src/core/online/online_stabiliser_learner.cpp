@@ -237,6 +237,13 @@ void OnlineStabiliserLearner::charge(double cpu_s, double reserved_s) {
   status_.cpu_s += cpu_s;
 }
 
+void OnlineStabiliserLearner::chargeTrackingElsewhere(double cpu_s) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  credit_s_ -= cpu_s;
+  status_.cpu_s += cpu_s;
+  status_.tracking_elsewhere_cpu_s += cpu_s;
+}
+
 double OnlineStabiliserLearner::clockNow() const {
   return options_.budget_clock ? options_.budget_clock() : wallNow();
 }
@@ -347,7 +354,9 @@ void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
   // ---- The check of the compensation published for this pair. ----
   if (!pair.model_homographies.empty()) {
     const CompensationCheck check =
-        checkCompensation(pair.camera, pair.matches, pair.model_homographies, pair.gyro_homographies, options_.check);
+        pair.check ? *pair.check
+                   : checkCompensation(pair.camera, pair.matches, pair.model_homographies, pair.gyro_homographies,
+                                       options_.check);
     const bool back = fallback_.update(check);
     falling_back_.store(back);
     std::lock_guard<std::mutex> lock(mutex_);

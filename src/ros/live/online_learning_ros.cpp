@@ -193,7 +193,7 @@ void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensat
 void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                                   const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
                                   const std::vector<Eigen::Matrix3d>& gyro_homographies,
-                                  const std::vector<FeatureMatch>* tracks) {
+                                  const std::vector<FeatureMatch>* tracks, const CompensationCheck* check) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!learner_) return;
   ++pairs_;
@@ -219,6 +219,7 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     if (tracks) {  // tracked already (for the fusion): the learner does not track the frames again
       pair.matches = *tracks;
       pair.tracked = true;
+      if (check) pair.check = *check;
     }
     std::string problem;
     pair.rates = readGyroFlowRates(gyro, &problem);
@@ -234,7 +235,6 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
   if (calibration_) calibration_->afterPair(gyro);
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
-    fusion_prior_sigma_.add(verdict.check);
     if (check_pub_.getNumSubscribers() == 0) continue;
     auto msg = boost::make_shared<CompensationPairCheck>();
     msg->header.stamp.fromSec(verdict.stamp_b_s);
@@ -267,9 +267,9 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
 }
 
-double OnlineLearningRos::fusionPriorSigmaPx() const {
+void OnlineLearningRos::chargeTracking(double cpu_s) {
   std::lock_guard<std::mutex> lock(mutex_);
-  return fusion_prior_sigma_.sigmaPx();
+  if (learner_) learner_->chargeTrackingElsewhere(cpu_s);
 }
 
 bool OnlineLearningRos::fallingBack() const {
@@ -345,9 +345,10 @@ void OnlineLearningRos::updateDiagnostics() {
                 s.pairs_unusable);
   diagnostics_.setValue("fallback to the plain gyro", params_.fallback_to_gyro ? text : "off (~fallback_to_gyro)");
   std::snprintf(text, sizeof text,
-                "%.1f %% of a core (budget %.0f %%); %zu pairs skipped over budget, %zu fits waited for it; "
-                "%zu pairs dropped (queue full)",
+                "%.1f %% of a core (budget %.0f %%; the fusion's tracking %.1f %%); %zu pairs skipped over budget, "
+                "%zu fits waited for it; %zu pairs dropped (queue full)",
                 s.wall_s > 0.0 ? 100.0 * s.cpu_s / s.wall_s : 0.0, 100.0 * params_.learning_cpu_share,
+                s.wall_s > 0.0 ? 100.0 * s.tracking_elsewhere_cpu_s / s.wall_s : 0.0,
                 s.pairs_over_budget, s.fits_delayed_by_budget, s.pairs_dropped_busy);
   diagnostics_.setValue("learning CPU", text);
   if (!s.last_choice.empty()) diagnostics_.setValue("learning: last choice", s.last_choice);

@@ -22,7 +22,6 @@
 #include <mutex>
 #include <string>
 
-#include "deep_ois/core/fusion/fusion_prior_sigma.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/ros/live/compensation_parameters.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
@@ -56,13 +55,15 @@ class OnlineLearningRos {
   // After: hands the pair to the learner (dropped and counted when it is busy), publishes the
   // checks made since, updates /diagnostics. `gyro_homographies`: the plain gyro's per patch.
   // `tracks`: the pair's tracks when the caller made them (the fusion), handed to the learner
-  // instead of the frames being tracked again. A fused pair is checked on its prior (the model's).
+  // instead of the frames being tracked again, with `check`, their check of the model's motion
+  // (a fused pair is checked on its prior), when made already.
   void afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                  const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
                  const std::vector<Eigen::Matrix3d>& gyro_homographies,
-                 const std::vector<FeatureMatch>* tracks = nullptr);
-  // The fusion's prior sigma from the per-pair checks taken so far (FusionPriorSigma), pixels.
-  double fusionPriorSigmaPx() const;
+                 const std::vector<FeatureMatch>* tracks = nullptr, const CompensationCheck* check = nullptr);
+  // The thread CPU time (seconds) the caller spent tracking a pair it hands over tracked: charged
+  // to the learner's budget (OnlineStabiliserLearner::chargeTrackingElsewhere).
+  void chargeTracking(double cpu_s);
   // Whether the plain gyro should be published instead of the model (~fallback_to_gyro and the
   // checks' hysteresis).
   bool fallingBack() const;
@@ -95,7 +96,6 @@ class OnlineLearningRos {
   std::string frame_id_;
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
-  FusionPriorSigma fusion_prior_sigma_;  // from the checks taken so far (the fusion's prior)
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
   // The learner's verdicts and replayed data already said in the log (each said once).
   std::size_t verdicts_logged_ = 0;
