@@ -231,6 +231,12 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.keep_alive = alive;
     // Before the submit: the tracking thread looks up the lens the compensation used for the pair.
     if (calibration_) calibration_->rememberLens(gyro, result, fallingBackLocked() || model_homographies.empty());
+    if (result.fused) {
+      fused_pairs_[pair.stamp_b_s] = *result.fused;
+      // Checks come in pair order and a few pairs late: more than a second of pairs waiting is a
+      // learner that skips them (over budget, a full queue).
+      while (fused_pairs_.size() > 100) fused_pairs_.erase(fused_pairs_.begin());
+    }
     learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
   }
   if (calibration_) calibration_->afterPair(gyro);
@@ -248,6 +254,20 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     msg->confidence = static_cast<float>(verdict.check.confidence);
     msg->falling_back = verdict.falling_back && params_.fallback_to_gyro;
     msg->model_version = static_cast<std::uint32_t>(version_in_use_);
+    // The fusion of this pair, and none of the older ones is waiting any longer.
+    const auto fused = fused_pairs_.find(verdict.stamp_b_s);
+    if (fused != fused_pairs_.end()) {
+      const FusedMotion& f = fused->second;
+      msg->fused = true;
+      msg->fusion_refined = f.refined;
+      msg->fusion_mean_correction = static_cast<float>(f.mean_correction_px);
+      msg->fusion_max_correction = static_cast<float>(f.max_correction_px);
+      msg->fusion_prior_sigma = static_cast<float>(f.sigma_px);
+      msg->fusion_prior_residual = static_cast<float>(f.prior_residual_px);
+      msg->fusion_fused_residual = static_cast<float>(f.fused_residual_px);
+      msg->fusion_reason = f.reason;
+    }
+    fused_pairs_.erase(fused_pairs_.begin(), fused_pairs_.upper_bound(verdict.stamp_b_s));
     // Checked as every output: a check that cannot be right is counted and said, not published.
     const std::string problem = compensationPairCheckProblem(*msg);
     if (!problem.empty()) {

@@ -17,6 +17,7 @@
 #include <sensor_msgs/Image.h>
 
 #include <functional>
+#include <map>
 #include <optional>
 #include <memory>
 #include <mutex>
@@ -96,6 +97,9 @@ class OnlineLearningRos {
   std::string frame_id_;
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
+  // ~fusion: what the fusion did with the pairs handed over, by frame b's stamp (s), until their
+  // check is published with it (a pair the learner skips is dropped with the older ones).
+  std::map<double, FusedMotion> fused_pairs_;
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
   // The learner's verdicts and replayed data already said in the log (each said once).
   std::size_t verdicts_logged_ = 0;
