@@ -417,7 +417,9 @@ void printRunSummary(const deep_ois::EvaluationReport& report, const EvaluateFla
     std::fprintf(stderr, "evaluate: %s\n", deep_ois::modelCameraNote(row, camera, report.recordings).c_str());
   }
   for (const auto& [row, tally] : rows.fusion_tallies) {
-    if (tally->pairs > 0) std::fprintf(stderr, "evaluate: %s: %s\n", row.c_str(), tally->summary().c_str());
+    if (tally->pairs == 0) continue;
+    // Per category: the share refined, the prior sigma given and used, why the others kept the prior.
+    std::fprintf(stderr, "evaluate: %s: %s\n%s", row.c_str(), tally->summary().c_str(), tally->markdown().c_str());
   }
   std::fprintf(stderr, "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
                report.elapsed_s, report.reading_s);
