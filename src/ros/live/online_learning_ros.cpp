@@ -305,6 +305,7 @@ void OnlineLearningRos::timeWentBack() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (learner_) learner_->restartTimeline();
   if (calibration_) calibration_->timeWentBack();
+  fused_pairs_.clear();  // the old timeline's pairs get no check now (the learner drops its queue)
 }
 
 void OnlineLearningRos::setLearning(bool on, double cpu_share) {
