@@ -151,6 +151,7 @@ struct BenchmarkFlags {
   std::string sizes_text = "256x192,640x480,1280x720,1920x1080";
   int torch_threads = 1, warp_threads = 1, frames = 200;
   bool fusion = false;
+  int tracking_width_px = deep_ois::kLiveTrackingWidthPx;  // the compensation's ~learning_tracking_width
 };
 
 void addFlags(deep_ois::ToolCommandLine& command_line, BenchmarkFlags& flags) {
@@ -171,6 +172,10 @@ void addFlags(deep_ois::ToolCommandLine& command_line, BenchmarkFlags& flags) {
   app.add_flag("--fusion", flags.fusion,
                "also the compensation's ~fusion (a stabiliser model): tracking, fusion and the per-pair "
                "check, the chain with and without them");
+  command_line.addNumber("--tracking-width", flags.tracking_width_px,
+                         "with --fusion: frames wider than this are tracked on a reduced copy, px (the "
+                         "compensation's ~learning_tracking_width)")
+      ->check(CLI::Range(64, 100000));
 }
 
 // The compensation model, as the nodelet's ~model: a learned stabiliser model (.yaml) or the
@@ -196,7 +201,9 @@ void printSetup(const BenchmarkFlags& flags, const LoadedModel& model, const dee
                 "frame pairs per size, %u hardware threads%s\n",
                 flags.model_path.c_str(), params.grid_size.width, params.grid_size.height, flags.warp_threads,
                 flags.frames, std::thread::hardware_concurrency(),
-                flags.fusion ? "; ~fusion on (tracked at most 480 px wide)" : "");
+                flags.fusion ? ("; ~fusion on (tracked at most " + std::to_string(flags.tracking_width_px) +
+                                " px wide)").c_str()
+                             : "");
   } else {
     const auto& m = model.network->metadata();
     std::printf("benchmark_compensation: model %s (preset %s, network grid %dx%d), flow grid %dx%d, %d torch "
@@ -240,8 +247,9 @@ struct Summary {
 class FramePairChain {
  public:
   FramePairChain(cv::Size size, const LoadedModel& model, const deep_ois::GyroFlowParameters& params,
-                 const deep_ois::ImuSampleBuffer& imu, bool fusion)
+                 const deep_ois::ImuSampleBuffer& imu, bool fusion, int tracking_width_px)
       : fusion_(fusion),
+        tracking_width_px_(tracking_width_px),
         size_(size),
         params_(params),
         imu_(imu),
@@ -392,7 +400,7 @@ class FramePairChain {
       const std::vector<deep_ois::FeatureMatch> tracks =
           tracker_.matchAtWidth(deep_ois::liveTrackingGray(cv_bridge::toCvShare(images_[k % 2])->image, deep_ois::ChannelOrder::kRgb),
                                 deep_ois::liveTrackingGray(cv_bridge::toCvShare(images_[(k + 1) % 2])->image, deep_ois::ChannelOrder::kRgb),
-                                deep_ois::kLiveTrackingWidthPx);
+                                tracking_width_px_);
       ms[kTracking] += msSince(start);
       start = Clock::now();
       const deep_ois::FusedMotion fused =
@@ -474,6 +482,7 @@ class FramePairChain {
   }
 
   const bool fusion_;
+  const int tracking_width_px_;
   const cv::Size size_;
   const deep_ois::GyroFlowParameters& params_;
   const deep_ois::ImuSampleBuffer& imu_;
@@ -602,7 +611,7 @@ int main(int argc, char** argv) {
     std::printf("\n%-10s %-20s %9s %9s %9s\n", "camera", "stage", "median ms", "p95 ms", "mean ms");
     std::vector<Summary> summaries;
     for (const cv::Size size : sizes) {
-      FramePairChain chain(size, model, params, imu, flags.fusion);
+      FramePairChain chain(size, model, params, imu, flags.fusion, flags.tracking_width_px);
       SizeTimings timings;
       for (int k = 0; k < flags.frames + kWarmUpPairs; ++k) chain.run(k, timings);
       summaries.push_back(printSizeTimings(size, timings, chain));
