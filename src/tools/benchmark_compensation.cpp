@@ -4,7 +4,7 @@
 // cv::remap of the same frame with the same map, so that the chain reads as a multiple of one remap.
 //
 //   benchmark_compensation [--model models/stabiliser_generic.yaml | models/fast.pt] [--frames 200] [--threads 1] [--warp-threads 1]
-//                          [--sizes 256x192,640x480,1280x720,1920x1080]
+//                          [--sizes 256x192,640x480,1280x720,1920x1080] [--fusion]
 //
 // One core by default: torch and OpenCV single-threaded (--threads / --warp-threads raise them).
 // Stages (see docs/benchmarks.md): gyro flow (gyro integration, per-patch homographies, flow on the
@@ -13,6 +13,12 @@
 // colour (gyro_flow/color and compensated_flow/color), message conversion (the GyroFlow messages,
 // image views in, output messages out). Beside the chain: the map built from the row-patch
 // homographies instead (PatchHomographyMapBuilder), the per-pixel inversion the map build replaced.
+// With --fusion (a stabiliser model), the compensation nodelet's ~fusion too: tracking (the frames'
+// gray at ~learning_tracking_width, the live tracker), fusion (the model's motion refined by the
+// tracks) and the per-pair check (the next pair's prior sigma); the chain is printed with and
+// without them, and their share of it. Frame b of every pair is frame a warped by the model's
+// motion and a 0.5 px shift the model misses (untimed), so that the tracks and the fusion do the
+// work of a textured scene.
 #include <cv_bridge/cv_bridge.h>
 #include <ros/package.h>
 #include <sensor_msgs/image_encodings.h>
@@ -41,6 +47,10 @@
 #include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
+#include "deep_ois/core/fusion/fused_motion.h"
+#include "deep_ois/core/fusion/fusion_prior_sigma.h"
+#include "deep_ois/core/vision/compensation_check.h"
+#include "deep_ois/core/vision/live_tracking.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/pipeline/frame_pair_processor.h"
@@ -95,7 +105,8 @@ deep_ois::CameraModel cameraOfSize(cv::Size size) {
   return deep_ois::CameraModel(size.width, size.height, K);
 }
 
-// A textured rgb8 frame (blurred noise): the warp's cost does not depend on the content.
+// A textured rgb8 frame (blurred noise): the warp's cost does not depend on the content; the tracks
+// find corners in every cell.
 sensor_msgs::ImagePtr texturedFrame(cv::Size size, int seed, const ros::Time& stamp) {
   cv::Mat view;
   std_msgs::Header header;
@@ -109,7 +120,11 @@ sensor_msgs::ImagePtr texturedFrame(cv::Size size, int seed, const ros::Time& st
 }
 
 // The stages of the chain, in the order they are printed (docs/benchmarks.md).
-enum StageIndex { kGyroFlow, kInference, kMapBuild, kRemap, kGhost, kColour, kMessages, kStageCount };
+// The last three run with --fusion only.
+enum StageIndex {
+  kGyroFlow, kInference, kMapBuild, kRemap, kGhost, kColour, kMessages, kTracking, kFusion, kCheck, kStageCount
+};
+bool isFusionStage(int stage) { return stage == kTracking || stage == kFusion || stage == kCheck; }
 
 struct Stage {
   const char* name;
@@ -135,6 +150,8 @@ struct BenchmarkFlags {
   std::string model_path;
   std::string sizes_text = "256x192,640x480,1280x720,1920x1080";
   int torch_threads = 1, warp_threads = 1, frames = 200;
+  bool fusion = false;
+  int tracking_width_px = deep_ois::kLiveTrackingWidthPx;  // the compensation's ~learning_tracking_width
 };
 
 void addFlags(deep_ois::ToolCommandLine& command_line, BenchmarkFlags& flags) {
@@ -152,6 +169,13 @@ void addFlags(deep_ois::ToolCommandLine& command_line, BenchmarkFlags& flags) {
   app.add_option("--sizes", flags.sizes_text, "camera sizes, comma-separated WIDTHxHEIGHT")
       ->capture_default_str()
       ->type_name("WxH,...");
+  app.add_flag("--fusion", flags.fusion,
+               "also the compensation's ~fusion (a stabiliser model): tracking, fusion and the per-pair "
+               "check, the chain with and without them");
+  command_line.addNumber("--tracking-width", flags.tracking_width_px,
+                         "with --fusion: frames wider than this are tracked on a reduced copy, px (the "
+                         "compensation's ~learning_tracking_width)")
+      ->check(CLI::Range(64, 100000));
 }
 
 // The compensation model, as the nodelet's ~model: a learned stabiliser model (.yaml) or the
@@ -174,9 +198,12 @@ LoadedModel loadModel(const std::string& path) {
 void printSetup(const BenchmarkFlags& flags, const LoadedModel& model, const deep_ois::GyroFlowParameters& params) {
   if (model.stabiliser) {
     std::printf("benchmark_compensation: learned stabiliser model %s, flow grid %dx%d, %d OpenCV thread(s), %d "
-                "frame pairs per size, %u hardware threads\n",
+                "frame pairs per size, %u hardware threads%s\n",
                 flags.model_path.c_str(), params.grid_size.width, params.grid_size.height, flags.warp_threads,
-                flags.frames, std::thread::hardware_concurrency());
+                flags.frames, std::thread::hardware_concurrency(),
+                flags.fusion ? ("; ~fusion on (tracked at most " + std::to_string(flags.tracking_width_px) +
+                                " px wide)").c_str()
+                             : "");
   } else {
     const auto& m = model.network->metadata();
     std::printf("benchmark_compensation: model %s (preset %s, network grid %dx%d), flow grid %dx%d, %d torch "
@@ -199,14 +226,18 @@ deep_ois::ImuSampleBuffer syntheticGyro(int frames) {
 struct SizeTimings {
   std::vector<Stage> stages = {{"gyro flow", {}}, {"inference", {}},      {"map build", {}},
                                {"remap", {}},     {"ghost", {}},          {"colour", {}},
-                               {"message conversion", {}}};
-  std::vector<double> chain_ms, bare_remap_ms, one_by_one_share, chain_cpu_ms, bare_remap_cpu_ms, reference_ms;
+                               {"message conversion", {}}, {"tracking", {}}, {"fusion", {}},
+                               {"per-pair check", {}}};
+  std::vector<double> refined;  // --fusion: 1 for a pair the tracks refined, else 0
+  std::vector<double> chain_without_fusion_ms, chain_ms, bare_remap_ms, one_by_one_share, chain_cpu_ms, bare_remap_cpu_ms, reference_ms;
   std::vector<double> homography_map_ms;
 };
 
 struct Summary {
   cv::Size size;
   double fps, median_ms, p95_ms, remap_median_ms, ratio;
+  // --fusion: the chain without it, and the mean tracking, fusion and check per pair (ms).
+  double fps_without_fusion, tracking_ms, fusion_ms, check_ms;
 };
 
 // Both live nodelets' per-frame work at one camera size, with the same core calls as the
@@ -216,14 +247,18 @@ struct Summary {
 class FramePairChain {
  public:
   FramePairChain(cv::Size size, const LoadedModel& model, const deep_ois::GyroFlowParameters& params,
-                 const deep_ois::ImuSampleBuffer& imu)
-      : size_(size),
+                 const deep_ois::ImuSampleBuffer& imu, bool fusion, int tracking_width_px)
+      : fusion_(fusion),
+        tracking_width_px_(tracking_width_px),
+        size_(size),
         params_(params),
         imu_(imu),
         camera_(cameraOfSize(size)),
         rs_(rollingShutter(params)),
         homography_builder_(camera_, rs_.patch_count),
-        images_{texturedFrame(size, 1, kBase), texturedFrame(size, 2, kBase)} {
+        images_{texturedFrame(size, 1, kBase), texturedFrame(size, 2, kBase)},
+        tracker_(deep_ois::liveTrackingCorners(), deep_ois::liveTrackingKlt()) {
+    if (fusion_ && !model.stabiliser) throw std::invalid_argument("--fusion needs a stabiliser model (--model *.yaml)");
     if (model.stabiliser) {
       stabiliser_compensator_ = std::make_unique<deep_ois::StabiliserFlowCompensator>(*model.stabiliser);
     } else {
@@ -242,12 +277,13 @@ class FramePairChain {
     sensor_msgs::Image& image_b = *images_[(k + 1) % 2];
     image_a.header.stamp = kBase + ros::Duration(stamp_a_s);
     image_b.header.stamp = kBase + ros::Duration(stamp_b_s);
-    double ms[kStageCount] = {0, 0, 0, 0, 0, 0, 0};
+    double ms[kStageCount] = {};
+    untimed_cpu_ms_ = 0.0;
     const double cpu_start_ms = threadCpuMs();
     std::vector<Eigen::Matrix3d> gyro_homographies;
     const boost::shared_ptr<deep_ois::GyroFlow> gyro_msg = gyroFlowNodelet(k, stamp_a_s, stamp_b_s, gyro_homographies, ms);
     const cv::Mat compensated = compensationNodelet(k, *gyro_msg, ms);
-    const double chain_cpu = threadCpuMs() - cpu_start_ms;
+    const double chain_cpu = threadCpuMs() - cpu_start_ms - untimed_cpu_ms_;
     const Yardsticks yardsticks = timeYardsticks(gyro_homographies);
     if (k < kWarmUpPairs) return;
     if (timings.reference_ms.size() < kReferenceRuns) {
@@ -260,16 +296,20 @@ class FramePairChain {
     timings.chain_cpu_ms.push_back(chain_cpu);
     timings.homography_map_ms.push_back(yardsticks.homography_map_ms);
     timings.bare_remap_cpu_ms.push_back(yardsticks.bare_remap_cpu_ms);
-    double chain = 0.0;
+    double chain = 0.0, without_fusion = 0.0;
     for (int s = 0; s < kStageCount; ++s) {
       timings.stages[s].ms.push_back(ms[s]);
       chain += ms[s];
+      if (!isFusionStage(s)) without_fusion += ms[s];
     }
     timings.chain_ms.push_back(chain);
+    timings.chain_without_fusion_ms.push_back(without_fusion);
+    if (fusion_) timings.refined.push_back(last_refined_ ? 1.0 : 0.0);
     timings.bare_remap_ms.push_back(yardsticks.bare_remap_ms);
     timings.one_by_one_share.push_back(static_cast<double>(map_.pixels_inverted_one_by_one) / size_.area());
   }
 
+  bool fusion() const { return fusion_; }
   int patchCount() const { return rs_.patch_count; }
   int latticeStepPx() const { return homography_builder_.latticeStepPx(); }
 
@@ -339,16 +379,42 @@ class FramePairChain {
     start = Clock::now();
     cv::Mat compensated;
     std::vector<Eigen::Matrix3d> compensated_homographies;  // a stabiliser model's
+    deep_ois::StabiliserFlowResult result;
     if (stabiliser_compensator_) {
-      deep_ois::StabiliserFlowResult result = stabiliser_compensator_->compensate(gyro_msg);
+      result = stabiliser_compensator_->compensate(gyro_msg);
       if (!result.ok) throw std::runtime_error("stabiliser model: " + result.reason);
       compensated = result.flow;
-      compensated_homographies = std::move(result.homographies);
+      compensated_homographies = result.homographies;
     } else {
       compensated = stream_->compensate(flow_view, static_cast<std::int64_t>(image_a.header.stamp.toNSec()),
                                         static_cast<std::int64_t>(image_b.header.stamp.toNSec()));
     }
     ms[kInference] += msSince(start);
+    renderFrameB(k, compensated_homographies.empty() ? homographies : compensated_homographies);
+    if (fusion_) {
+      // As CompensationRos with ~fusion: the live tracking, the fusion (the frame-pair processor's
+      // step 3 calls this same function on the model's motion), the fused motion rendered on the
+      // grid (counted in the fusion; live renders it in place of the model's), then the check that
+      // gives the next pair's prior sigma.
+      start = Clock::now();
+      const std::vector<deep_ois::FeatureMatch> tracks =
+          tracker_.matchAtWidth(deep_ois::liveTrackingGray(cv_bridge::toCvShare(images_[k % 2])->image, deep_ois::ChannelOrder::kRgb),
+                                deep_ois::liveTrackingGray(cv_bridge::toCvShare(images_[(k + 1) % 2])->image, deep_ois::ChannelOrder::kRgb),
+                                tracking_width_px_);
+      ms[kTracking] += msSince(start);
+      start = Clock::now();
+      const deep_ois::FusedMotion fused =
+          deep_ois::fuseMotion(result.camera, {result.homographies, prior_sigma_.sigmaPx()}, tracks, fusion_options_);
+      last_refined_ = fused.refined;
+      if (fused.refined) {
+        compensated_homographies = fused.homographies;
+        gyro_flow_processor_.render(result.camera, compensated.size(), compensated_homographies, compensated);
+      }
+      ms[kFusion] += msSince(start);
+      start = Clock::now();
+      prior_sigma_.add(deep_ois::checkCompensation(result.camera, tracks, result.homographies, homographies));
+      ms[kCheck] += msSince(start);
+    }
     start = Clock::now();
     auto compensated_msg = boost::make_shared<deep_ois::GyroFlow>(gyro_msg);
     std::memcpy(compensated_msg->flow.data.data(), compensated.data, compensated_msg->flow.data.size());
@@ -381,6 +447,24 @@ class FramePairChain {
     return compensated;
   }
 
+  // Frame a of pair k: the scene; frame b: the scene warped by the pair's motion and a 0.5 px shift it misses (a textured
+  // scene moving as the compensation says, up to what the fusion is for). Not timed: a camera
+  // delivers it.
+  void renderFrameB(int k, const std::vector<Eigen::Matrix3d>& motion) {
+    const double cpu_start_ms = threadCpuMs();
+    base_frame_.copyTo(cv::Mat(size_, CV_8UC3, images_[k % 2]->data.data()));
+    Eigen::Matrix3d missed = Eigen::Matrix3d::Identity();
+    missed(0, 2) = 0.4;
+    missed(1, 2) = -0.3;
+    std::vector<Eigen::Matrix3d> truth;
+    for (const Eigen::Matrix3d& h : motion) truth.push_back(missed * h);
+    homography_builder_.build(truth, frame_b_map_);
+    cv::Mat warped;
+    deep_ois::warpWithFixedPointMap(base_frame_, frame_b_map_, warped);
+    warped.copyTo(cv::Mat(size_, CV_8UC3, images_[(k + 1) % 2]->data.data()));
+    untimed_cpu_ms_ += threadCpuMs() - cpu_start_ms;
+  }
+
   // Beside the chain, not in it: the map straight from the six row-patch homographies (what a
   // compensator that outputs homographies warps by), and one bare remap of the same frame with
   // the same (fixed-point) map.
@@ -397,6 +481,8 @@ class FramePairChain {
     return yardsticks;
   }
 
+  const bool fusion_;
+  const int tracking_width_px_;
   const cv::Size size_;
   const deep_ois::GyroFlowParameters& params_;
   const deep_ois::ImuSampleBuffer& imu_;
@@ -411,6 +497,15 @@ class FramePairChain {
   deep_ois::FixedPointMap map_, homography_map_;
   cv_bridge::CvImageConstPtr a_;  // frame a of the current pair, as the compensation reads it
   cv::Mat gyro_flow_, bare_out_;
+  // The scene every frame is warped from (frame b of each pair: renderFrameB).
+  const cv::Mat base_frame_ = cv_bridge::toCvCopy(images_[0])->image;
+  deep_ois::FixedPointMap frame_b_map_;
+  double untimed_cpu_ms_ = 0.0;  // of the current pair, taken out of its chain's CPU time
+  // --fusion: the live tracker and the prior's sigma from the checks, as CompensationRos.
+  const deep_ois::FeatureTracker tracker_;
+  const deep_ois::FusionOptions fusion_options_;
+  deep_ois::FusionPriorSigma prior_sigma_;
+  bool last_refined_ = false;
 };
 
 const ros::Time FramePairChain::kBase(1000.0);
@@ -419,13 +514,24 @@ const ros::Time FramePairChain::kBase(1000.0);
 Summary printSizeTimings(cv::Size size, const SizeTimings& t, const FramePairChain& chain) {
   char label[32];
   std::snprintf(label, sizeof label, "%dx%d", size.width, size.height);
-  for (const Stage& stage : t.stages) {
+  for (std::size_t s = 0; s < t.stages.size(); ++s) {
+    const Stage& stage = t.stages[s];
+    if (isFusionStage(static_cast<int>(s)) && !chain.fusion()) continue;
     std::printf("%-10s %-20s %9.2f %9.2f %9.2f\n", label, stage.name, percentile(stage.ms, 0.5),
                 percentile(stage.ms, 0.95), mean(stage.ms));
   }
   const double fps = 1000.0 / mean(t.chain_ms);
   std::printf("%-10s %-20s %9.2f %9.2f %9.2f   -> %.1f frames/s\n", label, "CHAIN", percentile(t.chain_ms, 0.5),
               percentile(t.chain_ms, 0.95), mean(t.chain_ms), fps);
+  const double fps_without_fusion = 1000.0 / mean(t.chain_without_fusion_ms);
+  const double fusion_ms = mean(t.stages[kTracking].ms) + mean(t.stages[kFusion].ms) + mean(t.stages[kCheck].ms);
+  if (chain.fusion()) {
+    std::printf("%-10s %-20s %9.2f %9.2f %9.2f   -> %.1f frames/s (the fusion's share of the chain: %.1f %%; "
+                "%.1f %% of the pairs refined)\n",
+                label, "CHAIN without fusion", percentile(t.chain_without_fusion_ms, 0.5),
+                percentile(t.chain_without_fusion_ms, 0.95), mean(t.chain_without_fusion_ms), fps_without_fusion,
+                100.0 * fusion_ms / mean(t.chain_ms), 100.0 * mean(t.refined));
+  }
   std::printf("%-10s %-20s %9.2f %9.2f %9.2f   (chain / remap: %.2f at the median; %.2f %% of the pixels "
               "inverted one by one)\n",
               label, "bare cv::remap", percentile(t.bare_remap_ms, 0.5), percentile(t.bare_remap_ms, 0.95),
@@ -443,8 +549,27 @@ Summary printSizeTimings(cv::Size size, const SizeTimings& t, const FramePairCha
               "build replaced; %zu runs)\n",
               label, "per-pixel inversion", percentile(t.reference_ms, 0.5), percentile(t.reference_ms, 0.95),
               mean(t.reference_ms), t.reference_ms.size());
-  return {size, fps, percentile(t.chain_ms, 0.5), percentile(t.chain_ms, 0.95), percentile(t.bare_remap_ms, 0.5),
-          percentile(t.chain_ms, 0.5) / percentile(t.bare_remap_ms, 0.5)};
+  return {size,
+          fps,
+          percentile(t.chain_ms, 0.5),
+          percentile(t.chain_ms, 0.95),
+          percentile(t.bare_remap_ms, 0.5),
+          percentile(t.chain_ms, 0.5) / percentile(t.bare_remap_ms, 0.5),
+          fps_without_fusion,
+          mean(t.stages[kTracking].ms),
+          mean(t.stages[kFusion].ms),
+          mean(t.stages[kCheck].ms)};
+}
+
+// --fusion: the chain with and without it, and where the fusion's time goes (means per pair).
+void printFusionTable(const std::vector<Summary>& summaries) {
+  std::printf("\n| camera | chain frames/s with ~fusion | without | tracking ms | fusion ms | check ms | fusion's share |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|\n");
+  for (const Summary& s : summaries) {
+    const double fusion_ms = s.tracking_ms + s.fusion_ms + s.check_ms;
+    std::printf("| %dx%d | %.0f | %.0f | %.2f | %.2f | %.2f | %.1f %% |\n", s.size.width, s.size.height, s.fps,
+                s.fps_without_fusion, s.tracking_ms, s.fusion_ms, s.check_ms, 100.0 * fusion_ms * s.fps / 1000.0);
+  }
 }
 
 void printSummaryTable(const std::vector<Summary>& summaries) {
@@ -486,12 +611,13 @@ int main(int argc, char** argv) {
     std::printf("\n%-10s %-20s %9s %9s %9s\n", "camera", "stage", "median ms", "p95 ms", "mean ms");
     std::vector<Summary> summaries;
     for (const cv::Size size : sizes) {
-      FramePairChain chain(size, model, params, imu);
+      FramePairChain chain(size, model, params, imu, flags.fusion, flags.tracking_width_px);
       SizeTimings timings;
       for (int k = 0; k < flags.frames + kWarmUpPairs; ++k) chain.run(k, timings);
       summaries.push_back(printSizeTimings(size, timings, chain));
     }
     printSummaryTable(summaries);
+    if (flags.fusion) printFusionTable(summaries);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "benchmark_compensation: %s\n", e.what());
     return 1;

@@ -59,6 +59,7 @@ struct EvaluateFlags {
   int torch_threads = 1;
   bool no_image_baselines = false, no_ground_truth = false, no_model = false, no_progress = false;
   bool no_stabiliser = false, no_fusion = false;
+  bool live_fusion = false;  // --live-fusion: the recorded compensation ran ~fusion
   CLI::Option* model_option = nullptr;
   CLI::Option* stabiliser_option = nullptr;
   CLI::Option* oracle_option = nullptr;
@@ -66,6 +67,7 @@ struct EvaluateFlags {
   // network), and its offline row.
   bool live_stabiliser = false;
   std::string live_stabiliser_row;
+  std::string live_fused_row;  // with --live-fusion: the fused row of the live model
 };
 
 // What the run leaves for the report: the rows' models and the recorded live flows, which the
@@ -205,10 +207,14 @@ void addFlags(deep_ois::ToolCommandLine& command_line, EvaluateFlags& flags) {
       ->type_name("FILE");
   command_line.addNumber("--torch-threads", flags.torch_threads, "torch threads of the model row")
       ->check(deep_ois::atLeast(1));
-  app.add_option("--recorded", flags.recorded,
-                 "rosbag record of the live nodelets' gyro_flow and compensated_flow")
-      ->check(deep_ois::existingFile())
-      ->type_name("LIVE.bag");
+  CLI::Option* recorded = app.add_option("--recorded", flags.recorded,
+                                         "rosbag record of the live nodelets' gyro_flow and compensated_flow")
+                              ->check(deep_ois::existingFile())
+                              ->type_name("LIVE.bag");
+  app.add_flag("--live-fusion", flags.live_fusion,
+               "with --recorded: the live compensation ran ~fusion (a stabiliser model); its flows are compared "
+               "with the fused row of --live-model")
+      ->needs(recorded);
 }
 
 // The defaults that depend on other flags, and the combinations refused; a usage error's exit
@@ -222,6 +228,11 @@ std::optional<int> resolveFlags(deep_ois::ToolCommandLine& command_line, Evaluat
   flags.live_stabiliser = deep_ois::isStabiliserModelPath(flags.live_model);
   flags.live_stabiliser_row =
       "stabiliser model, " + std::filesystem::path(flags.live_model).filename().string();
+  flags.live_fused_row = "fused: " + flags.live_stabiliser_row + " + tracks";
+  if (flags.live_fusion && (!flags.live_stabiliser || flags.no_fusion)) {
+    return command_line.usageError("--live-fusion: the live fusion refines a stabiliser model's motion: needs a "
+                                   "stabiliser --live-model and the fused rows (no --no-fusion)");
+  }
   if (!flags.recorded.empty() && flags.live_stabiliser &&
       std::find(flags.stabiliser_paths.begin(), flags.stabiliser_paths.end(), flags.live_model) ==
           flags.stabiliser_paths.end()) {
@@ -318,8 +329,11 @@ void addFusedRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags
     runner.addMethod(deep_ois::fusedAlignmentMethod(row, std::move(prior), {}, tally));
     rows.fusion_tallies.emplace_back(row, tally);
   };
-  if (!flags.stabiliser_paths.empty()) {
-    const std::string& path = flags.stabiliser_paths.front();
+  // The first stabiliser model's, and with --live-fusion the live model's (the replay parity).
+  std::vector<std::string> priors;
+  if (!flags.stabiliser_paths.empty()) priors.push_back(flags.stabiliser_paths.front());
+  if (flags.live_fusion && (priors.empty() || priors.front() != flags.live_model)) priors.push_back(flags.live_model);
+  for (const std::string& path : priors) {
     const std::string file = std::filesystem::path(path).filename().string();
     addRow("fused: stabiliser model, " + file + " + tracks",
            deep_ois::stabiliserAlignmentMethod("prior of the fused row",
@@ -403,7 +417,9 @@ void printRunSummary(const deep_ois::EvaluationReport& report, const EvaluateFla
     std::fprintf(stderr, "evaluate: %s\n", deep_ois::modelCameraNote(row, camera, report.recordings).c_str());
   }
   for (const auto& [row, tally] : rows.fusion_tallies) {
-    if (tally->pairs > 0) std::fprintf(stderr, "evaluate: %s: %s\n", row.c_str(), tally->summary().c_str());
+    if (tally->pairs == 0) continue;
+    // Per category: the share refined, the prior sigma given and used, why the others kept the prior.
+    std::fprintf(stderr, "evaluate: %s: %s\n%s", row.c_str(), tally->summary().c_str(), tally->markdown().c_str());
   }
   std::fprintf(stderr, "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
                report.elapsed_s, report.reading_s);
@@ -418,7 +434,9 @@ bool printReplayParity(const deep_ois::EvaluationReport& report, const EvaluateF
   constexpr double kParityTolerancePx = 1e-3;
   std::vector<std::pair<std::string, std::string>> comparisons = {
       {"gyro, OIS camera (uncompensated)", "gyro, OIS camera (live nodelet, recorded)"}};
-  if (flags.live_stabiliser) {
+  if (flags.live_fusion) {
+    comparisons.push_back({flags.live_fused_row, "compensation (live nodelets, recorded)"});
+  } else if (flags.live_stabiliser) {
     comparisons.push_back({flags.live_stabiliser_row, "compensation (live nodelets, recorded)"});
   } else if (rows.model) {
     comparisons.push_back({rows.model_row, "compensation (live nodelets, recorded)"});

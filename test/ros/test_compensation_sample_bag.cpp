@@ -1,7 +1,10 @@
 // rostest of launch/deep_ois.launch on bags/sample.bag: the test node plays the bag (after the
 // nodelets listen) and checks that every frame pair after the first yields a compensated flow,
 // an aligned image, a ghost image and a flow colour image, consistent with the frames, and that
-// the aligned previous frame matches the current frame better than the unaligned one does.
+// the aligned previous frame matches the current frame better than the unaligned one does. With
+// ~offline_fused_parity (the compensation's ~fusion), the live fused motion of every pair is the
+// offline fused row's (evaluate's, core/evaluation/fused_table_row.h): replay parity.
+#include <deep_ois/CompensationPairCheck.h>
 #include <deep_ois/GyroFlow.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
@@ -15,7 +18,14 @@
 
 
 #include "deep_ois/FramePairTruth.h"
+#include <ros/package.h>
+
+#include "deep_ois/core/evaluation/fused_table_row.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/evaluation/stabiliser_table_row.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/ros/live/gyro_flow_parameters.h"
+#include "deep_ois/tools/support/evaluation_runner.h"
 #include "deep_ois/ros/messages/conversions.h"
 #include "documented_diagnostics.h"
 
@@ -38,6 +48,17 @@ struct DiagnosticsKeysSeen {
   }
 };
 DiagnosticsKeysSeen diagnostics_keys_seen;
+
+// Every compensation_check since the test node started (main subscribes before the tests run).
+struct ChecksSeen {
+  std::mutex mutex;
+  std::vector<CompensationPairCheckConstPtr> checks;
+};
+ChecksSeen checks_seen;
+
+// The live compensated motion per pair (frame a's and b's stamps, ns), kept by the first test for
+// the parity test after it.
+std::map<std::pair<std::int64_t, std::int64_t>, std::vector<Eigen::Matrix3d>> live_motion;
 
 namespace {
 
@@ -194,6 +215,10 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
     ++pairs;
   }
   ASSERT_GE(scored, pairs - 2) << "annotated pairs without a gyro flow";
+  for (const auto& [stamp, flow] : collected.flows) {
+    live_motion[{static_cast<std::int64_t>(flow->previous_stamp.toNSec()), static_cast<std::int64_t>(stamp.toNSec())}] =
+        unflattenMatrices(flow->homographies);
+  }
   std::printf("[ INFO     ] %d pairs; geometry distance on %d annotated pairs: gyro %.3f px, compensated %.3f px\n",
               pairs, scored, gyro_sum_px / scored, compensated_sum_px / scored);
   // The model must remove most of the uncompensated gyro flow's error on this OIS camera
@@ -202,6 +227,47 @@ TEST(CompensationSampleBag, EveryPairAfterTheFirstIsAlignedAndCompensated) {
   double max_ratio = 0.5;
   private_nh.param("max_compensated_ratio", max_ratio, max_ratio);
   EXPECT_LT(compensated_sum_px, max_ratio * gyro_sum_px);
+}
+
+// Runs after the first test: the live fused motion against evaluate's fused row on the same bag,
+// pair by pair (the offline rows computed here, with the evaluator). The offline row sees only the
+// pairs the live pipeline compensated (the first may be lost while the connections settle), so
+// that its prior sigma is made of the same checks.
+TEST(CompensationSampleBag, LiveFusedMotionIsTheOfflineFusedRow) {
+  ros::NodeHandle private_nh("~");
+  if (!private_nh.param("offline_fused_parity", false)) GTEST_SKIP() << "~offline_fused_parity not set";
+  ASSERT_FALSE(live_motion.empty()) << "no live compensated flow (the first test failed)";
+  std::string bag_path, model_suffix;
+  ASSERT_TRUE(private_nh.getParam("bag", bag_path));
+  ASSERT_TRUE(private_nh.getParam("model_suffix", model_suffix));
+  const std::string package = ros::package::getPath("deep_ois");
+  EvaluationOptions options;
+  options.bags = {bag_path};
+  options.gyro = loadGyroFlowParameters(YamlParameters(package + "/config/gyro_flow.yaml"));
+  options.ghost_pairs_per_category = 0;
+  options.show_progress = false;
+  EvaluationRunner runner(options);
+  const auto stamps = [](const FramePairContext& pair) { return std::make_pair(pair.stamp_a_ns, pair.stamp_b_ns); };
+  AlignmentMethod offline = fusedAlignmentMethod(
+      "offline fused", stabiliserAlignmentMethod("prior", StabiliserModelFile::load(package + "/" + model_suffix).parameters));
+  auto offline_estimate = offline.estimate;
+  offline.estimate = [=](const FramePairContext& pair) {
+    if (!live_motion.count(stamps(pair))) return AlignmentEstimate::failed("not compensated live");
+    return offline_estimate(pair);
+  };
+  runner.addMethod(offline);
+  runner.addMethod({"live fused", kOisCameraPairs, [=](const FramePairContext& pair) {
+                      const auto found = live_motion.find(stamps(pair));
+                      if (found == live_motion.end()) return AlignmentEstimate::failed("not compensated live");
+                      return AlignmentEstimate::patchHomographies(found->second);
+                    }});
+  const EvaluationReport report = runner.run();
+  const MethodAgreement agreement = compareMethods(report, "offline fused", "live fused");
+  std::printf("[ INFO     ] live fused motion against the offline fused row: %zu pairs compared, largest difference "
+              "%.6f px\n", agreement.pairs_compared, agreement.max_abs_difference_px);
+  EXPECT_GE(agreement.pairs_compared, live_motion.size() - 2);
+  // evaluate's replay parity tolerance (its --recorded comparison).
+  EXPECT_LE(agreement.max_abs_difference_px, 1e-3);
 }
 
 // Runs after the test above: both nodelets report on /diagnostics what they did with the bag and
@@ -258,6 +324,24 @@ TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
     }
     EXPECT_GT(std::stod(values["fusion: pairs refined [%]"]), 0.0);
     EXPECT_EQ(values["fusion: failures (model's motion published)"], "0");
+    // The per-pair record says how far the images moved each checked pair's motion from the model's.
+    std::lock_guard<std::mutex> checks_lock(checks_seen.mutex);
+    std::size_t fused = 0, refined = 0;
+    for (const CompensationPairCheckConstPtr& check : checks_seen.checks) {
+      if (!check->fused) continue;
+      ++fused;
+      const std::string kind = check->fusion_refined ? "refined on " : "prior kept: ";
+      EXPECT_EQ(check->fusion_reason.rfind(kind, 0), 0u) << check->fusion_reason;
+      EXPECT_GT(check->fusion_prior_sigma, 0.0f);
+      if (!check->fusion_refined) continue;
+      ++refined;
+      EXPECT_GT(check->fusion_mean_correction, 0.0f);
+      EXPECT_GE(check->fusion_max_correction, check->fusion_mean_correction);
+    }
+    std::printf("[ INFO     ] compensation_check: %zu checks, %zu of them fused, %zu refined\n",
+                checks_seen.checks.size(), fused, refined);
+    EXPECT_GE(fused, checks_seen.checks.size() / 2) << "checks without their pair's fusion";
+    EXPECT_GT(refined, 0u);
   }
   EXPECT_GE(std::stoi(latest[gyro]["gyro flows total"]), 28);
   EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);
@@ -301,6 +385,12 @@ int main(int argc, char** argv) {
   deep_ois::DiagnosticsKeysSeen& seen = deep_ois::diagnostics_keys_seen;
   const ros::Subscriber diagnostics_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 100, [&seen](const diagnostic_msgs::DiagnosticArrayConstPtr& msg) { seen.add(msg); });
+  deep_ois::ChecksSeen& checks = deep_ois::checks_seen;
+  const ros::Subscriber checks_sub = nh.subscribe<deep_ois::CompensationPairCheck>(
+      "/deep_ois/compensation_check", 1000, [&checks](const deep_ois::CompensationPairCheckConstPtr& msg) {
+        std::lock_guard<std::mutex> lock(checks.mutex);
+        checks.checks.push_back(msg);
+      });
   const int result = RUN_ALL_TESTS();
   ros::shutdown();
   return result;

@@ -144,6 +144,20 @@ TEST(MessageValidation, CompensationPairChecks) {
   m = validCheck();
   m.previous_stamp = m.header.stamp;
   EXPECT_NE(compensationPairCheckProblem(m).find("previous_stamp"), std::string::npos);
+  // ~fusion's fields: a refined pair is valid; figures must be finite and >= 0, and a pair not
+  // fused says nothing of a fusion.
+  m = validCheck();
+  m.fused = m.fusion_refined = true;
+  m.fusion_mean_correction = 0.1f;
+  m.fusion_max_correction = 0.3f;
+  m.fusion_prior_sigma = 0.2f;
+  m.fusion_reason = "refined on 120 tracks";
+  EXPECT_EQ(compensationPairCheckProblem(m), "");
+  m.fusion_max_correction = std::numeric_limits<float>::infinity();
+  EXPECT_NE(compensationPairCheckProblem(m).find("fusion figure"), std::string::npos);
+  m.fusion_max_correction = 0.3f;
+  m.fused = false;
+  EXPECT_NE(compensationPairCheckProblem(m).find("not fused"), std::string::npos);
 }
 
 }  // namespace

@@ -5,14 +5,12 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <deque>
 #include <limits>
 #include <stdexcept>
 #include <vector>
 
-#include "deep_ois/core/common/so3_and_statistics.h"
-#include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/vision/live_tracking.h"
 
 namespace deep_ois {
 namespace {
@@ -43,9 +41,9 @@ std::string format(const char* pattern, double a, double b = 0.0, double c = 0.0
 std::string FusedRowOptions::validate() const {
   const std::string fusion_problem = fusion.validate();
   if (!fusion_problem.empty()) return fusion_problem;
-  if (recent_checks == 0) return "recent_checks must be at least 1";
-  if (!(initial_sigma_px > 0.0) || !std::isfinite(initial_sigma_px)) return "initial_sigma_px must be positive";
-  if (!(min_sigma_px > 0.0) || !std::isfinite(min_sigma_px)) return "min_sigma_px must be positive";
+  const std::string sigma_problem = prior_sigma.validate();
+  if (!sigma_problem.empty()) return "prior_sigma: " + sigma_problem;
+  if (tracking_width_px < 64) return "tracking_width_px must be at least 64";
   if (!(fixed_sigma_px >= 0.0) || !std::isfinite(fixed_sigma_px)) return "fixed_sigma_px must be >= 0 (0: from the checks)";
   return "";
 }
@@ -97,11 +95,12 @@ AlignmentMethod fusedAlignmentMethod(const std::string& name, AlignmentMethod pr
   if (!tally) tally = std::make_shared<FusionTally>();
   // The tracker and the recent checks live along one recording; pairs come in recording order.
   struct State {
-    FeatureTracker tracker{OnlineLearningOptions::learningCorners(), OnlineLearningOptions::learningKlt()};
+    FeatureTracker tracker{liveTrackingCorners(), liveTrackingKlt()};
     std::uint64_t recording = std::numeric_limits<std::uint64_t>::max();
-    std::deque<double> recent_residuals_px;
+    FusionPriorSigma prior_sigma;
+    explicit State(const FusionPriorSigmaOptions& sigma) : prior_sigma(sigma) {}
   };
-  auto state = std::make_shared<State>();
+  auto state = std::make_shared<State>(options.prior_sigma);
   auto prior_estimate = prior_row.estimate;
   return {name, prior_row.scope, [=](const FramePairContext& pair) {
             const AlignmentEstimate prior = prior_estimate(pair);
@@ -111,15 +110,11 @@ AlignmentMethod fusedAlignmentMethod(const std::string& name, AlignmentMethod pr
             }
             if (pair.recording_id != state->recording) {
               state->recording = pair.recording_id;
-              state->recent_residuals_px.clear();
+              state->prior_sigma.clear();
             }
-            double sigma_px = options.fixed_sigma_px;
-            if (!(sigma_px > 0.0)) {
-              const std::vector<double> recent(state->recent_residuals_px.begin(), state->recent_residuals_px.end());
-              sigma_px = recent.empty() ? options.initial_sigma_px : std::max(options.min_sigma_px, median(recent));
-            }
+            const double sigma_px = options.fixed_sigma_px > 0.0 ? options.fixed_sigma_px : state->prior_sigma.sigmaPx();
             auto start = std::chrono::steady_clock::now();
-            const std::vector<FeatureMatch> matches = state->tracker.match(pair.gray_a, pair.gray_b);
+            const std::vector<FeatureMatch> matches = state->tracker.matchAtWidth(pair.gray_a, pair.gray_b, options.tracking_width_px);
             tally->tracking_s += secondsSince(start);
             start = std::chrono::steady_clock::now();
             const FusedMotion fused = fuseMotion(*pair.camera, {prior.homographies, sigma_px}, matches, options.fusion);
@@ -128,10 +123,7 @@ AlignmentMethod fusedAlignmentMethod(const std::string& name, AlignmentMethod pr
             const CompensationCheck check =
                 checkCompensation(*pair.camera, matches, prior.homographies, pair.gyro_homographies, options.check);
             tally->check_s += secondsSince(start);
-            if (check.usable) {
-              state->recent_residuals_px.push_back(check.model_residual_px);
-              if (state->recent_residuals_px.size() > options.recent_checks) state->recent_residuals_px.pop_front();
-            }
+            state->prior_sigma.add(check);
             FusionTally::Category& category = tally->categories[pair.category];
             ++category.pairs;
             ++tally->pairs;

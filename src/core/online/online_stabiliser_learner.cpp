@@ -87,21 +87,6 @@ void OnlineLearningOptions::useLensDynamics(std::shared_ptr<const LensDynamicsNe
   candidate_kinds.lens_dynamics_map = false;
 }
 
-CornerDetectorOptions OnlineLearningOptions::learningCorners() {
-  CornerDetectorOptions corners;
-  corners.min_corners_per_cell = 4;
-  corners.max_corners_per_cell = 4;
-  return corners;
-}
-
-KltOptions OnlineLearningOptions::learningKlt() {
-  KltOptions klt;
-  klt.window_size_px = 15;
-  klt.pyramid_levels = 2;
-  klt.max_iterations = 20;
-  return klt;
-}
-
 std::string OnlineLearningOptions::validate() const {
   std::ostringstream why;
   if (!(window_s > 0.1)) why << "window_s must be above 0.1 s (got " << window_s << ")";
@@ -252,6 +237,13 @@ void OnlineStabiliserLearner::charge(double cpu_s, double reserved_s) {
   status_.cpu_s += cpu_s;
 }
 
+void OnlineStabiliserLearner::chargeTrackingElsewhere(double cpu_s) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  credit_s_ -= cpu_s;
+  status_.cpu_s += cpu_s;
+  status_.tracking_elsewhere_cpu_s += cpu_s;
+}
+
 double OnlineStabiliserLearner::clockNow() const {
   return options_.budget_clock ? options_.budget_clock() : wallNow();
 }
@@ -362,7 +354,9 @@ void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
   // ---- The check of the compensation published for this pair. ----
   if (!pair.model_homographies.empty()) {
     const CompensationCheck check =
-        checkCompensation(pair.camera, pair.matches, pair.model_homographies, pair.gyro_homographies, options_.check);
+        pair.check ? *pair.check
+                   : checkCompensation(pair.camera, pair.matches, pair.model_homographies, pair.gyro_homographies,
+                                       options_.check);
     const bool back = fallback_.update(check);
     falling_back_.store(back);
     std::lock_guard<std::mutex> lock(mutex_);

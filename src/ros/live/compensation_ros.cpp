@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <stdexcept>
 
 #include "deep_ois/core/common/printf_text.h"
@@ -29,9 +30,6 @@ constexpr double kWarnPeriodS = 2.0;
 // flow nodelet's ~time_jump_reset default).
 constexpr double kTimelineJumpS = 1.0;
 // The optional outputs shed under overload (OutputShedding indices), costliest first as measured.
-// ~fusion: the least prior sigma taken from the per-pair checks, pixels (their residual holds the
-// tracks' noise; benchmark_fusion's floor).
-constexpr double kMinFusionPriorSigmaPx = 0.1;
 constexpr std::size_t kShedColour = 0, kShedAligned = 1, kShedGhost = 2;
 // Shedding starts at a quarter of ~max_lag and ends below a tenth: the plain compensated flow keeps
 // up well before a pair would be dropped.
@@ -43,6 +41,17 @@ OutputShedding makeShedding(double max_lag_s) {
 }
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+double threadCpuS() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+// A frame as the fusion tracks it (liveTrackingGray: the luma weights of its channel order).
+cv::Mat trackingGray(const sensor_msgs::ImageConstPtr& image) {
+  namespace enc = sensor_msgs::image_encodings;
+  const bool rgb = image->encoding == enc::RGB8 || image->encoding == enc::RGBA8;
+  return liveTrackingGray(cv_bridge::toCvShare(image)->image, rgb ? ChannelOrder::kRgb : ChannelOrder::kBgr);
 }
 }  // namespace
 
@@ -339,6 +348,7 @@ bool CompensationRos::checkModelCamera(const GyroFlow& gyro) {
 void CompensationRos::sayTimeJump(const GyroFlow& gyro, double back_s) {
   if (!(back_s > 0.0)) return;
   if (learning_) learning_->timeWentBack();
+  fusion_prior_sigma_.clear();  // a new timeline (a bag that loops): its checks start again
   diagnostics_->setValue("stabiliser restarts after time went back", std::to_string(stabiliser_->timeJumps()));
   // Once per jump (only the first pair of the new timeline reports one): not throttled.
   ROS_WARN_NAMED("compensation",
@@ -429,7 +439,18 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::withStabilise
     countDrop("stabiliser model: " + result.reason);
     return std::nullopt;
   }
-  if (learning_) learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies, fusion ? &tracks : nullptr);
+  std::optional<CompensationCheck> check;
+  if (fusion) {
+    // The pair's check of the model's motion (the prior) on its tracks: the next pairs' prior sigma.
+    const std::vector<Eigen::Matrix3d>& prior =
+        result.prior_homographies.empty() ? result.homographies : result.prior_homographies;
+    check = checkCompensation(result.camera, tracks, prior, gyro_homographies);
+    fusion_prior_sigma_.add(*check);
+  }
+  if (learning_) {
+    learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies, fusion ? &tracks : nullptr,
+                         check ? &*check : nullptr);
+  }
   // The checks found the model worse than the plain gyro: the gyro's motion is published.
   if (publishesPlainGyro(CompensationMethod::kStabiliserModel, learning_ && learning_->fallingBack())) {
     return CompensatedMotion{gyro_flow.clone(), gyro_homographies, result.camera};
@@ -441,8 +462,10 @@ std::optional<PairFusion> CompensationRos::fusionFor(const sensor_msgs::ImageCon
                                                      const sensor_msgs::ImageConstPtr& image_b,
                                                      std::vector<FeatureMatch>& tracks) {
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start_s = threadCpuS();
+  if (!fusion_counts_.first_pair) fusion_counts_.first_pair = start;
   try {
-    tracks = fusion_tracker_.matchAtWidth(cv_bridge::toCvShare(image_a)->image, cv_bridge::toCvShare(image_b)->image,
+    tracks = fusion_tracker_.matchAtWidth(trackingGray(image_a), trackingGray(image_b),
                                           params_.learning_tracking_width_px);
   } catch (const std::exception& e) {  // an encoding the tracker cannot read (cv_bridge, toGray8)
     diagnostics_->setValue("fusion: pairs not tracked (model's motion published)",
@@ -453,13 +476,14 @@ std::optional<PairFusion> CompensationRos::fusionFor(const sensor_msgs::ImageCon
     return std::nullopt;
   }
   fusion_counts_.tracking_s += secondsSince(start);
+  const double cpu_s = threadCpuS() - cpu_start_s;
+  fusion_counts_.tracking_cpu_s += cpu_s;
+  if (learning_) learning_->chargeTracking(cpu_s);
   PairFusion fusion;
   fusion.options = &fusion_options_;
   fusion.tracks = &tracks;
-  // The prior's sigma: the median model residual of the recent per-pair checks (never below 0.1
-  // px: it holds the tracks' noise), as benchmark_fusion takes it; the default before the first.
-  const std::optional<double> recent = learning_ ? learning_->recentModelResidualPx() : std::nullopt;
-  if (recent) fusion.prior_sigma_px = std::max(kMinFusionPriorSigmaPx, *recent);
+  // The prior's sigma from the recent pairs' checks (FusionPriorSigma: evaluate's fused row's rule).
+  fusion.prior_sigma_px = fusion_prior_sigma_.sigmaPx();
   return fusion;
 }
 
@@ -486,6 +510,11 @@ void CompensationRos::countFusion(const StabiliserFlowResult& result, double com
   diagnostics_->setValue("fusion: failures (model's motion published)", std::to_string(c.failed));
   diagnostics_->setValue("fusion: tracking a pair [ms]", fixed(1e3 * c.tracking_s / c.pairs, 2));
   diagnostics_->setValue("fusion: model and fusion a pair [ms]", fixed(1e3 * c.compensate_s / c.pairs, 2));
+  // The tracking's thread CPU over the wall time since the first fused pair: what ~fusion costs a
+  // core beside the model (charged to ~learning_cpu_share as well).
+  const double since_s = c.first_pair ? secondsSince(*c.first_pair) : 0.0;
+  diagnostics_->setValue("fusion: tracking CPU [% of a core]",
+                         since_s > 0.0 ? fixed(100.0 * c.tracking_cpu_s / since_s, 1) : "-");
 }
 
 std::optional<CompensationRos::CompensatedMotion> CompensationRos::withNetwork(const GyroFlow& gyro,

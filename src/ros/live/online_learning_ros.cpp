@@ -193,7 +193,7 @@ void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensat
 void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                                   const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
                                   const std::vector<Eigen::Matrix3d>& gyro_homographies,
-                                  const std::vector<FeatureMatch>* tracks) {
+                                  const std::vector<FeatureMatch>* tracks, const CompensationCheck* check) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!learner_) return;
   ++pairs_;
@@ -219,6 +219,7 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     if (tracks) {  // tracked already (for the fusion): the learner does not track the frames again
       pair.matches = *tracks;
       pair.tracked = true;
+      if (check) pair.check = *check;
     }
     std::string problem;
     pair.rates = readGyroFlowRates(gyro, &problem);
@@ -230,14 +231,16 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.keep_alive = alive;
     // Before the submit: the tracking thread looks up the lens the compensation used for the pair.
     if (calibration_) calibration_->rememberLens(gyro, result, fallingBackLocked() || model_homographies.empty());
+    if (result.fused) {
+      fused_pairs_[pair.stamp_b_s] = *result.fused;
+      // Checks come in pair order and a few pairs late: more than a second of pairs waiting is a
+      // learner that skips them (over budget, a full queue).
+      while (fused_pairs_.size() > 100) fused_pairs_.erase(fused_pairs_.begin());
+    }
     learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
   }
   if (calibration_) calibration_->afterPair(gyro);
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
-    if (verdict.check.usable && std::isfinite(verdict.check.model_residual_px)) {
-      recent_model_residuals_px_.push_back(verdict.check.model_residual_px);
-      if (recent_model_residuals_px_.size() > kRecentChecks) recent_model_residuals_px_.pop_front();
-    }
     if (check_pub_.getNumSubscribers() == 0) continue;
     auto msg = boost::make_shared<CompensationPairCheck>();
     msg->header.stamp.fromSec(verdict.stamp_b_s);
@@ -251,6 +254,20 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     msg->confidence = static_cast<float>(verdict.check.confidence);
     msg->falling_back = verdict.falling_back && params_.fallback_to_gyro;
     msg->model_version = static_cast<std::uint32_t>(version_in_use_);
+    // The fusion of this pair, and none of the older ones is waiting any longer.
+    const auto fused = fused_pairs_.find(verdict.stamp_b_s);
+    if (fused != fused_pairs_.end()) {
+      const FusedMotion& f = fused->second;
+      msg->fused = true;
+      msg->fusion_refined = f.refined;
+      msg->fusion_mean_correction = static_cast<float>(f.mean_correction_px);
+      msg->fusion_max_correction = static_cast<float>(f.max_correction_px);
+      msg->fusion_prior_sigma = static_cast<float>(f.sigma_px);
+      msg->fusion_prior_residual = static_cast<float>(f.prior_residual_px);
+      msg->fusion_fused_residual = static_cast<float>(f.fused_residual_px);
+      msg->fusion_reason = f.reason;
+    }
+    fused_pairs_.erase(fused_pairs_.begin(), fused_pairs_.upper_bound(verdict.stamp_b_s));
     // Checked as every output: a check that cannot be right is counted and said, not published.
     const std::string problem = compensationPairCheckProblem(*msg);
     if (!problem.empty()) {
@@ -270,10 +287,9 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
 }
 
-std::optional<double> OnlineLearningRos::recentModelResidualPx() const {
+void OnlineLearningRos::chargeTracking(double cpu_s) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (recent_model_residuals_px_.empty()) return std::nullopt;
-  return median(std::vector<double>(recent_model_residuals_px_.begin(), recent_model_residuals_px_.end()));
+  if (learner_) learner_->chargeTrackingElsewhere(cpu_s);
 }
 
 bool OnlineLearningRos::fallingBack() const {
@@ -289,6 +305,7 @@ void OnlineLearningRos::timeWentBack() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (learner_) learner_->restartTimeline();
   if (calibration_) calibration_->timeWentBack();
+  fused_pairs_.clear();  // the old timeline's pairs get no check now (the learner drops its queue)
 }
 
 void OnlineLearningRos::setLearning(bool on, double cpu_share) {
@@ -349,9 +366,10 @@ void OnlineLearningRos::updateDiagnostics() {
                 s.pairs_unusable);
   diagnostics_.setValue("fallback to the plain gyro", params_.fallback_to_gyro ? text : "off (~fallback_to_gyro)");
   std::snprintf(text, sizeof text,
-                "%.1f %% of a core (budget %.0f %%); %zu pairs skipped over budget, %zu fits waited for it; "
-                "%zu pairs dropped (queue full)",
+                "%.1f %% of a core (budget %.0f %%; the fusion's tracking %.1f %%); %zu pairs skipped over budget, "
+                "%zu fits waited for it; %zu pairs dropped (queue full)",
                 s.wall_s > 0.0 ? 100.0 * s.cpu_s / s.wall_s : 0.0, 100.0 * params_.learning_cpu_share,
+                s.wall_s > 0.0 ? 100.0 * s.tracking_elsewhere_cpu_s / s.wall_s : 0.0,
                 s.pairs_over_budget, s.fits_delayed_by_budget, s.pairs_dropped_busy);
   diagnostics_.setValue("learning CPU", text);
   if (!s.last_choice.empty()) diagnostics_.setValue("learning: last choice", s.last_choice);

@@ -134,6 +134,14 @@ std::string compensationPairCheckProblem(const CompensationPairCheck& msg) {
         << " (gyro) px";
     return why.str();
   }
+  for (const float fusion_px : {msg.fusion_mean_correction, msg.fusion_max_correction, msg.fusion_prior_sigma,
+                                msg.fusion_prior_residual, msg.fusion_fused_residual}) {
+    if (!(std::isfinite(fusion_px) && fusion_px >= 0.0f)) {
+      why << "a fusion figure of " << fusion_px << " px (expected finite and >= 0)";
+      return why.str();
+    }
+  }
+  if (!msg.fused && (msg.fusion_refined || !msg.fusion_reason.empty())) return "fusion fields set on a pair not fused";
   return {};
 }
 

@@ -20,7 +20,7 @@
 
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/compensation_check.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"

@@ -2,8 +2,9 @@
 // model's compensation on an OIS camera, the plain gyro on a camera without OIS) refined per row
 // patch by the pair's tracks. The evaluate tool and benchmark_fusion both add this row.
 //
-// Per pair: the prior row's estimate; the pair tracked with the online learner's tracker (its
-// corners and KLT, on the full frame: the tracks the live pipeline already follows); fuseMotion.
+// Per pair: the prior row's estimate; the pair tracked as the live compensation tracks it with
+// ~fusion (the live tracker, core/vision/live_tracking.h, on the gray frames reduced to at most
+// tracking_width_px wide); fuseMotion.
 // The prior's uncertainty is what the live pipeline would know before the pair: the median model
 // residual of the per-pair check (compensation_check.h) over the recording's last pairs; the
 // pair's own check is added after its fusion. A prior that fails fails the row (scored as
@@ -17,17 +18,20 @@
 
 #include "deep_ois/core/evaluation/table_row_method.h"
 #include "deep_ois/core/fusion/fused_motion.h"
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/fusion/fusion_prior_sigma.h"
+#include "deep_ois/core/vision/compensation_check.h"
+#include "deep_ois/core/vision/live_tracking.h"
 
 namespace deep_ois {
 
 struct FusedRowOptions {
   FusionOptions fusion;
   CompensationCheckOptions check;
-  std::size_t recent_checks = 10;  // the prior's sigma: median of the last checks' model residuals
-  double initial_sigma_px = 0.5;   // before the recording's first usable check
-  double min_sigma_px = 0.1;       // the checks' residual holds the tracks' noise; never below this
-  double fixed_sigma_px = 0.0;     // > 0: this sigma on every pair instead of the checks'
+  // Frames wider than this are tracked on a reduced copy: the live ~learning_tracking_width, px.
+  int tracking_width_px = kLiveTrackingWidthPx;
+  // The prior's sigma from the recording's recent checks (the live compensation's rule).
+  FusionPriorSigmaOptions prior_sigma;
+  double fixed_sigma_px = 0.0;  // > 0: this sigma on every pair instead of the checks'
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;

@@ -42,6 +42,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <opencv2/core.hpp>
 #include <string>
 #include <thread>
@@ -55,9 +56,10 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/online/atomic_file_write.h"
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/compensation_check.h"
 #include "deep_ois/core/online/confirmed_state.h"
 #include "deep_ois/core/vision/feature_tracker.h"
+#include "deep_ois/core/vision/live_tracking.h"
 
 namespace deep_ois {
 
@@ -77,11 +79,10 @@ struct OnlineLearningOptions {
   std::function<double()> budget_clock;
   // Pairs waiting for the tracking thread (each holds its two frames until tracked).
   std::size_t max_queued_pairs = 10;
-  int tracking_width_px = 480;       // frames wider than this are tracked on a reduced copy
-  // The tracker: fewer corners and a smaller KLT than the offline ground truth's (the learning
-  // runs within a CPU budget; ~190 tracks a pair still give ~30 per row patch).
-  CornerDetectorOptions corners = learningCorners();
-  KltOptions klt = learningKlt();
+  // The tracker: the live pipeline's (core/vision/feature_tracker.h), within the CPU budget.
+  int tracking_width_px = kLiveTrackingWidthPx;  // frames wider than this are tracked on a reduced copy
+  CornerDetectorOptions corners = liveTrackingCorners();
+  KltOptions klt = liveTrackingKlt();
   StabiliserFitOptions fit = onlineFitOptions();
   // The candidates built from each fit besides the chain (train_stabiliser's, stabiliser_candidates.h).
   StabiliserCandidateKinds candidate_kinds = onlineCandidateKinds();
@@ -110,8 +111,6 @@ struct OnlineLearningOptions {
   // fit, adapted as the live budget allows (the conditioning, then the output layer: a few seconds
   // of a core per fit); null = the chain's candidates alone.
   void useLensDynamics(std::shared_ptr<const LensDynamicsNetwork> network);
-  static CornerDetectorOptions learningCorners();
-  static KltOptions learningKlt();
   std::string validate() const;
 };
 
@@ -131,6 +130,9 @@ struct OnlineFramePair {
   // Tracks already made (raw pixels of the camera): used instead of the images when `tracked`.
   std::vector<FeatureMatch> matches;
   bool tracked = false;
+  // The check of model_homographies on those tracks, when the caller made it already (the fusion
+  // needs it before the next pair): used instead of checking again.
+  std::optional<CompensationCheck> check;
 };
 
 // The stabiliser model in use.
@@ -174,7 +176,8 @@ struct OnlineLearningStatus {
   std::size_t windows_repeated = 0, pairs_repeated = 0;
   std::string confirmation;  // the swap on trial and its pairs so far, or the last verdict
   double buffered_s = 0.0;
-  double cpu_s = 0.0;       // thread CPU time spent, seconds
+  double cpu_s = 0.0;       // thread CPU time spent, seconds (the tracking elsewhere included)
+  double tracking_elsewhere_cpu_s = 0.0;  // of which the tracking of pairs handed over tracked
   double wall_s = 0.0;      // since the start
   std::string last_choice;  // the last fit's choice sentence
   std::string last_problem; // the last failure (a window, a fit, a save), empty when none
@@ -193,6 +196,11 @@ class OnlineStabiliserLearner {
 
   // Queues the pair; false (counted) when the queue is full. Never waits for tracking or a fit.
   bool submit(OnlineFramePair pair);
+  // CPU time (seconds) another thread spent for the learner: the tracking of pairs handed over
+  // tracked (the fusion tracks in the compensation callback). Charged to the budget like the
+  // learner's own work, so that both together keep to cpu_share on average: the learner's own
+  // pairs and fits wait when the tracking takes the share.
+  void chargeTrackingElsewhere(double cpu_s);
   // The model in use (a snapshot; a swap replaces it for later calls).
   std::shared_ptr<const LearnedStabiliser> model() const;
   // Whether the plain gyro should be published instead of the model (the checks' hysteresis).

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "deep_ois/core/vision/live_tracking.h"
 #include "deep_ois/ros/live/parameter_source.h"
 
 namespace deep_ois {
@@ -54,7 +55,7 @@ struct CompensationParameters {
   // models/lens_dynamics_generic.yaml, "none" = the chain's candidates alone.
   std::string learning_lens_dynamics;
   double learning_cpu_share = 0.3;  // ~learning_cpu_share: of one core, tracking and fits together
-  int learning_tracking_width_px = 480;  // ~learning_tracking_width: frames tracked at most this wide
+  int learning_tracking_width_px = kLiveTrackingWidthPx;  // ~learning_tracking_width: frames tracked at most this wide
   double learning_buffer_s = 40.0;       // ~learning_buffer: seconds of motion-rich windows kept
   double learning_held_out_s = 6.0;      // ~learning_held_out: newest seconds the swap is decided on
   double learning_refit_every_s = 4.0;   // ~learning_refit_every: new seconds between fits

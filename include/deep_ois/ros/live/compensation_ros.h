@@ -7,6 +7,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
+#include <chrono>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -28,6 +29,9 @@
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/live_diagnostics.h"
+#include "deep_ois/core/fusion/fusion_prior_sigma.h"
+#include "deep_ois/core/vision/compensation_check.h"
+#include "deep_ois/core/vision/live_tracking.h"
 #include "deep_ois/ros/live/online_learning_ros.h"
 
 namespace deep_ois {
@@ -52,7 +56,9 @@ namespace deep_ois {
 //
 // Threading: callbacks run on the node handle's queue; one mutex guards the state. The network
 // runs inside the callback (a few ms with the fast preset); the online learning's tracking and
-// fits run in its own threads and never block a callback.
+// fits run in its own threads and never block a callback. With ~fusion the pair's tracking runs in
+// the callback (the fused motion is published with the pair): the learner is handed those tracks
+// (it tracks nothing itself) and their CPU time is charged to its budget.
 class CompensationRos {
  public:
   // Loads the model; throws ModelFileError naming the file and the problem, or
@@ -118,7 +124,8 @@ class CompensationRos {
                                                        const std::vector<Eigen::Matrix3d>& gyro_homographies,
                                                        const cv::Mat& gyro_flow);
   // ~fusion: the pair's tracks (frames at ~learning_tracking_width) into `tracks` and the fusion's
-  // inputs; none (counted, said) when the frames cannot be tracked. Timed for /diagnostics.
+  // inputs; none (counted, said) when the frames cannot be tracked. Timed for /diagnostics, its CPU
+  // time charged to the learner's budget.
   std::optional<PairFusion> fusionFor(const sensor_msgs::ImageConstPtr& image_a,
                                       const sensor_msgs::ImageConstPtr& image_b, std::vector<FeatureMatch>& tracks);
   // Counts a fused pair (refined or prior kept) and updates its /diagnostics.
@@ -147,13 +154,18 @@ class CompensationRos {
   std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
   // With a stabiliser model: the per-pair checks, the fallback and the online learning.
   std::unique_ptr<OnlineLearningRos> learning_;
-  // ~fusion: the tracker (the learner's options) and the counts for /diagnostics.
-  FeatureTracker fusion_tracker_{OnlineLearningOptions::learningCorners(), OnlineLearningOptions::learningKlt()};
+  // ~fusion: the live tracker, the prior's sigma from the pairs' checks (made here, on the pair's
+  // tracks, so that the next pair's sigma holds this one's whatever the learner's queue does: as
+  // evaluate's fused row) and the counts for /diagnostics.
+  FeatureTracker fusion_tracker_{liveTrackingCorners(), liveTrackingKlt()};
   FusionOptions fusion_options_;
+  FusionPriorSigma fusion_prior_sigma_;
   struct FusionCounts {
     std::size_t pairs = 0, refined = 0, failed = 0, untracked = 0;
     double correction_sum_px = 0.0;       // over the refined pairs
     double tracking_s = 0.0, compensate_s = 0.0;  // wall time, summed over the fused pairs
+    double tracking_cpu_s = 0.0;          // thread CPU time of the tracking, summed
+    std::optional<std::chrono::steady_clock::time_point> first_pair;  // the CPU share is since then
   } fusion_counts_;
   // The model's camera against the stream's, checked on the first flow (and when the camera
   // changes): empty when they match, else the difference.

@@ -16,8 +16,8 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
-#include <deque>
 #include <functional>
+#include <map>
 #include <optional>
 #include <memory>
 #include <mutex>
@@ -56,15 +56,15 @@ class OnlineLearningRos {
   // After: hands the pair to the learner (dropped and counted when it is busy), publishes the
   // checks made since, updates /diagnostics. `gyro_homographies`: the plain gyro's per patch.
   // `tracks`: the pair's tracks when the caller made them (the fusion), handed to the learner
-  // instead of the frames being tracked again. A fused pair is checked on its prior (the model's).
+  // instead of the frames being tracked again, with `check`, their check of the model's motion
+  // (a fused pair is checked on its prior), when made already.
   void afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                  const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
                  const std::vector<Eigen::Matrix3d>& gyro_homographies,
-                 const std::vector<FeatureMatch>* tracks = nullptr);
-  // The median model residual of the last usable per-pair checks (up to kRecentChecks), pixels:
-  // the fusion's prior sigma. None before the first.
-  std::optional<double> recentModelResidualPx() const;
-  static constexpr std::size_t kRecentChecks = 10;
+                 const std::vector<FeatureMatch>* tracks = nullptr, const CompensationCheck* check = nullptr);
+  // The thread CPU time (seconds) the caller spent tracking a pair it hands over tracked: charged
+  // to the learner's budget (OnlineStabiliserLearner::chargeTrackingElsewhere).
+  void chargeTracking(double cpu_s);
   // Whether the plain gyro should be published instead of the model (~fallback_to_gyro and the
   // checks' hysteresis).
   bool fallingBack() const;
@@ -97,7 +97,9 @@ class OnlineLearningRos {
   std::string frame_id_;
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
-  std::deque<double> recent_model_residuals_px_;  // usable checks' model residuals, newest last
+  // ~fusion: what the fusion did with the pairs handed over, by frame b's stamp (s), until their
+  // check is published with it (a pair the learner skips is dropped with the older ones).
+  std::map<double, FusedMotion> fused_pairs_;
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
   // The learner's verdicts and replayed data already said in the log (each said once).
   std::size_t verdicts_logged_ = 0;

@@ -1,4 +1,4 @@
-#include "deep_ois/core/online/compensation_check.h"
+#include "deep_ois/core/vision/compensation_check.h"
 
 #include <Eigen/Geometry>
 #include <cmath>
