@@ -1,0 +1,158 @@
+// The package's one nonlinear least-squares solver, and its one robust ridge regression.
+//
+// Every fit in core states its problem the same way: a residual functor over named parameters
+// (bounds, a logarithmic coordinate, a forward-difference step, held or free), residuals grouped
+// in blocks on which one robust loss acts, and gets back one report: the values, the cost at the
+// start and the end, the iterations and evaluations spent, and why it stopped. The minimiser
+// underneath is a library's Levenberg-Marquardt (Ceres' trust region by default, Eigen's MINPACK
+// port on request); docs/solver.md compares them and says how to use both.
+//
+// Conventions (fixed once, as Ceres writes them):
+//  - cost = 1/2 sum_b rho(|r_b|^2) over the loss's blocks r_b, plus 1/2 |r|^2 over the residuals
+//    outside the loss (priors, ties);
+//  - Huber:  rho(s) = s for s <= a^2, 2 a sqrt(s) - a^2 beyond (a = the loss's scale, in the
+//    residual's units: the block norm where it stops being a square);
+//    Cauchy: rho(s) = a^2 log(1 + s / a^2);
+//  - a block's robust weight (what an iteratively re-weighted solve multiplies it by) is rho'(s):
+//    Huber 1 inside a and a / |r| beyond, Cauchy 1 / (1 + s / a^2).
+//
+// Pure C++ (Eigen, Ceres): no ROS, no OpenCV.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace deep_ois {
+
+// A robust loss on a block's squared norm s (see the conventions above).
+struct RobustLoss {
+  enum class Kind { kNone, kHuber, kCauchy };
+  Kind kind = Kind::kNone;
+  double scale = 1.0;  // a: block norm where the loss leaves the square (residual units, > 0)
+
+  static RobustLoss none() { return {}; }
+  static RobustLoss huber(double scale) { return {Kind::kHuber, scale}; }
+  static RobustLoss cauchy(double scale) { return {Kind::kCauchy, scale}; }
+
+  double rho(double squared_norm) const;
+  // rho'(s): the weight an iteratively re-weighted least squares gives the block.
+  double weight(double squared_norm) const;
+  // An empty string, or what is wrong (a scale that is not positive and finite).
+  std::string validate() const;
+};
+
+// One parameter of a problem, as the solver moves it.
+struct SolverParameter {
+  std::string name;
+  double lower = -std::numeric_limits<double>::infinity();  // in the parameter's own unit
+  double upper = std::numeric_limits<double>::infinity();
+  // Solved as log(value): for a positive quantity whose scale spans decades (corners, bandwidths).
+  // Needs lower > 0.
+  bool logarithmic = false;
+  // Forward-difference step in the solved coordinate (the logarithm for a logarithmic one), used
+  // when the problem gives no Jacobian. > 0.
+  double difference_step = 1e-6;
+  bool held = false;  // kept at its start value
+};
+
+// A problem: parameters, residuals at given parameter values and, optionally, their Jacobian.
+struct NonlinearLeastSquaresProblem {
+  std::vector<SolverParameter> parameters;
+  // The residuals at `values` (one per parameter, inside their bounds). Returns false when the
+  // model cannot be evaluated there (a step to such values is refused). The residual count must
+  // not change from one call to the next: return false when it would.
+  std::function<bool(const Eigen::VectorXd& values, Eigen::VectorXd* residuals)> residuals;
+  // Optional: residuals and their Jacobian with respect to the values (residuals x parameters;
+  // held parameters' columns are ignored). Without it, forward differences of `residuals`.
+  std::function<bool(const Eigen::VectorXd& values, Eigen::VectorXd* residuals,
+                     Eigen::MatrixXd* jacobian)>
+      residuals_and_jacobian;
+  // The loss acts on blocks of this many consecutive residuals (2 for a 2-D image residual).
+  int block_size = 1;
+  // Residuals from this index on are outside the loss (priors, ties): plain squares. Negative:
+  // every residual is under the loss. Must be a multiple of block_size.
+  long robust_residual_count = -1;
+};
+
+enum class SolverEngine {
+  kCeres,                     // ceres::Solve, trust-region Levenberg-Marquardt (the default)
+  kEigenLevenbergMarquardt,   // Eigen's unsupported/NonLinearOptimization (MINPACK lmder)
+};
+
+struct NonlinearLeastSquaresOptions {
+  RobustLoss loss;
+  SolverEngine engine = SolverEngine::kCeres;
+  int max_iterations = 50;  // Jacobian evaluations (outer iterations), >= 1
+  // Converged when an iteration lowers the cost by less than this fraction of it.
+  double function_tolerance = 1e-6;
+  // Converged when a step changes the solved coordinates by less than this, relative.
+  double parameter_tolerance = 1e-8;
+  // Converged when the gradient's largest entry falls below this (Ceres only).
+  double gradient_tolerance = 1e-10;
+  std::string validate() const;
+};
+
+enum class SolverTermination {
+  kConverged,       // a tolerance was met
+  kIterationLimit,  // max_iterations reached first
+  kNoProgress,      // no step lowered the cost any more (a minimum to the solver's resolution)
+  kFailed,          // the problem could not be evaluated at the start, or the engine failed
+};
+const char* solverTerminationName(SolverTermination termination);
+
+struct NonlinearLeastSquaresReport {
+  Eigen::VectorXd values;  // the solution, one per parameter, inside the bounds
+  double initial_cost = 0.0, final_cost = 0.0;  // the conventions' cost
+  int iterations = 0;                           // Jacobian evaluations
+  int residual_evaluations = 0;                 // calls of the residual functor, differences included
+  SolverTermination termination = SolverTermination::kFailed;
+  std::string message;  // the engine's own words on why it stopped
+  std::vector<std::string> on_bound;  // names of free parameters that ended on a bound
+  // After each accepted step: the RMS of the blocks' norms, without the loss (residual units).
+  std::vector<double> rms_history;
+  double cpu_s = 0.0;  // process CPU time the solve took
+
+  bool usable() const { return termination != SolverTermination::kFailed; }
+  // One line: engine's reason, iterations, evaluations, cost from and to, bounds hit.
+  std::string summary() const;
+};
+
+// Minimises the problem's cost from `start` (one value per parameter; values outside a bound are
+// moved onto it). Throws std::invalid_argument naming what is wrong with the problem, the start
+// or the options; a model that cannot be evaluated at the start gives a kFailed report.
+NonlinearLeastSquaresReport solveNonlinearLeastSquares(const NonlinearLeastSquaresProblem& problem,
+                                                       const Eigen::VectorXd& start,
+                                                       const NonlinearLeastSquaresOptions& options);
+
+// Robust weighted ridge regression with several outputs, the package's one ridge convention:
+// the coefficients B (features x outputs) minimise
+//   sum_i w_i |t_i - B^T f_i|^2 + sum_k (ridge A_kk + floor) |B_k - P_k|^2,
+// with A = sum_i w_i f_i f_i^T, P a prior (zero unless given), floor = 1e-12 max_k A_kk (so a
+// silent feature is held at its prior instead of making the system singular). The ridge is
+// relative to each feature's own energy A_kk: features that differ by orders of magnitude are
+// pulled alike, and the ridge is unitless. The weights w_i are the observation's data weight
+// times the loss's weight rho'(|e_i|^2) of a reference residual e_i the caller gives (the residual
+// of the model being refined: one re-weighting pass). The closed form:
+//   (A + D) B = sum_i w_i f_i t_i^T + D P,   D = diag(ridge A_kk + floor).
+class RobustRidgeRegression {
+ public:
+  RobustRidgeRegression(long feature_count, long output_count, RobustLoss loss);
+  // Adds one observation: features f (feature_count), target t (output_count), data weight >= 0
+  // and the norm of its reference residual (same units as the target).
+  void add(const Eigen::VectorXd& features, const Eigen::VectorXd& target, double data_weight,
+           double reference_residual_norm);
+  std::size_t count() const { return count_; }
+  // The coefficients (feature_count x output_count), or false when there is no observation or the
+  // solve is not finite. `prior` (feature_count x output_count) or null for zero.
+  bool solve(double ridge, Eigen::MatrixXd* coefficients, const Eigen::MatrixXd* prior = nullptr) const;
+
+ private:
+  RobustLoss loss_;
+  Eigen::MatrixXd normal_, right_;  // A and sum w f t^T
+  std::size_t count_ = 0;
+};
+
+}  // namespace deep_ois
