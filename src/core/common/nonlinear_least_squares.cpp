@@ -165,8 +165,8 @@ class CorrectedProblem {
     if (!ok || !countMatches(raw) || !raw.allFinite()) return false;
     Eigen::VectorXd phi, phi_slope;
     correct(raw, corrected, &phi, &phi_slope);
+    last_rms_ = blockRms(raw);  // both engines' last evaluation before a step is accepted is there
     if (jacobian == nullptr) return true;
-    last_rms_ = blockRms(raw);
     const long n = coordinates_.size();
     jacobian->resize(residual_count_, n);
     if (analytic) {
@@ -189,19 +189,25 @@ class CorrectedProblem {
       }
       return jacobian->allFinite();
     }
-    // Forward differences of the corrected residuals, stepping back from an upper bound.
+    // Forward differences of the corrected residuals, stepping back from an upper bound or from
+    // a point the model cannot be evaluated at; a parameter that cannot move either way gets a
+    // zero column (held for this iteration).
     for (long k = 0; k < n; ++k) {
       const double step = coordinates_.parameter(k).difference_step;
-      const double h = z(k) + step > coordinates_.upper(k) ? -step : step;
-      Eigen::VectorXd moved = z;
-      moved(k) += h;
-      Eigen::VectorXd moved_raw, moved_corrected;
-      ++evaluations_;
-      if (!problem_.residuals(coordinates_.values(moved), &moved_raw) || !countMatches(moved_raw) ||
-          !moved_raw.allFinite())
-        return false;
-      correct(moved_raw, &moved_corrected, nullptr, nullptr);
-      jacobian->col(k) = (moved_corrected - *corrected) / h;
+      const double first = z(k) + step > coordinates_.upper(k) ? -step : step;
+      jacobian->col(k).setZero();
+      for (double h : {first, -first}) {
+        Eigen::VectorXd moved = z;
+        moved(k) += h;
+        Eigen::VectorXd moved_raw, moved_corrected;
+        ++evaluations_;
+        if (!problem_.residuals(coordinates_.values(moved), &moved_raw) ||
+            moved_raw.size() != residual_count_ || !moved_raw.allFinite())
+          continue;
+        correct(moved_raw, &moved_corrected, nullptr, nullptr);
+        jacobian->col(k) = (moved_corrected - *corrected) / h;
+        break;
+      }
     }
     return true;
   }
@@ -248,9 +254,11 @@ class CorrectedProblem {
     }
   }
 
+  // Over the loss's blocks (the data), not the priors after them.
   double blockRms(const Eigen::VectorXd& raw) const {
-    const long blocks = raw.size() / problem_.block_size;
-    return blocks > 0 ? std::sqrt(raw.squaredNorm() / static_cast<double>(blocks)) : 0.0;
+    const long blocks = robust_blocks_ > 0 ? robust_blocks_ : raw.size() / problem_.block_size;
+    const double sum = raw.head(blocks * problem_.block_size).squaredNorm();
+    return blocks > 0 ? std::sqrt(sum / static_cast<double>(blocks)) : 0.0;
   }
 
   const NonlinearLeastSquaresProblem& problem_;
@@ -289,19 +297,28 @@ class CeresResiduals : public ceres::CostFunction {
   long parameters_;
 };
 
-// Records the blocks' RMS after every accepted step (the Jacobian is evaluated there first).
-class RmsHistory : public ceres::IterationCallback {
+// Records the blocks' RMS after every accepted step (the last point evaluated), and stops the
+// solve after `max_accepted` of them: an iteration is a Jacobian evaluation for both engines
+// (Ceres' own cap counts refused steps too, which cost one evaluation each).
+class AcceptedSteps : public ceres::IterationCallback {
  public:
-  RmsHistory(const CorrectedProblem* problem, std::vector<double>* history)
-      : problem_(problem), history_(history) {}
+  AcceptedSteps(const CorrectedProblem* problem, std::vector<double>* history, int max_accepted)
+      : problem_(problem), history_(history), max_accepted_(max_accepted) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
-    if (summary.iteration > 0 && summary.step_is_successful) history_->push_back(problem_->lastRms());
-    return ceres::SOLVER_CONTINUE;
+    if (summary.iteration == 0 || !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
+    history_->push_back(problem_->lastRms());
+    if (++accepted_ < max_accepted_) return ceres::SOLVER_CONTINUE;
+    capped_ = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
   }
+  int accepted() const { return accepted_; }
+  bool capped() const { return capped_; }
 
  private:
   const CorrectedProblem* problem_;
   std::vector<double>* history_;
+  int max_accepted_, accepted_ = 0;
+  bool capped_ = false;
 };
 
 void solveWithCeres(CorrectedProblem& corrected, const Coordinates& coordinates, Eigen::VectorXd& z,
@@ -319,19 +336,31 @@ void solveWithCeres(CorrectedProblem& corrected, const Coordinates& coordinates,
   solver.minimizer_type = ceres::TRUST_REGION;
   solver.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver.linear_solver_type = ceres::DENSE_QR;
-  solver.max_num_iterations = options.max_iterations;
+  // The cap is on accepted steps (AcceptedSteps); this one only bounds refused steps.
+  solver.max_num_iterations = 10 * options.max_iterations;
+  // The damping a hand-written Levenberg-Marquardt starts with (1e-2 of the diagonal), not Ceres'
+  // nearly undamped 1e4: the stabiliser's cost is clipped by its stroke, and Gauss-Newton steps
+  // from afar are refused one by one.
+  solver.initial_trust_region_radius = 1e2;
   solver.function_tolerance = options.function_tolerance;
   solver.parameter_tolerance = options.parameter_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;
   solver.num_threads = 1;
   solver.logging_type = ceres::SILENT;
   solver.minimizer_progress_to_stdout = false;
-  RmsHistory history(&corrected, &report->rms_history);
-  solver.callbacks.push_back(&history);
+  // The parameter block holds the last accepted point even if an evaluation fails later.
+  solver.update_state_every_iteration = true;
+  AcceptedSteps steps(&corrected, &report->rms_history, options.max_iterations);
+  solver.callbacks.push_back(&steps);
   ceres::Solver::Summary summary;
   ceres::Solve(solver, &problem, &summary);
-  report->iterations = static_cast<int>(summary.num_successful_steps + summary.num_unsuccessful_steps);
+  report->iterations = steps.accepted();
   report->message = "ceres: " + summary.message;
+  if (steps.capped()) {
+    report->termination = SolverTermination::kIterationLimit;
+    report->message = "ceres: " + std::to_string(options.max_iterations) + " accepted steps";
+    return;
+  }
   switch (summary.termination_type) {
     case ceres::CONVERGENCE:
       report->termination = SolverTermination::kConverged;
@@ -392,7 +421,7 @@ void solveWithEigen(CorrectedProblem& corrected, const Coordinates& coordinates,
     ++iterations;
     if (lm.fnorm < fnorm) {
       fnorm = lm.fnorm;
-      // The last evaluation was the accepted point's: its raw RMS is not kept, its Jacobian's is.
+      // minimizeOneStep ends on the accepted point's evaluation.
       report->rms_history.push_back(corrected.lastRms());
     }
   }

@@ -211,7 +211,7 @@ TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
   adaptation.iterations = 30;
   adaptation.prior_weight_px2 = 1e-6;
   const LensDynamicsAdaptation adapted = adaptLensDynamics(net, recordings, options, adaptation);
-  std::printf("[ figures  ] adaptation with map: rms %.5f -> %.6f px, conditioning (%.4f, %.4f), map(0,0) %.4f, %d passes\n",
+  std::printf("[ figures  ] adaptation with map: rms %.5f -> %.3e px, conditioning (%.4f, %.4f), map(0,0) %.4f, %d passes\n",
               adapted.rms_start_px, adapted.rms_px, adapted.parameters.learned_dynamics.conditioning(0),
               adapted.parameters.learned_dynamics.conditioning(1), adapted.parameters.learned_dynamics.output_map(0, 0),
               adapted.passes);
@@ -222,7 +222,7 @@ TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
   // Without the map only the conditioning moves: it cannot explain a scaled lens as well.
   adaptation.fit_output_map = false;
   const LensDynamicsAdaptation conditioning_only = adaptLensDynamics(net, recordings, options, adaptation);
-  std::printf("[ figures  ] adaptation without map: rms %.5f -> %.6f px, %d passes\n", conditioning_only.rms_start_px,
+  std::printf("[ figures  ] adaptation without map: rms %.5f -> %.5f px, %d passes\n", conditioning_only.rms_start_px,
               conditioning_only.rms_px, conditioning_only.passes);
   EXPECT_GT(conditioning_only.rms_px, 2.0 * adapted.rms_px);
 }

@@ -85,7 +85,7 @@ enum class SolverEngine {
 struct NonlinearLeastSquaresOptions {
   RobustLoss loss;
   SolverEngine engine = SolverEngine::kCeres;
-  int max_iterations = 50;  // Jacobian evaluations (outer iterations), >= 1
+  int max_iterations = 50;  // accepted steps (Jacobian evaluations) for either engine, >= 1
   // Converged when an iteration lowers the cost by less than this fraction of it.
   double function_tolerance = 1e-6;
   // Converged when a step changes the solved coordinates by less than this, relative.
@@ -106,7 +106,7 @@ const char* solverTerminationName(SolverTermination termination);
 struct NonlinearLeastSquaresReport {
   Eigen::VectorXd values;  // the solution, one per parameter, inside the bounds
   double initial_cost = 0.0, final_cost = 0.0;  // the conventions' cost
-  int iterations = 0;                           // Jacobian evaluations
+  int iterations = 0;                           // accepted steps (Jacobian evaluations)
   int residual_evaluations = 0;                 // calls of the residual functor, differences included
   SolverTermination termination = SolverTermination::kFailed;
   std::string message;  // the engine's own words on why it stopped

@@ -1,0 +1,156 @@
+// Benchmarks the two engines of the package's nonlinear least-squares solver
+// (core/common/nonlinear_least_squares.h: Ceres and Eigen's MINPACK port) on the stabiliser fit:
+// per generated design, the same training traces and the same start, fitStabiliser with each
+// engine, then the final Huber cost on the training traces, the lens-motion RMS on held-back
+// evaluation traces, the accepted steps and the process CPU time, and the CPU ratio over all
+// designs (flags: `benchmark_solver --help`, docs/solver.md).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "deep_ois/core/ois/stabiliser_fit.h"
+#include "deep_ois/core/sim/design_generator.h"
+#include "deep_ois/core/sim/design_traces.h"
+#include "deep_ois/tools/support/command_line.h"
+
+namespace {
+
+using deep_ois::CameraRateSample;
+using deep_ois::StabiliserFitRecording;
+namespace sim = deep_ois::sim;
+
+constexpr double kFocalPx = 257.0, kFrameRateHz = 30.0, kReadoutS = 0.022;
+constexpr int kPatches = 8;
+
+Eigen::Vector2d lensAt(const std::vector<CameraRateSample>& gyro, const std::vector<Eigen::Vector2d>& lens,
+                       double t) {
+  auto it = std::lower_bound(gyro.begin(), gyro.end(), t,
+                             [](const CameraRateSample& s, double v) { return s.stamp_s < v; });
+  if (it == gyro.begin()) return lens.front();
+  if (it == gyro.end()) return lens.back();
+  const std::size_t j = static_cast<std::size_t>(it - gyro.begin());
+  const double alpha = (t - gyro[j - 1].stamp_s) / (gyro[j].stamp_s - gyro[j - 1].stamp_s);
+  return (1.0 - alpha) * lens[j - 1] + alpha * lens[j];
+}
+
+// A trace's lens motions per frame pair and row patch (from 1 s on), plus noise (pixels, per axis).
+StabiliserFitRecording recordingOf(const sim::DesignTrace& trace, double noise_px, std::uint32_t seed) {
+  StabiliserFitRecording r;
+  r.name = "design " + std::to_string(trace.design_seed) + " motion " + std::to_string(trace.motion_seed);
+  r.focal_px = kFocalPx;
+  r.rates = trace.gyro;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, noise_px > 0.0 ? noise_px : 1.0);
+  const double end = trace.gyro.back().stamp_s - kReadoutS - 1.0 / kFrameRateHz;
+  for (double t = 1.0; t < end; t += 1.0 / kFrameRateHz) {
+    for (int p = 0; p < kPatches; ++p) {
+      deep_ois::LensMotionObservation o;
+      o.readout_fraction = (p + 0.5) / kPatches;
+      o.t_a_s = t + o.readout_fraction * kReadoutS;
+      o.t_b_s = o.t_a_s + 1.0 / kFrameRateHz;
+      o.motion_px = lensAt(trace.gyro, trace.lens_px, o.t_b_s) - lensAt(trace.gyro, trace.lens_px, o.t_a_s);
+      if (noise_px > 0.0) o.motion_px += Eigen::Vector2d(noise(rng), noise(rng));
+      r.observations.push_back(o);
+    }
+  }
+  return r;
+}
+
+// The solver's cost on `recordings`: 1/2 sum of Huber(|predicted - observed|^2), Ceres' convention.
+double huberCost(const deep_ois::StabiliserParameters& p, const std::vector<StabiliserFitRecording>& recordings,
+                 const deep_ois::StabiliserFitOptions& options) {
+  const deep_ois::RobustLoss loss = deep_ois::RobustLoss::huber(options.huber_px);
+  double cost = 0.0;
+  for (const StabiliserFitRecording& r : recordings) {
+    const auto predicted = deep_ois::predictLensMotion(p, r, options.step_s, options.warm_up_s);
+    for (std::size_t i = 0; i < predicted.size(); ++i) {
+      if (!predicted[i].allFinite()) continue;
+      cost += 0.5 * loss.rho(r.observations[i].weight * (predicted[i] - r.observations[i].motion_px).squaredNorm());
+    }
+  }
+  return cost;
+}
+
+double cpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+
+}  // namespace
+
+constexpr char kDescription[] =
+    "Benchmarks the solver's two engines (Ceres, Eigen's MINPACK Levenberg-Marquardt) on the "
+    "stabiliser fit: per generated design, fitStabiliser with each engine on the same training "
+    "traces from the same start (no residual bank, no timing check), then the final Huber cost on "
+    "the training traces, the lens-motion RMS on 2 evaluation traces, the accepted steps and the "
+    "CPU seconds; the CPU ratio Ceres / Eigen over all designs. Decide on the training split; the "
+    "held-out split is for reporting apart.";
+
+int main(int argc, char** argv) {
+  std::string split = "training";
+  std::uint32_t seed_begin = 0, count = 4, traces = 3;
+  double noise_px = 0.1;
+  deep_ois::ToolCommandLine command_line("benchmark_solver", kDescription);
+  CLI::App& app = command_line.app();
+  app.add_option("--split", split, "which designs: the generator's training split or its held-out seeds")
+      ->check(deep_ois::oneOf({"training", "held_out"}))
+      ->capture_default_str();
+  command_line.addNumber("--seed-begin", seed_begin, "first design seed considered");
+  command_line.addNumber("--count", count, "designs of the split from --seed-begin on");
+  command_line.addNumber("--traces", traces, "training traces of 5 s per design");
+  command_line.addNumber("--noise", noise_px, "lens-motion measurement noise, px (per axis)");
+  if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
+
+  try {
+    const sim::DesignSplit wanted = split == "held_out" ? sim::DesignSplit::kHeldOut : sim::DesignSplit::kTraining;
+    sim::DesignTraceOptions trace_options;
+    trace_options.duration_s = 5.0;
+    trace_options.focal_px = kFocalPx;
+    deep_ois::StabiliserFitOptions options;
+    options.check_timing = false;
+    options.residual_time_constants_s.clear();  // the solver's fit alone
+    const deep_ois::SolverEngine engines[] = {deep_ois::SolverEngine::kCeres,
+                                              deep_ois::SolverEngine::kEigenLevenbergMarquardt};
+    const char* names[] = {"ceres", "eigen"};
+    std::printf("%-6s %-12s | %-6s %10s %9s %6s %8s | %-6s %10s %9s %6s %8s\n", "design", "class", "engine",
+                "cost", "eval px", "steps", "cpu s", "engine", "cost", "eval px", "steps", "cpu s");
+    double cpu_total[2] = {0.0, 0.0}, cost_total[2] = {0.0, 0.0};
+    int designs = 0, lower_cost[2] = {0, 0};
+    for (std::uint32_t seed = seed_begin; designs < static_cast<int>(count); ++seed) {
+      if (sim::designSplit(seed) != wanted) continue;
+      ++designs;
+      std::vector<StabiliserFitRecording> training, evaluation;
+      for (std::uint32_t m = 101; m < 101 + traces + 2; ++m) {
+        const sim::DesignTrace trace = sim::simulateDesignTrace(seed, m, trace_options);
+        if (m < 101 + traces) training.push_back(recordingOf(trace, noise_px, m));
+        else evaluation.push_back(recordingOf(trace, 0.0, m));
+      }
+      std::printf("%-6u %-12s", seed, sim::designClass(sim::generateDesign(seed)));
+      double cost[2];
+      for (int e = 0; e < 2; ++e) {
+        options.solver_engine = engines[e];
+        const double started = cpuSeconds();
+        const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser(training, options);
+        const double cpu = cpuSeconds() - started;
+        cost[e] = huberCost(fit.parameters, training, options);
+        const double eval_px = deep_ois::scoreStabiliser(fit.parameters, evaluation, options).rms_px;
+        std::printf(" | %-6s %10.4f %9.4f %6zu %8.2f", names[e], cost[e], eval_px, fit.rms_history.size(), cpu);
+        cpu_total[e] += cpu;
+        cost_total[e] += cost[e];
+      }
+      if (cost[0] < cost[1]) ++lower_cost[0];
+      else if (cost[1] < cost[0]) ++lower_cost[1];
+      std::printf("\n");
+      std::fflush(stdout);
+    }
+    std::printf("\n%d designs (%s split): CPU ceres %.1f s, eigen %.1f s, ratio ceres / eigen %.2f; summed final "
+                "cost ceres %.4f, eigen %.4f; lower cost: ceres on %d, eigen on %d\n",
+                designs, split.c_str(), cpu_total[0], cpu_total[1], cpu_total[0] / std::max(1e-9, cpu_total[1]),
+                cost_total[0], cost_total[1], lower_cost[0], lower_cost[1]);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "benchmark_solver: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
