@@ -427,9 +427,21 @@ void solveWithEigen(CorrectedProblem& corrected, const Coordinates& coordinates,
   }
   for (long k = 0; k < z.size(); ++k) z(k) = coordinates.clamped(k, z(k));
   report->iterations = iterations;
-  std::ostringstream message;
-  message << "eigen: MINPACK status " << static_cast<int>(status);
-  report->message = message.str();
+  static const char* const kWhy[] = {
+      "improper input parameters",
+      "the relative cost reduction is at most function_tolerance",
+      "the relative step is at most parameter_tolerance",
+      "the relative cost reduction and step are both at their tolerances",
+      "the gradient is orthogonal to the residuals (gradient_tolerance)",
+      "too many function evaluations",
+      "function_tolerance is too small: no further reduction is possible",
+      "parameter_tolerance is too small: no further improvement of the solution is possible",
+      "gradient_tolerance is too small: the gradient cannot get smaller",
+      "the Jacobian could not be evaluated at the accepted point"};
+  const int code = static_cast<int>(status);
+  report->message = std::string("eigen: ") +
+                    (code >= 0 && code <= 9 ? kWhy[code]
+                                            : std::to_string(options.max_iterations) + " accepted steps");
   switch (status) {
     case S::NotStarted:
     case S::Running:
