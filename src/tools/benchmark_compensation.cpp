@@ -40,11 +40,10 @@
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/flow_warp.h"
 #include "deep_ois/core/flow/ghost_overlay.h"
-#include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
-#include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/pipeline/frame_pair_processor.h"
 #include "deep_ois/net/compensation_model.h"
 #include "deep_ois/ros/live/stabiliser_flow_compensator.h"
 #include "deep_ois/net/compensation_stream.h"
@@ -223,7 +222,6 @@ class FramePairChain {
         imu_(imu),
         camera_(cameraOfSize(size)),
         rs_(rollingShutter(params)),
-        renderer_(camera_, params.grid_size, rs_.patch_count),
         homography_builder_(camera_, rs_.patch_count),
         images_{texturedFrame(size, 1, kBase), texturedFrame(size, 2, kBase)} {
     if (model.stabiliser) {
@@ -246,11 +244,11 @@ class FramePairChain {
     image_b.header.stamp = kBase + ros::Duration(stamp_b_s);
     double ms[kStageCount] = {0, 0, 0, 0, 0, 0, 0};
     const double cpu_start_ms = threadCpuMs();
-    deep_ois::RollingShutterHomographies h;
-    const boost::shared_ptr<deep_ois::GyroFlow> gyro_msg = gyroFlowNodelet(k, stamp_a_s, stamp_b_s, h, ms);
+    std::vector<Eigen::Matrix3d> gyro_homographies;
+    const boost::shared_ptr<deep_ois::GyroFlow> gyro_msg = gyroFlowNodelet(k, stamp_a_s, stamp_b_s, gyro_homographies, ms);
     const cv::Mat compensated = compensationNodelet(k, *gyro_msg, ms);
     const double chain_cpu = threadCpuMs() - cpu_start_ms;
-    const Yardsticks yardsticks = timeYardsticks(h);
+    const Yardsticks yardsticks = timeYardsticks(gyro_homographies);
     if (k < kWarmUpPairs) return;
     if (timings.reference_ms.size() < kReferenceRuns) {
       // What the map build replaced: the per-pixel inversion and the conversion to fixed point.
@@ -287,29 +285,36 @@ class FramePairChain {
     return rs;
   }
 
-  // Gyro flow nodelet: homographies, the flow on the grid, its message and colour image.
+  // Gyro flow nodelet: homographies, the flow on the grid (the frame-pair processor without a lens,
+  // as GyroFlowRos), its message and colour image.
   boost::shared_ptr<deep_ois::GyroFlow> gyroFlowNodelet(int k, double stamp_a_s, double stamp_b_s,
-                                                        deep_ois::RollingShutterHomographies& h, double* ms) {
+                                                        std::vector<Eigen::Matrix3d>& homographies, double* ms) {
     const sensor_msgs::Image& image_a = *images_[k % 2];
     const sensor_msgs::Image& image_b = *images_[(k + 1) % 2];
     auto start = Clock::now();
-    h = deep_ois::computeRollingShutterHomographies(imu_, params_.integration, rs_, camera_.K(), stamp_a_s, stamp_b_s);
-    if (!h.ok()) throw std::runtime_error("synthetic gyro does not cover frame pair " + std::to_string(k));
-    renderer_.render(h.homographies, gyro_flow_);
+    deep_ois::FramePair pair;
+    pair.stamp_a_s = stamp_a_s;
+    pair.stamp_b_s = stamp_b_s;
+    pair.timing = rs_;
+    pair.camera = &camera_;
+    pair.imu = &imu_;
+    pair.integration = params_.integration;
+    deep_ois::FramePairMotion motion = gyro_flow_processor_.process(std::move(pair), params_.grid_size);
+    if (!motion.ok) throw std::runtime_error("synthetic gyro does not cover frame pair " + std::to_string(k));
+    homographies = std::move(motion.homographies);
+    gyro_flow_ = motion.flow;
     ms[kGyroFlow] += msSince(start);
     start = Clock::now();
     metadata_.header.stamp = image_b.header.stamp;
     metadata_.previous_stamp = image_a.header.stamp;
     // The gyro stream the message carries (as gyro_flow_ros), relative to frame b's stamp.
     metadata_.camera_rates.clear();
-    for (deep_ois::CameraRateSample rate : deep_ois::cameraRates(
-             imu_, rs_.imu_to_camera_rotation, deep_ois::patchImuTime(rs_, stamp_a_s, 0) - deep_ois::kStabiliserWarmUpS,
-             deep_ois::patchImuTime(rs_, stamp_b_s, rs_.patch_count - 1))) {
+    for (deep_ois::CameraRateSample rate : deep_ois::pairGyroStream(imu_, rs_, stamp_a_s, stamp_b_s)) {
       rate.stamp_s -= stamp_b_s;
       metadata_.camera_rates.push_back(rate);
     }
     auto gyro_msg = boost::make_shared<deep_ois::GyroFlow>();
-    deep_ois::fillGyroFlowMsg(metadata_, h.homographies, gyro_flow_, *gyro_msg);
+    deep_ois::fillGyroFlowMsg(metadata_, homographies, gyro_flow_, *gyro_msg);
     cv::Mat gyro_color;
     const sensor_msgs::ImagePtr gyro_color_msg =
         deep_ois::makeImageMsg(gyro_msg->header, sensor_msgs::image_encodings::RGB8, gyro_flow_.size(), gyro_color);
@@ -379,10 +384,10 @@ class FramePairChain {
   // Beside the chain, not in it: the map straight from the six row-patch homographies (what a
   // compensator that outputs homographies warps by), and one bare remap of the same frame with
   // the same (fixed-point) map.
-  Yardsticks timeYardsticks(const deep_ois::RollingShutterHomographies& h) {
+  Yardsticks timeYardsticks(const std::vector<Eigen::Matrix3d>& gyro_homographies) {
     Yardsticks yardsticks;
     auto start = Clock::now();
-    homography_builder_.build(h.homographies, homography_map_);
+    homography_builder_.build(gyro_homographies, homography_map_);
     yardsticks.homography_map_ms = msSince(start);
     const double bare_cpu_start_ms = threadCpuMs();
     start = Clock::now();
@@ -397,7 +402,7 @@ class FramePairChain {
   const deep_ois::ImuSampleBuffer& imu_;
   const deep_ois::CameraModel camera_;
   const deep_ois::RollingShutterConfig rs_;
-  const deep_ois::HomographyFlowRenderer renderer_;
+  deep_ois::FramePairProcessor gyro_flow_processor_;  // the gyro flow nodelet's: no lens
   const deep_ois::PatchHomographyMapBuilder homography_builder_;
   std::unique_ptr<deep_ois::CompensationStream> stream_;
   std::unique_ptr<deep_ois::StabiliserFlowCompensator> stabiliser_compensator_;

@@ -22,6 +22,7 @@
 #include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/design_traces.h"
 #include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/design_trace_recording.h"
 
 namespace {
 
@@ -37,42 +38,6 @@ struct Settings {
   double duration_s = 5.0;
   double noise_px = 0.1;  // the images' lens-motion noise (the tracker's, gyro-anchored)
 };
-
-Eigen::Vector2d lensAt(const std::vector<CameraRateSample>& gyro, const std::vector<Eigen::Vector2d>& lens,
-                       double t) {
-  auto it = std::lower_bound(gyro.begin(), gyro.end(), t,
-                             [](const CameraRateSample& s, double v) { return s.stamp_s < v; });
-  if (it == gyro.begin()) return lens.front();
-  if (it == gyro.end()) return lens.back();
-  const std::size_t j = static_cast<std::size_t>(it - gyro.begin());
-  const double alpha = (t - gyro[j - 1].stamp_s) / (gyro[j].stamp_s - gyro[j - 1].stamp_s);
-  return (1.0 - alpha) * lens[j - 1] + alpha * lens[j];
-}
-
-// A recording of one trace: the camera's gyro and the lens motion of every frame pair and row
-// patch (frames from 1 s, when the model's warm-up is over), from `lens` plus noise.
-StabiliserFitRecording recordingOf(const sim::DesignTrace& trace, const std::vector<Eigen::Vector2d>& lens,
-                                   const Settings& s, double noise_px, std::uint32_t noise_seed) {
-  StabiliserFitRecording r;
-  r.name = "design " + std::to_string(trace.design_seed) + " motion " + std::to_string(trace.motion_seed);
-  r.focal_px = s.focal_px;
-  r.rates = trace.gyro;
-  std::mt19937 rng(noise_seed);
-  std::normal_distribution<double> noise(0.0, noise_px > 0.0 ? noise_px : 1.0);
-  const double end = trace.gyro.back().stamp_s - s.readout_s - 1.0 / s.frame_rate_hz;
-  for (double t = 1.0; t < end; t += 1.0 / s.frame_rate_hz) {
-    for (int p = 0; p < s.patches; ++p) {
-      deep_ois::LensMotionObservation o;
-      o.readout_fraction = (p + 0.5) / s.patches;
-      o.t_a_s = t + o.readout_fraction * s.readout_s;
-      o.t_b_s = o.t_a_s + 1.0 / s.frame_rate_hz;
-      o.motion_px = lensAt(trace.gyro, lens, o.t_b_s) - lensAt(trace.gyro, lens, o.t_a_s);
-      if (noise_px > 0.0) o.motion_px += Eigen::Vector2d(noise(rng), noise(rng));
-      r.observations.push_back(o);
-    }
-  }
-  return r;
-}
 
 double rmsAgainst(const std::vector<StabiliserFitRecording>& truth,
                   const std::vector<std::vector<Eigen::Vector2d>>& predicted) {
@@ -138,6 +103,8 @@ int main(int argc, char** argv) {
     sim::DesignTraceOptions trace_options;
     trace_options.duration_s = settings.duration_s;
     trace_options.focal_px = settings.focal_px;
+    const deep_ois::DesignTraceCamera camera{settings.focal_px, settings.frame_rate_hz, settings.readout_s,
+                                             settings.patches};
     deep_ois::StabiliserFitOptions fit_options;
     fit_options.check_timing = false;
     deep_ois::StabiliserCandidateKinds kinds;
@@ -158,11 +125,11 @@ int main(int argc, char** argv) {
       for (std::uint32_t m = 101; m <= 109; ++m) {
         const sim::DesignTrace trace = sim::simulateDesignTrace(seed, m, trace_options);
         if (m <= 107) {
-          (m <= 106 ? training : choice).push_back(recordingOf(trace, trace.lens_px, settings, settings.noise_px, m));
+          (m <= 106 ? training : choice).push_back(deep_ois::designTraceRecording(trace, trace.lens_px, camera, settings.noise_px, m));
         } else {
-          evaluation.push_back(recordingOf(trace, trace.lens_px, settings, 0.0, m));
-          oracle.push_back(recordingOf(trace, sim::designLensShifts(design, settings.focal_px, trace.gyro),
-                                       settings, 0.0, m));
+          evaluation.push_back(deep_ois::designTraceRecording(trace, trace.lens_px, camera, 0.0, m));
+          oracle.push_back(deep_ois::designTraceRecording(trace, sim::designLensShifts(design, settings.focal_px, trace.gyro),
+                                                camera, 0.0, m));
         }
       }
       const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser(training, fit_options);

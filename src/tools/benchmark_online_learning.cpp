@@ -38,10 +38,10 @@
 
 #include "deep_ois/core/evaluation/stabiliser_table_row.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
-#include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/online/online_calibration_session.h"
 #include "deep_ois/core/online/online_stabiliser_learner.h"
+#include "deep_ois/core/pipeline/frame_pair_processor.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/parameter_source.h"
 #include "deep_ois/tools/support/command_line.h"
@@ -122,7 +122,7 @@ struct CalibrationRun {
 // the fallback to the plain gyro, every pair handed to the learner with its frames.
 struct OnlinePath {
   std::unique_ptr<deep_ois::OnlineStabiliserLearner> learner;
-  std::unique_ptr<deep_ois::StabiliserCompensator> compensator;
+  std::unique_ptr<deep_ois::FramePairProcessor> processor;  // the compensation's stabiliser path
   std::uint64_t recording = ~std::uint64_t{0};
   std::uint64_t version = ~std::uint64_t{0};
   double cpu_share = 0.3;
@@ -170,26 +170,30 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
               p.recording = pair.recording_id;
               p.recording_start_s = pair.stamp_a_s;
               // The stabiliser's state starts again (another recording's lens).
-              p.compensator.reset();
+              if (p.processor) p.processor->restart();
             }
             p.last_stamp_s = pair.stamp_b_s;
             const std::shared_ptr<const deep_ois::LearnedStabiliser> model = p.learner->model();
-            if (!p.compensator || model->version != p.version) {
-              if (p.version != ~std::uint64_t{0} && model->version != p.version)
+            if (!p.processor) {
+              p.processor = std::make_unique<deep_ois::FramePairProcessor>(model->parameters);
+              p.version = model->version;
+            } else if (model->version != p.version) {
+              if (p.version != ~std::uint64_t{0})
                 p.swaps.push_back({p.replay_s + pair.stamp_b_s - p.recording_start_s, model->name});
-              p.compensator = std::make_unique<deep_ois::StabiliserCompensator>(model->parameters, pair.camera->K());
+              p.processor->setModel(model->parameters);
               p.version = model->version;
             }
-            std::vector<double> times_a, times_b;
-            for (int i = 0; i < rs.patch_count; ++i) {
-              times_a.push_back(deep_ois::patchImuTime(rs, pair.stamp_a_s, i));
-              times_b.push_back(deep_ois::patchImuTime(rs, pair.stamp_b_s, i));
-            }
-            p.compensator->followTimeline(times_a.front(), times_b.front());
-            p.compensator->addRates(deep_ois::cameraRates(*pair.imu, rs.imu_to_camera_rotation,
-                                                          p.compensator->feedFrom(times_a.front()), times_b.back()));
-            const deep_ois::StabiliserCompensation result =
-                p.compensator->compensate(pair.gyro_rotations, times_a, times_b);
+            // As the compensation nodelet: the stabiliser's timeline followed, the gyro's motion
+            // the gyro flow nodelet's.
+            deep_ois::FramePair input;
+            input.stamp_a_s = pair.stamp_a_s;
+            input.stamp_b_s = pair.stamp_b_s;
+            input.timing = rs;
+            input.camera = pair.camera;
+            input.rotations = pair.gyro_rotations;
+            input.gyro_homographies = pair.gyro_homographies;
+            input.imu = pair.imu;
+            const deep_ois::FramePairMotion result = p.processor->process(std::move(input));
             if (!result.ok) return AlignmentEstimate::failed(result.reason);
 
             deep_ois::OnlineFramePair online;
@@ -200,8 +204,10 @@ deep_ois::AlignmentMethod onlineMethod(std::shared_ptr<OnlinePath> path, unsigne
             online.rotations = pair.gyro_rotations;
             online.gyro_homographies = pair.gyro_homographies;
             online.model_homographies = result.homographies;
-            online.rates = deep_ois::cameraRates(*pair.imu, rs.imu_to_camera_rotation, pair.stamp_b_s - 1.1,
-                                                 times_b.back());
+            // The pair's gyro stream, as the GyroFlow message carries it to the learner live: from
+            // kStabiliserWarmUpS before frame a's first patch to frame b's last patch (was a
+            // hand-typed 1.1 s before frame b, about 70 ms more at 30 fps).
+            online.rates = deep_ois::pairGyroStream(*pair.imu, rs, pair.stamp_a_s, pair.stamp_b_s);
             for (deep_ois::CameraRateSample& r : online.rates) r.stamp_s += p.shift_s;
             double output_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
             // The evaluator's frames live only during the call (the nodelet shares the messages'

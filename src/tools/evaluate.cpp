@@ -10,7 +10,9 @@
 // non-OIS camera (the simulator's twins) and on the OIS camera, uncompensated; the global F and
 // Fundamental Mixtures ground truths; then the model, named by its file (the compensation nodelet's network
 // on the gyro flow nodelet's flow), the stabiliser models and, with --oracle, the oracle of each
-// stabiliser design given (its own simulator controller on the camera's gyro). With --recorded, the gyro_flow and compensated_flow messages
+// stabiliser design given (its own simulator controller on the camera's gyro); the fused motion
+// (the first stabiliser model's compensation on an OIS camera, the plain gyro on one without,
+// refined per row patch by the pair's tracks). With --recorded, the gyro_flow and compensated_flow messages
 // the live nodelets published during a replay of the same bags (rosbag record) are scored too, as
 // rows of their own: they must equal the offline rows. The work is EvaluationRunner's
 // (tools/support/evaluation_runner.h); this file parses flags and writes the outputs.
@@ -29,6 +31,7 @@
 #include <utility>
 #include <vector>
 
+#include "deep_ois/core/evaluation/fused_table_row.h"
 #include "deep_ois/core/evaluation/stabiliser_table_row.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
@@ -55,7 +58,7 @@ struct EvaluateFlags {
   double oracle_start_s = std::numeric_limits<double>::quiet_NaN();
   int torch_threads = 1;
   bool no_image_baselines = false, no_ground_truth = false, no_model = false, no_progress = false;
-  bool no_stabiliser = false;
+  bool no_stabiliser = false, no_fusion = false;
   CLI::Option* model_option = nullptr;
   CLI::Option* stabiliser_option = nullptr;
   CLI::Option* oracle_option = nullptr;
@@ -76,6 +79,8 @@ struct EvaluationRows {
   std::string model_row;  // the network's row, empty without one
   // Each model row with the camera it was trained for, compared with the recordings' after the run.
   std::vector<std::pair<std::string, deep_ois::CameraDescription>> model_cameras;
+  // The fused rows' tallies (refined pairs, corrections, cost), by row.
+  std::vector<std::pair<std::string, std::shared_ptr<deep_ois::FusionTally>>> fusion_tallies;
   // Replay parity: what the live nodelets published, looked up by the pair's two stamps.
   std::map<deep_ois::FramePairStamps, deep_ois::RecordedFlow> live_gyro, live_compensated;
 };
@@ -95,7 +100,8 @@ constexpr char kDescription[] =
     "identity error, a method without an estimate scored as identity, Avg = mean of the category "
     "means. Rows: identity; SIFT / ORB / AKAZE + RANSAC / MAGSAC; the gyro on the non-OIS and the "
     "OIS camera, uncompensated; the global F and Fundamental Mixtures ground truths; the shipped "
-    "model; the stabiliser models; with --oracle, a stabiliser design's own simulator controller "
+    "model; the stabiliser models; the fused motion (the first stabiliser model, or the gyro on a camera "
+    "without OIS, refined by the pair's tracks); with --oracle, a stabiliser design's own simulator controller "
     "on the camera's gyro. With --recorded, the flows the live nodelets published during a replay of the same "
     "bags "
     "are scored too and must equal the offline rows. --out writes evaluation.csv, evaluation.json, "
@@ -160,6 +166,9 @@ void addFlags(deep_ois::ToolCommandLine& command_line, EvaluateFlags& flags) {
           ->type_name("FILE.yaml ...");
   app.add_flag("--no-stabiliser", flags.no_stabiliser, "leave out the stabiliser model rows")
       ->excludes(flags.stabiliser_option);
+  app.add_flag("--no-fusion", flags.no_fusion,
+               "leave out the fused rows (the first stabiliser model's compensation, or the gyro on a camera "
+               "without OIS, refined by the pair's tracks; docs/fusion.md)");
   // The oracle of a stabiliser design: its own simulator controller on the camera's gyro.
   flags.oracle_option =
       app.add_option("--oracle", flags.oracle_designs,
@@ -299,6 +308,26 @@ void addStabiliserRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& 
   }
 }
 
+// The fused motion: the first stabiliser model's compensation (OIS camera pairs) and the plain gyro
+// (cameras without OIS) refined per row patch by the pair's tracks, each with its own copy of the
+// prior's row (a stabiliser row carries its state over the recording).
+void addFusedRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags, EvaluationRows& rows) {
+  if (flags.no_fusion) return;
+  auto addRow = [&](const std::string& row, deep_ois::AlignmentMethod prior) {
+    auto tally = std::make_shared<deep_ois::FusionTally>();
+    runner.addMethod(deep_ois::fusedAlignmentMethod(row, std::move(prior), {}, tally));
+    rows.fusion_tallies.emplace_back(row, tally);
+  };
+  if (!flags.stabiliser_paths.empty()) {
+    const std::string& path = flags.stabiliser_paths.front();
+    const std::string file = std::filesystem::path(path).filename().string();
+    addRow("fused: stabiliser model, " + file + " + tracks",
+           deep_ois::stabiliserAlignmentMethod("prior of the fused row",
+                                               deep_ois::StabiliserModelFile::load(path).parameters));
+  }
+  addRow("fused: gyro + tracks", deep_ois::gyroPriorMethod());
+}
+
 // Stabiliser oracles: each design's own controller driven by the recordings' gyro.
 void addOracleRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags) {
   for (const std::string& path : flags.oracle_designs) {
@@ -336,13 +365,14 @@ void addRecordedRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& fl
 }
 
 // Every row in the table's order: the standard rows, the lens log's (when the recordings have
-// one: the exact OIS motion, no network), the network's, the stabiliser models', the oracles' and
-// the recorded live flows'.
+// one: the exact OIS motion, no network), the network's, the stabiliser models', the fused ones,
+// the oracles' and the recorded live flows'.
 void addRows(deep_ois::EvaluationRunner& runner, const EvaluateFlags& flags, EvaluationRows& rows) {
   runner.addMethods(deep_ois::standardAlignmentMethods(flags.standard));
   if (deep_ois::recordingsHaveLensShiftLog(flags.options)) runner.addMethod(deep_ois::gyroLensLogMethod());
   addModelRow(runner, flags, rows);
   addStabiliserRows(runner, flags, rows);
+  addFusedRows(runner, flags, rows);
   addOracleRows(runner, flags);
   addRecordedRows(runner, flags, rows);
 }
@@ -371,6 +401,9 @@ void printRunSummary(const deep_ois::EvaluationReport& report, const EvaluateFla
   }
   for (const auto& [row, camera] : rows.model_cameras) {
     std::fprintf(stderr, "evaluate: %s\n", deep_ois::modelCameraNote(row, camera, report.recordings).c_str());
+  }
+  for (const auto& [row, tally] : rows.fusion_tallies) {
+    if (tally->pairs > 0) std::fprintf(stderr, "evaluate: %s: %s\n", row.c_str(), tally->summary().c_str());
   }
   std::fprintf(stderr, "evaluate: %.1f s; reading the bags %.1f s (a thread reading ahead, overlapping); methods:",
                report.elapsed_s, report.reading_s);

@@ -1,13 +1,14 @@
-// live_rate_monitor: counts the messages on image topics (sensor_msgs/Image) and prints, every
-// period, how many each got in that period and the resident memory (VmRSS) of a process; used by
-// scripts/soak.sh to watch the live pipeline's output rate and the manager's memory.
+// live_rate_monitor: counts the messages on topics (of any type) and prints, every period, how many
+// each got in that period and the resident memory (VmRSS) of a process; used by scripts/soak.sh to
+// watch the live pipeline's output rate and the manager's memory, and by scripts/overload_benchmark.sh
+// to count compensated flows per gyro flow.
 //
 //   live_rate_monitor --pid PID [--period S (60)] [--periods N (0 = until killed)] TOPIC...
 //
 // After the last period (with --periods) a line of totals, and each later topic's total as a
 // share of the first topic's (the soak: compensated flows per gyro flow).
 #include <ros/ros.h>
-#include <sensor_msgs/Image.h>
+#include <topic_tools/shape_shifter.h>
 
 #include <atomic>
 #include <cstdio>
@@ -41,9 +42,10 @@ int main(int argc, char** argv) {
   std::vector<std::string> topics;
   deep_ois::ToolCommandLine command_line(
       "live_rate_monitor",
-      "Counts the messages on image topics (sensor_msgs/Image) and prints, every period, how many "
-      "each got in that period and the resident memory (VmRSS) of a process; scripts/soak.sh uses "
-      "it to watch the live pipeline's output rate and the manager's memory.",
+      "Counts the messages on topics (of any type) and prints, every period, how many each got in "
+      "that period and the resident memory (VmRSS) of a process; scripts/soak.sh uses it to watch "
+      "the live pipeline's output rate and the manager's memory, scripts/overload_benchmark.sh to "
+      "count compensated flows per gyro flow.",
       "Exit status: 0 done, 2 usage.");
   CLI::App& app = command_line.app();
   app.add_option("--pid", pid, "the process whose memory is printed")->required()->type_name("PID");
@@ -52,7 +54,7 @@ int main(int argc, char** argv) {
       ->type_name("SECONDS");
   command_line.addNumber("--periods", periods, "lines to print (0: until stopped)")
       ->check(deep_ois::atLeast(0));
-  app.add_option("topics", topics, "image topics to count")->required()->type_name("TOPIC ...");
+  app.add_option("topics", topics, "topics to count (any message type)")->required()->type_name("TOPIC ...");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   ros::NodeHandle nh;
   std::vector<std::unique_ptr<std::atomic<long>>> counts;
@@ -60,9 +62,9 @@ int main(int argc, char** argv) {
   for (const std::string& topic : topics) {
     counts.push_back(std::make_unique<std::atomic<long>>(0));
     std::atomic<long>* count = counts.back().get();
-    subscribers.push_back(nh.subscribe<sensor_msgs::Image>(topic, 100, [count](const sensor_msgs::ImageConstPtr&) {
-      ++*count;
-    }));
+    // Any type: only the arrival is counted (the message is not deserialised).
+    subscribers.push_back(nh.subscribe<topic_tools::ShapeShifter>(
+        topic, 100, [count](const topic_tools::ShapeShifter::ConstPtr&) { ++*count; }));
   }
   ros::AsyncSpinner spinner(1);
   spinner.start();

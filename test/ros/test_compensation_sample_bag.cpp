@@ -249,6 +249,16 @@ TEST(CompensationSampleBag, DiagnosticsReportTheModelAndTheFlows) {
     EXPECT_NE(values["model camera check"], "not checked (the model records no camera)");
   }
   EXPECT_GE(std::stoi(values["compensated flows total"]), 28);
+  if (private_nh.param("expect_fusion", false)) {
+    // ~fusion: the share refined, the mean correction and the last prior kept are said; the bag
+    // is textured, so the tracks refine some of its pairs.
+    for (const char* key : {"fusion: pairs refined [%]", "fusion: mean correction [px]", "fusion: last prior kept",
+                            "fusion: failures (model's motion published)"}) {
+      EXPECT_TRUE(values.count(key)) << "no '" << key << "' on /diagnostics";
+    }
+    EXPECT_GT(std::stod(values["fusion: pairs refined [%]"]), 0.0);
+    EXPECT_EQ(values["fusion: failures (model's motion published)"], "0");
+  }
   EXPECT_GE(std::stoi(latest[gyro]["gyro flows total"]), 28);
   EXPECT_GT(std::stoi(latest[gyro]["imu total"]), 100);
 }

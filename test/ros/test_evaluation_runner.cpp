@@ -14,7 +14,10 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "deep_ois/core/evaluation/fused_table_row.h"
 #include "deep_ois/core/evaluation/geometry_distance.h"
+#include "deep_ois/core/evaluation/stabiliser_table_row.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/evaluation/standard_table_rows.h"
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
@@ -310,6 +313,36 @@ TEST(EvaluationRunner, StabiliserOracleRowRunsTheBagsDesignOnItsGyro) {
   ASSERT_EQ(reasons.size(), 1u);
   EXPECT_NE(reasons.begin()->first.find("256x192"), std::string::npos) << reasons.begin()->first;
   EXPECT_EQ(reasons.begin()->second, pairs);
+}
+
+// evaluate's fused row (the shipped stabiliser model refined by the pair's tracks) on a textured
+// (RE) recording: present on every pair of the OIS camera, refining most of them, and no worse
+// than its prior, the stabiliser row it refines.
+TEST(EvaluationRunner, FusedRowOnATexturedRecordingIsNoWorseThanItsPrior) {
+  const std::string ois = writeBag("eval_fused_ois", true, 1.0);
+  const StabiliserModelFile model = StabiliserModelFile::load(sourcePath("models/stabiliser_generic.yaml"));
+  EvaluationRunner runner(optionsFor({ois}));
+  runner.addMethod(stabiliserAlignmentMethod("prior", model.parameters));
+  auto tally = std::make_shared<FusionTally>();
+  runner.addMethod(
+      fusedAlignmentMethod("fused", stabiliserAlignmentMethod("prior of the fused row", model.parameters), {}, tally));
+  // The gyro prior is for cameras without OIS: none here.
+  runner.addMethod(fusedAlignmentMethod("fused gyro", gyroPriorMethod()));
+  const EvaluationReport report = runner.run();
+  const EvaluationTable& table = report.table;
+  const std::size_t pairs = report.recordings[0].pairs_scored;
+  ASSERT_GE(pairs, 20u);
+  EXPECT_EQ(table.count("fused", "RE"), pairs);
+  EXPECT_EQ(report.failure_reasons.count("fused"), 0u);
+  EXPECT_EQ(table.count("fused gyro", "RE"), 0u);
+  EXPECT_EQ(tally->pairs, pairs);
+  EXPECT_GE(tally->refinedPairs(), pairs / 2) << tally->markdown();
+  const double prior = table.mean("prior", "RE"), fused = table.mean("fused", "RE");
+  std::cout << "[ measured ] " << pairs << " pairs: prior " << prior << " px, fused " << fused << " px; "
+            << tally->summary() << "\n";
+  EXPECT_LE(fused, prior);
+  EXPECT_THROW(fusedAlignmentMethod("no prior", AlignmentMethod{"empty", kOisCameraPairs, nullptr}),
+               std::invalid_argument);
 }
 
 // Writes an annotation file; returns its path.

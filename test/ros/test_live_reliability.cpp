@@ -247,6 +247,35 @@ TEST(LiveLag, ASlowCompensationDropsOldWorkInsteadOfFallingBehind) {
       << harness->warningsText(t0);
 }
 
+// Issue 40 item 3, with live_lag.test: late pairs shed the optional images (compensated_flow/color,
+// aligned/image_raw, aligned/ghost) before any pair is dropped, say so, and keep publishing the
+// compensated flow; /diagnostics counts what was shed.
+TEST(LiveLag, ALateCompensationShedsItsOptionalImagesFirst) {
+  ensureStarted();
+  const ros::WallTime t0 = ros::WallTime::now();
+  const std::size_t ghosts_before = harness->imageOutputs("/deep_ois/aligned/ghost");
+  const std::size_t aligned_before = harness->imageOutputs("/deep_ois/aligned/image_raw");
+  const std::size_t colours_before = harness->imageOutputs("/deep_ois/compensated_flow/color");
+  harness->stream(6.0);
+  ros::WallDuration(0.5).sleep();
+  const std::size_t compensated = harness->countBetween(true, t0, ros::WallTime::now());
+  const std::size_t ghosts = harness->imageOutputs("/deep_ois/aligned/ghost") - ghosts_before;
+  const std::size_t aligned = harness->imageOutputs("/deep_ois/aligned/image_raw") - aligned_before;
+  const std::size_t colours = harness->imageOutputs("/deep_ois/compensated_flow/color") - colours_before;
+  std::printf("[ measured ] late compensation: %zu compensated flows, %zu colour flows, %zu aligned frames, %zu ghosts\n",
+              compensated, colours, aligned, ghosts);
+  ASSERT_GE(compensated, 10u) << harness->warningsText(t0);
+  // Every one of the three is shed from some pairs that still get their compensated flow.
+  EXPECT_LT(ghosts, compensated);
+  EXPECT_LT(aligned, compensated);
+  EXPECT_LT(colours, compensated);
+  // Said when the shedding began: the test before this one may have seen it first (same nodelet).
+  EXPECT_FALSE(harness->warnings(ros::WallTime(), {"compensation", "behind its input", "shedding",
+                                                   "the compensated flow goes on"})
+                   .empty())
+      << harness->warningsText(ros::WallTime());
+}
+
 }  // namespace
 }  // namespace deep_ois
 

@@ -406,16 +406,21 @@ TEST(OnlineLearning, AReplayIsNotNewEvidence) {
         });
   };
   pass(16.0);
-  // The last fit on the first pass ends and /diagnostics says it: a fit with the generic lens
-  // dynamics' candidates takes seconds within the learning's CPU share, so wait until the count
-  // has not moved for 4 s (at most 40 s).
-  long fits_first = diagnostics.countBefore("fits");
-  for (int quiet_s = 0, waited_s = 0; quiet_s < 4 && waited_s < 40; ++waited_s) {
+  // The last fit on the first pass ends and /diagnostics says it (its figures are refreshed on
+  // its period while no pair comes): a fit with the generic lens dynamics' candidates takes
+  // seconds within the learning's CPU share, and the tracking may still have windows queued, so
+  // wait until no fit runs or waits for its budget and the learning's figures (windows, seconds
+  // kept, fits) have not moved for 4 s (at most 60 s).
+  std::string figures = diagnostics.get("learning data");
+  for (int quiet_s = 0, waited_s = 0; quiet_s < 4 && waited_s < 60; ++waited_s) {
     ros::WallDuration(1.0).sleep();
-    const long now = diagnostics.countBefore("fits");
-    quiet_s = now == fits_first ? quiet_s + 1 : 0;
-    fits_first = now;
+    const std::string now = diagnostics.get("learning data");
+    const std::string state = diagnostics.get("learning");
+    const bool busy = state == "fitting" || state == "over budget";
+    quiet_s = now == figures && !busy ? quiet_s + 1 : 0;
+    figures = now;
   }
+  const long fits_first = diagnostics.countBefore("fits");
   const std::string data_first = diagnostics.get("learning data");
   // Back to the first pass's stamps: the same recording again.
   harness->shiftStamps(base - ros::Time::now());

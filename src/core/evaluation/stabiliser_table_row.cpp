@@ -4,14 +4,14 @@
 #include <limits>
 #include <memory>
 
-#include "deep_ois/core/ois/stabiliser_compensator.h"
+#include "deep_ois/core/pipeline/frame_pair_processor.h"
 
 namespace deep_ois {
 
 AlignmentMethod stabiliserAlignmentMethod(const std::string& name,
                                           const StabiliserParameters& parameters, unsigned scope) {
   struct Stream {
-    std::unique_ptr<StabiliserCompensator> compensator;
+    std::unique_ptr<FramePairProcessor> processor;
     std::uint64_t recording = std::numeric_limits<std::uint64_t>::max();
   };
   auto stream = std::make_shared<Stream>();
@@ -20,25 +20,24 @@ AlignmentMethod stabiliserAlignmentMethod(const std::string& name,
                 pair.gyro_rotations.empty()) {
               return AlignmentEstimate::failed("no gyro stream for the stabiliser model");
             }
-            if (!stream->compensator || pair.recording_id != stream->recording) {
-              stream->compensator =
-                  std::make_unique<StabiliserCompensator>(parameters, pair.camera->K());
+            // One stabiliser state per recording, fed in pair order: the evaluator's pairs come
+            // in recording order and never loop, so the timeline is not followed.
+            if (!stream->processor || pair.recording_id != stream->recording) {
+              stream->processor = std::make_unique<FramePairProcessor>(
+                  parameters, FramePairProcessor::Timeline::kPairsInOrder);
               stream->recording = pair.recording_id;
             }
-            const RollingShutterConfig& rs = *pair.rolling_shutter;
-            std::vector<double> times_a, times_b;
-            for (int i = 0; i < rs.patch_count; ++i) {
-              times_a.push_back(patchImuTime(rs, pair.stamp_a_s, i));
-              times_b.push_back(patchImuTime(rs, pair.stamp_b_s, i));
-            }
-            StabiliserCompensator& compensator = *stream->compensator;
-            compensator.addRates(cameraRates(*pair.imu, rs.imu_to_camera_rotation,
-                                             compensator.feedFrom(times_a.front()),
-                                             times_b.back()));
-            const StabiliserCompensation result =
-                compensator.compensate(pair.gyro_rotations, times_a, times_b);
-            if (!result.ok) return AlignmentEstimate::failed(result.reason);
-            return AlignmentEstimate::patchHomographies(result.homographies);
+            FramePair input;
+            input.stamp_a_s = pair.stamp_a_s;
+            input.stamp_b_s = pair.stamp_b_s;
+            input.timing = *pair.rolling_shutter;
+            input.camera = pair.camera;
+            input.rotations = pair.gyro_rotations;
+            input.gyro_homographies = pair.gyro_homographies;
+            input.imu = pair.imu;
+            const FramePairMotion motion = stream->processor->process(std::move(input));
+            if (!motion.ok) return AlignmentEstimate::failed(motion.reason);
+            return AlignmentEstimate::patchHomographies(motion.homographies);
           }};
 }
 

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <stdexcept>
 
 namespace deep_ois {
@@ -191,35 +190,22 @@ StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted
   // component relative to its energy, towards the current layer.
   RobustRidgeRegression regression(h, 2, RobustLoss::huber(options.huber_px));
   for (const StabiliserFitRecording& recording : recordings) {
-    if (recording.rates.empty() || recording.observations.empty()) continue;
-    double span = 0.0;
-    for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
-    LensShiftPredictor predictor(adapted, recording.focal_px, options.step_s, std::max(0.25, 2.0 * span));
-    predictor.max_gap_s = std::numeric_limits<double>::infinity();  // as the fit: gaps are fed
-    predictor.recordLearnedState();
-    std::vector<std::size_t> order(recording.observations.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return recording.observations[a].t_b_s < recording.observations[b].t_b_s;
-    });
-    const double usable_from = recording.rates.front().stamp_s + options.warm_up_s;
     const double scale = recording.focal_px * net.output_scale;
-    std::size_t next_rate = 0;
-    for (std::size_t index : order) {
-      const LensMotionObservation& o = recording.observations[index];
-      while (next_rate < recording.rates.size() &&
-             (!predictor.started() || predictor.newestStamp() < o.t_b_s))
-        predictor.addRate(recording.rates[next_rate++]);
-      if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
-      const Eigen::VectorXd delta = scale * (predictor.learnedStateAt(o.t_b_s) - predictor.learnedStateAt(o.t_a_s));
-      // What the model predicts without its learned stage's motion (the chain, if any), and what
-      // the learned stage must then explain.
-      const Eigen::Vector2d learned_motion = w0 * delta;
-      const Eigen::Vector2d others =
-          predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s) - learned_motion;
-      const Eigen::Vector2d target = o.motion_px - others;
-      regression.add(delta, target, o.weight, (target - learned_motion).norm());
-    }
+    visitCoveredObservations(
+        adapted, recording, options.step_s, options.warm_up_s,
+        [&](const LensShiftPredictor& predictor, std::size_t index) {
+          const LensMotionObservation& o = recording.observations[index];
+          const Eigen::VectorXd delta =
+              scale * (predictor.learnedStateAt(o.t_b_s) - predictor.learnedStateAt(o.t_a_s));
+          // What the model predicts without its learned stage's motion (the chain, if any), and
+          // what the learned stage must then explain.
+          const Eigen::Vector2d learned_motion = w0 * delta;
+          const Eigen::Vector2d others =
+              predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s) - learned_motion;
+          const Eigen::Vector2d target = o.motion_px - others;
+          regression.add(delta, target, o.weight, (target - learned_motion).norm());
+        },
+        [](LensShiftPredictor& predictor) { predictor.recordLearnedState(); });
   }
   if (regression.count() == 0) throw std::invalid_argument("lens dynamics output refit: no usable lens motion");
   const Eigen::MatrixXd prior = w0.transpose();

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -13,6 +14,7 @@
 #include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
 
 namespace deep_ois {
 StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
@@ -28,35 +30,17 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
   // feature, relative to its own energy (the features differ by orders of magnitude).
   RobustRidgeRegression regression(m, 2, RobustLoss::huber(options.huber_px));
   for (const StabiliserFitRecording& recording : recordings) {
-    if (recording.rates.empty() || recording.observations.empty()) continue;
-    double span = 0.0;
-    for (const LensMotionObservation& o : recording.observations)
-      span = std::max(span, o.t_b_s - o.t_a_s);
-    LensShiftPredictor predictor(features_only, recording.focal_px, options.step_s,
-                                 std::max(0.25, 2.0 * span));
-    predictor.max_gap_s = std::numeric_limits<double>::infinity();  // as the fit: gaps are fed
-    predictor.recordFeatures();
-    std::vector<std::size_t> order(recording.observations.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return recording.observations[a].t_b_s < recording.observations[b].t_b_s;
-    });
-    const double usable_from = recording.rates.front().stamp_s + options.warm_up_s;
-    std::size_t next_rate = 0;
-    for (std::size_t index : order) {
-      const LensMotionObservation& o = recording.observations[index];
-      while (next_rate < recording.rates.size() &&
-             (!predictor.started() || predictor.newestStamp() < o.t_b_s)) {
-        predictor.addRate(recording.rates[next_rate++]);
-      }
-      if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s))
-        continue;
-      const Eigen::VectorXd delta =
-          recording.focal_px * (predictor.featuresAt(o.t_b_s) - predictor.featuresAt(o.t_a_s));
-      const Eigen::Vector2d target =
-          o.motion_px - (predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s));
-      regression.add(delta, target, o.weight, target.norm());
-    }
+    visitCoveredObservations(
+        features_only, recording, options.step_s, options.warm_up_s,
+        [&](const LensShiftPredictor& predictor, std::size_t index) {
+          const LensMotionObservation& o = recording.observations[index];
+          const Eigen::VectorXd delta =
+              recording.focal_px * (predictor.featuresAt(o.t_b_s) - predictor.featuresAt(o.t_a_s));
+          const Eigen::Vector2d target =
+              o.motion_px - (predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s));
+          regression.add(delta, target, o.weight, target.norm());
+        },
+        [](LensShiftPredictor& predictor) { predictor.recordFeatures(); });
   }
   if (regression.count() == 0) throw std::invalid_argument("nonlinear residual: no usable lens motion");
   Eigen::MatrixXd solution;  // m x 2
@@ -75,51 +59,80 @@ const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptio
   // soft stroke instead of an end stop), refitted from the fitted chain's parameters; the learned
   // rows add dynamics on top of the fitted chain (with its linear bank when it has one): a
   // higher-order linear filter of the rate, nonlinear functions of the chain's state, both.
-  using S = StabiliserStructure;
   static const std::vector<StabiliserCandidateDescription> table = {
-      {"", S{}, false, "", 1},
-      {"linear residual", S{}, true, "", 2},
-      {"anti-windup integrator", S{true, false, false, false}, true, "", 3},
-      {"excursion-dependent re-centring", S{false, true, false, false}, true, "", 4},
-      {"anti-windup integrator + excursion-dependent re-centring", S{true, true, false, false}, true, "", 5},
-      {"stroke in the actuator's axes + actuator coupling", S{false, false, true, false}, true, "", 6},
-      {"soft stroke", S{false, false, false, true}, true, "", 7},
-      {"soft stroke + excursion-dependent re-centring", S{false, true, false, true}, true, "", 8},
-      {"learned rate filter", S{}, true, "rate_bank_v1", 9},
-      {"nonlinear residual", S{}, true, "excursion_v1", 10},
-      {"nonlinear residual + learned rate filter", S{}, true, "excursion_rate_v1", 11},
+      {"", {"centring", "stroke", "actuator"}, 1},
+      {"linear residual", {"centring", "stroke", "actuator", "linear_residual"}, 2},
+      {"anti-windup integrator", {"centring", "stroke:anti_windup", "actuator", "linear_residual"}, 3},
+      {"excursion-dependent re-centring",
+       {"excursion_centring", "centring", "stroke", "actuator", "linear_residual"}, 4},
+      {"anti-windup integrator + excursion-dependent re-centring",
+       {"excursion_centring", "centring", "stroke:anti_windup", "actuator", "linear_residual"}, 5},
+      {"stroke in the actuator's axes + actuator coupling",
+       {"centring", "stroke", "actuator", "actuator_coupling", "linear_residual"}, 6},
+      {"soft stroke", {"centring", "stroke:soft", "actuator", "linear_residual"}, 7},
+      {"soft stroke + excursion-dependent re-centring",
+       {"excursion_centring", "centring", "stroke:soft", "actuator", "linear_residual"}, 8},
+      {"learned rate filter",
+       {"centring", "stroke", "actuator", "linear_residual", "learned_residual:rate_bank_v1"}, 9},
+      {"nonlinear residual",
+       {"centring", "stroke", "actuator", "linear_residual", "learned_residual:excursion_v1"}, 10},
+      {"nonlinear residual + learned rate filter",
+       {"centring", "stroke", "actuator", "linear_residual", "learned_residual:excursion_rate_v1"}, 11},
+      {"linear dynamics + stroke", {"linear_dynamics", "stroke"}, 12},
+      {"linear dynamics + stroke + actuator", {"linear_dynamics", "stroke", "actuator"}, 13},
   };
   return table;
 }
 
 namespace {
 
-bool sameStructure(const StabiliserStructure& a, const StabiliserStructure& b) {
-  return a.anti_windup == b.anti_windup && a.excursion_centring == b.excursion_centring &&
-         a.actuator_coupling == b.actuator_coupling && a.soft_stroke == b.soft_stroke;
+bool has(const std::vector<std::string>& tokens, const std::string& token) {
+  return std::find(tokens.begin(), tokens.end(), token) != tokens.end();
+}
+
+// The composition without what a row leaves to the fit: pan detection (chosen for every row) and,
+// for a refit or a learned residual, the linear bank (kept only where it helps, or under it).
+std::vector<std::string> comparable(std::vector<std::string> tokens, bool without_bank) {
+  tokens.erase(std::remove_if(tokens.begin(), tokens.end(),
+                              [&](const std::string& t) {
+                                return t == "pan_detection" || (without_bank && t == "linear_residual");
+                              }),
+               tokens.end());
+  std::sort(tokens.begin(), tokens.end());  // the row's order is the chain's, not the match's
+  return tokens;
 }
 
 }  // namespace
 
-bool StabiliserCandidateDescription::structural() const {
-  return !sameStructure(structure, StabiliserStructure{});
+std::string StabiliserCandidateDescription::featureSet() const {
+  for (const std::string& token : stages)
+    if (stageOfToken(token) == "learned_residual") return variantOfToken(token);
+  return {};
 }
+
+bool StabiliserCandidateDescription::structural() const {
+  for (const std::string& token : stages)
+    if (!has({"centring", "stroke", "actuator", "linear_residual", "linear_dynamics"}, token) &&
+        stageOfToken(token) != "learned_residual")
+      return true;
+  return false;
+}
+
+bool StabiliserCandidateDescription::linearDynamics() const { return has(stages, "linear_dynamics"); }
 
 int stabiliserComplexity(const StabiliserParameters& parameters) {
   if (isNoLensMotion(parameters)) return 0;
-  const StabiliserStructure structure{parameters.anti_windup, parameters.excursion_centring > 0.0,
-                                      !parameters.actuator_coupling.isZero(0.0), parameters.soft_stroke};
-  const bool linear = parameters.residual.size() != 0;
+  const std::vector<std::string> composition = stabiliserComposition(parameters);
   int most = 0;
   for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions())
     most = std::max(most, d.complexity);
   // A learned network (alone or on the chain's residual) is more than any row or hand-written
   // composition: kept only when it beats every simpler candidate by the rule's margin.
-  if (parameters.learned_dynamics.active()) return most + 2;
+  if (has(composition, "learned_lens_dynamics")) return most + 2;
   for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions()) {
-    // A refitted structure keeps its bank only when the bank helps: either way it is that row.
-    if (sameStructure(d.structure, structure) && d.feature_set == parameters.nonlinear_features &&
-        (d.structural() || d.linear_residual == linear || !d.feature_set.empty()))
+    // A refit keeps its bank only when the bank helps: either way it is that row.
+    const bool without_bank = d.structural() || !d.featureSet().empty();
+    if (comparable(d.stages, without_bank) == comparable(composition, without_bank))
       return d.complexity;
   }
   return most + 1;  // a composition no row describes (a hand-written file): after every row
@@ -137,21 +150,37 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
   std::stable_sort(rows.begin(), rows.end(),
                    [](const auto& a, const auto& b) { return a.complexity < b.complexity; });
   for (const StabiliserCandidateDescription& row : rows) {
+    const std::string feature_set = row.featureSet();
     if (row.structural() && !kinds.structural) continue;
-    if (!row.feature_set.empty() && !kinds.learned_features) continue;
+    if (!feature_set.empty() && !kinds.learned_features) continue;
+    if (row.linearDynamics() && !kinds.linear_dynamics) continue;
     try {
-      if (row.structural()) {
+      if (row.linearDynamics()) {
+        // Without an actuator stage the basis carries the actuator's dynamics too: a fast second
+        // pole beside the slow one (1 + 10 Hz, 16 functions per axis recover the simulator's
+        // Kalman stabiliser, test_linear_dynamics_basis); the ridge as benchmark_linear_dynamics
+        // chose it on training designs (docs/linear_dynamics_stage.md).
+        LinearDynamicsBasisSpec basis;
+        basis.pole_hz = 1.0;
+        basis.order = 8;
+        if (!has(row.stages, "actuator")) {
+          basis.second_pole_hz = 10.0;
+          basis.order = 16;
+        }
+        candidates.push_back({row.name, fitLinearDynamics(fit.parameters, row.stages, basis,
+                                                          training, options, 1e-5)});
+      } else if (row.structural()) {
         const StabiliserFitResult refit =
-            refitStabiliserStructure(fit.parameters, row.structure, training, refit_options);
+            refitStabiliserStages(fit.parameters, row.stages, training, refit_options);
         candidates.push_back(
             {std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") + ", " +
                  row.name,
              refit.parameters});
-      } else if (!row.feature_set.empty()) {
+      } else if (!feature_set.empty()) {
         const std::string prefix = has_linear ? "physical + linear + " : "physical + ";
-        candidates.push_back({prefix + row.name + " (" + row.feature_set + ")",
-                              fitNonlinearResidual(fit.parameters, training, options, row.feature_set)});
-      } else if (row.linear_residual) {
+        candidates.push_back({prefix + row.name + " (" + feature_set + ")",
+                              fitNonlinearResidual(fit.parameters, training, options, feature_set)});
+      } else if (has(row.stages, "linear_residual")) {
         if (has_linear) candidates.push_back({"physical + " + row.name, fit.parameters});
       } else {
         candidates.push_back({"physical", fit.parameters.physicalChain()});

@@ -28,14 +28,23 @@ StabiliserCompensator::StabiliserCompensator(const StabiliserParameters& paramet
   if (!(warm_up_s >= 0.0)) throw std::invalid_argument("StabiliserCompensator: warm_up_s < 0");
 }
 
-double StabiliserCompensator::followTimeline(double frame_a_s, double frame_b_s) {
+double StabiliserCompensator::followTimeline(double frame_a_s, double frame_b_s, double calibration_shift_s) {
   double back_s = 0.0;
   // Consecutive pairs share a frame (the next pair's frame a is the last one's frame b; later
-  // after a lost pair). Earlier than that by more than a stamp's rounding is another timeline.
-  if (seen_pair_ && frame_a_s < last_frame_b_s_ - 1e-6) {
-    back_s = last_frame_b_s_ - frame_a_s;
+  // after a lost pair). Earlier than that by more than a stamp's rounding is another timeline;
+  // an applied calibration moves frame a by its shift without time going anywhere.
+  const double expected_at_least_s = last_frame_b_s_ + calibration_shift_s;
+  if (seen_pair_ && frame_a_s < expected_at_least_s - 1e-6) {
+    back_s = expected_at_least_s - frame_a_s;
     predictor_.reset();
     ++time_jumps_;
+  } else if (seen_pair_ && calibration_shift_s != 0.0) {
+    ++calibration_changes_;
+    // Moved back: the model answers from its retained history (a few hundred ms), not beyond.
+    if (predictor_.started() && frame_a_s < predictor_.newestStamp() && !predictor_.covers(frame_a_s)) {
+      predictor_.reset();
+      ++calibration_restarts_;
+    }
   }
   seen_pair_ = true;
   last_frame_b_s_ = frame_b_s;

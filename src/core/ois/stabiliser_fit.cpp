@@ -19,83 +19,31 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// Observations of a recording sorted by t_b (the order the predictor can answer them in).
-std::vector<std::size_t> orderByEnd(const std::vector<LensMotionObservation>& observations) {
-  std::vector<std::size_t> order(observations.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return observations[a].t_b_s < observations[b].t_b_s;
-  });
-  return order;
-}
-
-// Runs `sample(predictor, observation index)` for every observation the predictor covers after
-// the warm-up, feeding the gyro stream up to each observation's end.
-template <typename Visit>
-void runOver(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
-             double step_s, double warm_up_s, Visit visit) {
-  if (recording.rates.empty()) return;
-  double span = 0.0;
-  for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
-  LensShiftPredictor predictor(parameters, recording.focal_px, step_s, std::max(0.25, 2.0 * span));
-  predictor.max_gap_s = std::numeric_limits<double>::infinity();  // the recording's own gaps: fed
-  const double usable_from = recording.rates.front().stamp_s + warm_up_s;
-  std::size_t next_rate = 0;
-  for (std::size_t index : orderByEnd(recording.observations)) {
-    const LensMotionObservation& o = recording.observations[index];
-    while (next_rate < recording.rates.size() &&
-           (!predictor.started() || predictor.newestStamp() < o.t_b_s)) {
-      predictor.addRate(recording.rates[next_rate++]);
-    }
-    if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
-    visit(predictor, index);
-  }
-}
-
-// Mechanisms whose parameters stay in the refinement's vector when it does not fit them, held (a
-// zero Jacobian column, so they do not move): the layout the fit had when it packed numbered slots.
-// The Levenberg-Marquardt step solves a system of the vector's size, and a different size rounds
-// differently; keeping the layout keeps every fit's result bit-identical to the models it made
-// before (the pan release corner was in the vector only when fitted, so it stays so).
-bool heldWhenNotFitted(const std::string& mechanism) {
-  return mechanism == stabiliser_mechanism::kExcursionCentring ||
-         mechanism == stabiliser_mechanism::kActuatorCoupling;
-}
-
-// The parameters a Levenberg-Marquardt refinement moves, as an unconstrained vector: the stages'
-// fitted parameters (core/ois/stabiliser_stage.h), named and bounded there, in the stages' order.
-// Those of the chain are always free; a mechanism's own (excursion re-centring, actuator
-// coupling, pan release corner) only when the refinement fits that mechanism. Each is held in its
+// The parameters a Levenberg-Marquardt refinement moves, as an unconstrained vector: the fitted
+// parameters (core/ois/stabiliser_stage.h), named and bounded there, of the stages being fitted,
+// in the stages' order: the chain's (centring, stroke, actuator) always, and those named (stage
+// names or tokens: "pan_detection", "excursion_centring", "actuator_coupling"). Each is held in its
 // bounds when unpacked (a parameter that ends on one is reported by reviewStabiliserFit).
 class FreeParameters {
  public:
-  explicit FreeParameters(const std::vector<std::string>& mechanisms = {}) {
+  explicit FreeParameters(std::vector<std::string> stages = {}) {
+    for (std::string& stage : stages) stage = stageOfToken(stage);
+    for (const char* chain : {"centring", "stroke", "actuator"}) stages.push_back(chain);
     for (const StabiliserStage& stage : stabiliserStages()) {
-      for (const FittedStabiliserParameter& parameter : stage.fitted) {
-        const std::string mechanism = parameter.mechanism;
-        const bool free = mechanism.empty() || std::find(mechanisms.begin(), mechanisms.end(),
-                                                         mechanism) != mechanisms.end();
-        if (free || heldWhenNotFitted(mechanism)) entries_.push_back({&parameter, free});
-      }
+      if (std::find(stages.begin(), stages.end(), stage.name) == stages.end()) continue;
+      for (const FittedStabiliserParameter& parameter : stage.fitted) entries_.push_back(&parameter);
     }
   }
   int size() const { return static_cast<int>(entries_.size()); }
-  // Whether entry j moves (else its Jacobian column stays zero).
-  bool free(int j) const { return entries_[static_cast<std::size_t>(j)].free; }
   // Entry j's parameter: name, bounds, coordinate and difference step.
   const FittedStabiliserParameter& parameter(int j) const {
-    return *entries_[static_cast<std::size_t>(j)].parameter;
+    return *entries_[static_cast<std::size_t>(j)];
   }
 
   Eigen::VectorXd pack(const StabiliserParameters& p) const {
     Eigen::VectorXd x(size());
     for (int j = 0; j < size(); ++j) {
-      const Entry& entry = entries_[static_cast<std::size_t>(j)];
-      if (!entry.free) {
-        x(j) = 0.0;  // held: never read
-        continue;
-      }
-      const FittedStabiliserParameter& parameter = *entry.parameter;
+      const FittedStabiliserParameter& parameter = *entries_[static_cast<std::size_t>(j)];
       // Held in the bounds first: a mechanism switched off (0) has no logarithm.
       const double value = std::clamp(parameter.value(p), parameter.lower, parameter.upper);
       x(j) = parameter.logarithmic ? std::log(value) : value;
@@ -104,9 +52,7 @@ class FreeParameters {
   }
   StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
     for (int j = 0; j < size(); ++j) {
-      const Entry& entry = entries_[static_cast<std::size_t>(j)];
-      if (!entry.free) continue;
-      const FittedStabiliserParameter& parameter = *entry.parameter;
+      const FittedStabiliserParameter& parameter = *entries_[static_cast<std::size_t>(j)];
       const double value = parameter.logarithmic ? std::exp(x(j)) : x(j);
       parameter.set(&p, std::clamp(value, parameter.lower, parameter.upper));
     }
@@ -114,11 +60,7 @@ class FreeParameters {
   }
 
  private:
-  struct Entry {
-    const FittedStabiliserParameter* parameter;
-    bool free;
-  };
-  std::vector<Entry> entries_;
+  std::vector<const FittedStabiliserParameter*> entries_;
 };
 
 // Every usable observation's weighted residual (predicted - observed motion, 2 per observation).
@@ -135,7 +77,7 @@ Residuals residualsOf(const StabiliserParameters& parameters,
   Residuals result;
   for (const StabiliserFitRecording& recording : recordings) {
     std::size_t used_here = 0;
-    runOver(parameters, recording, options.step_s, options.warm_up_s,
+    visitCoveredObservations(parameters, recording, options.step_s, options.warm_up_s,
             [&](const LensShiftPredictor& predictor, std::size_t index) {
               const LensMotionObservation& o = recording.observations[index];
               const Eigen::Vector2d r =
@@ -180,13 +122,12 @@ StabiliserParameters levenbergMarquardt(StabiliserParameters start, const FreePa
   Eigen::VectorXd values(packing.size());
   for (int j = 0; j < packing.size(); ++j) {
     const FittedStabiliserParameter& p = packing.parameter(j);
-    problem.parameters.push_back({p.name, p.lower, p.upper, p.logarithmic, p.fit_step, !packing.free(j)});
+    problem.parameters.push_back({p.name, p.lower, p.upper, p.logarithmic, p.fit_step});
     values(j) = std::clamp(p.value(start), p.lower, p.upper);
   }
   auto unpack = [&](const Eigen::VectorXd& v) {
     StabiliserParameters p = start;
-    for (int j = 0; j < packing.size(); ++j)
-      if (packing.free(j)) packing.parameter(j).set(&p, v(j));
+    for (int j = 0; j < packing.size(); ++j) packing.parameter(j).set(&p, v(j));
     return p;
   };
   problem.block_size = 2;  // an observation's x and y share its Huber weight
@@ -226,7 +167,7 @@ class ResidualBank {
     // Physical predictions first (the bank fits what they leave).
     std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
                                            Eigen::Vector2d::Constant(kNaN));
-    runOver(physical, recording, step_s_, warm_up_s,
+    visitCoveredObservations(physical, recording, step_s_, warm_up_s,
             [&](const LensShiftPredictor& predictor, std::size_t index) {
               const LensMotionObservation& o = recording.observations[index];
               predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
@@ -574,12 +515,39 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotio
   return review;
 }
 
+void visitCoveredObservations(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+                              double step_s, double warm_up_s,
+                              const std::function<void(const LensShiftPredictor&, std::size_t)>& visit,
+                              const std::function<void(LensShiftPredictor&)>& prepare) {
+  if (recording.rates.empty() || recording.observations.empty()) return;
+  double span = 0.0;
+  for (const LensMotionObservation& o : recording.observations) span = std::max(span, o.t_b_s - o.t_a_s);
+  LensShiftPredictor predictor(parameters, recording.focal_px, step_s, std::max(0.25, 2.0 * span));
+  predictor.max_gap_s = std::numeric_limits<double>::infinity();  // the recording's own gaps: fed
+  if (prepare) prepare(predictor);
+  // The observations by t_b: the order in which the predictor can answer them.
+  std::vector<std::size_t> order(recording.observations.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return recording.observations[a].t_b_s < recording.observations[b].t_b_s;
+  });
+  const double usable_from = recording.rates.front().stamp_s + warm_up_s;
+  std::size_t next_rate = 0;
+  for (std::size_t index : order) {
+    const LensMotionObservation& o = recording.observations[index];
+    while (next_rate < recording.rates.size() && (!predictor.started() || predictor.newestStamp() < o.t_b_s))
+      predictor.addRate(recording.rates[next_rate++]);
+    if (o.t_a_s < usable_from || !predictor.covers(o.t_a_s) || !predictor.covers(o.t_b_s)) continue;
+    visit(predictor, index);
+  }
+}
+
 std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
                                                const StabiliserFitRecording& recording,
                                                double step_s, double warm_up_s) {
   std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
                                          Eigen::Vector2d::Constant(kNaN));
-  runOver(parameters, recording, step_s, warm_up_s,
+  visitCoveredObservations(parameters, recording, step_s, warm_up_s,
           [&](const LensShiftPredictor& predictor, std::size_t index) {
             const LensMotionObservation& o = recording.observations[index];
             predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
@@ -766,7 +734,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
       candidate.pan_detection_rate_rad_s = threshold;
       candidate.circular_stroke = circular;
       const FreeParameters packing = threshold > 0.0
-                                         ? FreeParameters({stabiliser_mechanism::kPanDetection})
+                                         ? FreeParameters({"pan_detection"})
                                          : FreeParameters();
       double cost = 0.0;
       candidate = levenbergMarquardt(candidate, packing, recordings, physical_options,
@@ -782,7 +750,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   // A variant must earn its extra mechanism: at least 1 % lower cost than the plain model.
   if (variant_cost < 0.99 * refined_cost) {
     const FreeParameters packing = variant_best.pan_detection_rate_rad_s > 0.0
-                                       ? FreeParameters({stabiliser_mechanism::kPanDetection})
+                                       ? FreeParameters({"pan_detection"})
                                        : FreeParameters();
     refined = levenbergMarquardt(variant_best, packing, recordings, physical_options,
                                  options.iterations, &refined_cost, &result.rms_history);
@@ -817,27 +785,30 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   return result;
 }
 
-StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
-                                             const StabiliserStructure& structure,
-                                             const std::vector<StabiliserFitRecording>& recordings,
-                                             const StabiliserFitOptions& options) {
+StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
+                                          const std::vector<std::string>& stages,
+                                          const std::vector<StabiliserFitRecording>& recordings,
+                                          const StabiliserFitOptions& options) {
   const std::string problem = options.validate();
-  if (!problem.empty()) throw std::invalid_argument("refitStabiliserStructure: " + problem);
+  if (!problem.empty()) throw std::invalid_argument("refitStabiliserStages: " + problem);
   StabiliserParameters start = fitted.physicalChain();
-  start.anti_windup = structure.anti_windup;
-  start.soft_stroke = structure.soft_stroke;
-  start.excursion_centring = structure.excursion_centring ? 1.0 : 0.0;
-  // The coupling starts at none: the chain itself, its gain then mapping into the stroke's axes.
-  start.actuator_coupling.setZero();
-  std::vector<std::string> mechanisms;
-  if (start.pan_detection_rate_rad_s > 0.0) mechanisms.push_back(stabiliser_mechanism::kPanDetection);
-  if (structure.excursion_centring) mechanisms.push_back(stabiliser_mechanism::kExcursionCentring);
-  if (structure.actuator_coupling) mechanisms.push_back(stabiliser_mechanism::kActuatorCoupling);
-  const FreeParameters packing(mechanisms);
+  // Each stage a refit starts: as listed (its variant) or left out.
+  for (const StabiliserStage& stage : stabiliserStages()) {
+    if (!stage.start) continue;
+    const auto listed = std::find_if(stages.begin(), stages.end(), [&](const std::string& token) {
+      return stageOfToken(token) == stage.name;
+    });
+    const std::string variant = listed == stages.end() ? "" : variantOfToken(*listed);
+    stage.start(&start, listed == stages.end() ? nullptr : variant.c_str());
+  }
+  std::vector<std::string> free = stages;
+  for (const std::string& token : stages) stabiliserStage(stageOfToken(token));  // known names
+  if (start.pan_detection_rate_rad_s > 0.0) free.push_back("pan_detection");
+  const FreeParameters packing(free);
   StabiliserFitResult result;
   const Residuals initial = residualsOf(start, recordings, options);
   if (initial.used == 0)
-    throw std::invalid_argument("refitStabiliserStructure: no usable observation");
+    throw std::invalid_argument("refitStabiliserStages: no usable observation");
   // The variant moves the stroke's meaning (where the integrator stops), so the stroke is scanned
   // again around the fitted one before every parameter is refined.
   double cost = huberCost(initial.values, options.huber_px);

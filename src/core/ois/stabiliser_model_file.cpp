@@ -1,5 +1,6 @@
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 
+#include <algorithm>
 #include <unistd.h>
 
 #include <cerrno>
@@ -9,6 +10,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -68,9 +70,24 @@ std::string StabiliserModelFile::toYaml() const {
   out << YAML::Key << "format" << YAML::Value << kFormatName;
   out << YAML::Key << "format_version" << YAML::Value << format_version;
   out << YAML::Key << "name" << YAML::Value << name;
-  // Each stage writes its own keys, in the chain's order (core/ois/stabiliser_stage.h).
+  // Each stage writes its own keys (core/ois/stabiliser_stage.h): those of the first format in the
+  // order files have always had them (so a model rewritten is the same bytes), then any later
+  // stage in the chain's order.
   out << YAML::Key << "stabiliser" << YAML::Value << YAML::BeginMap;
-  for (const StabiliserStage& stage : stabiliserStages()) stage.write(out, parameters);
+  static const char* const kFirstFormatOrder[] = {
+      "centring",          "actuator",        "stroke",           "excursion_centring",
+      "actuator_coupling", "pan_detection",   "linear_residual",  "learned_residual",
+      "learned_lens_dynamics"};
+  for (const char* name : kFirstFormatOrder) stabiliserStage(name).write(out, parameters);
+  for (const StabiliserStage& stage : stabiliserStages()) {
+    if (std::find_if(std::begin(kFirstFormatOrder), std::end(kFirstFormatOrder),
+                     [&](const char* name) { return name == std::string(stage.name); }) ==
+        std::end(kFirstFormatOrder))
+      stage.write(out, parameters);
+  }
+  // A model that is not the default chain names its stages (optional: older files have none).
+  if (!parameters.stages.empty())
+    out << YAML::Key << "stages" << YAML::Value << YAML::Flow << parameters.stages;
   out << YAML::EndMap;
   writeCameraDescription(out, camera);
   const StabiliserTrainingRecord& t = training;
@@ -112,6 +129,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   const YAML::Node s = root["stabiliser"];
   StabiliserParameters& p = file.parameters;
   for (const StabiliserStage& stage : stabiliserStages()) stage.read(s, &p);
+  p.stages = stabiliser_file_fields::optional<std::vector<std::string>>(s, "stages", {});
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
   try {

@@ -55,17 +55,24 @@ std::string OnlineCalibrationOptions::validate() const {
     why << "refit_every_s must be in (0, window_s] seconds (got " << refit_every_s << ")";
   } else if (!(held_out_s > 0.0 && held_out_s <= 60.0)) {
     why << "held_out_s must be in (0, 60] seconds (got " << held_out_s << ")";
+  } else if (max_pairs_per_window != 0 && max_pairs_per_window < calibration.min_pairs) {
+    why << "max_pairs_per_window (" << max_pairs_per_window << ") must be 0 (every pair) or at least "
+        << "calibration.min_pairs (" << calibration.min_pairs << ")";
   } else if (max_tracks_per_pair < calibration.min_tracks_per_pair) {
     why << "max_tracks_per_pair (" << max_tracks_per_pair << ") must be at least calibration.min_tracks_per_pair ("
         << calibration.min_tracks_per_pair << ")";
   } else if (!(first_search_s > 0.0 && first_search_s <= 5.0) || !(search_s > 0.0 && search_s <= first_search_s)) {
     why << "first_search_s must be in (0, 5] s and search_s in (0, first_search_s] (got " << first_search_s << ", "
         << search_s << ")";
-  } else if (!(offset_random_walk_s_per_sqrt_s >= 0.0) || !(rate_random_walk_per_sqrt_s >= 0.0) ||
-             !(initial_rate_sigma >= 0.0) || !(readout_drift_s_per_s >= 0.0) || !(bias_drift_rad_s_per_s >= 0.0) ||
-             !std::isfinite(offset_random_walk_s_per_sqrt_s + rate_random_walk_per_sqrt_s + initial_rate_sigma +
-                            readout_drift_s_per_s + bias_drift_rad_s_per_s)) {
-    why << "the random walks, initial_rate_sigma and the *_drift_*_per_s rates must be finite and >= 0";
+  } else if (!(readout_drift_s_per_s >= 0.0) || !(bias_drift_rad_s_per_s >= 0.0) ||
+             !std::isfinite(readout_drift_s_per_s + bias_drift_rad_s_per_s)) {
+    why << "readout_drift_s_per_s and bias_drift_rad_s_per_s must be finite and >= 0";
+  } else if (!clock.validate().empty()) {
+    why << "clock: " << clock.validate();
+  } else if (!(jump_window_s >= 0.0 && jump_window_s <= window_s)) {
+    why << "jump_window_s must be in [0, window_s] seconds (got " << jump_window_s << ")";
+  } else if (!(max_borrow_s >= 0.0) || !std::isfinite(max_borrow_s)) {
+    why << "max_borrow_s must be finite and >= 0 (got " << max_borrow_s << ")";
   } else if (!(cpu_share >= 0.0 && cpu_share <= 1.0)) {
     why << "cpu_share must be in [0, 1] (got " << cpu_share << ")";
   } else if (rotation_every < 1) {
@@ -78,8 +85,6 @@ std::string OnlineCalibrationOptions::validate() const {
         << hold_readout_below_sigma_s << ")";
   } else if (readout_every < 1) {
     why << "readout_every must be at least 1 (got " << readout_every << ")";
-  } else if (!(jump_sigmas > 1.0)) {
-    why << "jump_sigmas must be above 1 (got " << jump_sigmas << ")";
   } else if (!(max_offset_sigma_s > 0.0) || !(max_readout_sigma_s > 0.0) || !(max_bias_sigma_rad_s > 0.0) ||
              !(max_rotation_sigma_rad > 0.0)) {
     why << "the max_*_sigma limits must be positive";
@@ -99,6 +104,7 @@ OnlineCalibrationEstimator::OnlineCalibrationEstimator(OnlineCalibrationOptions 
     : options_(std::move(options)), camera_(std::move(camera)) {
   const std::string problem = options_.validate();
   if (!problem.empty()) throw std::invalid_argument("online calibration: " + problem);
+  clock_ = ClockOffsetFilter(options_.clock);
   const std::string camera_problem = camera_.validate();
   if (!camera_problem.empty()) throw std::invalid_argument("online calibration: camera: " + camera_problem);
   if (!std::isfinite(start.time_offset_s) || !(start.readout_time_s >= 0.0 && start.readout_time_s <= 1.0) ||
@@ -157,6 +163,8 @@ void OnlineCalibrationEstimator::addPair(OnlineCalibrationPair pair) {
 }
 
 void OnlineCalibrationEstimator::restartTimeline() {
+  window_floor_s_ = -1e300;
+  last_fit_end_s_ = -1e300;
   pairs_.clear();
   gyro_.clear();
   new_pairs_s_ = 0.0;
@@ -187,6 +195,7 @@ bool OnlineCalibrationEstimator::update() {
   if (!due()) return false;
   const std::uint64_t before = status_.version;
   const double started = threadCpuS();
+  work_started_cpu_s_ = started;
   if (candidate_waiting_ && last_pair_stamp_s_ >= candidate_after_s_ + options_.held_out_s) scoreCandidate();
   bool fitted = false;
   if (new_pairs_s_ >= options_.refit_every_s && withinBudget()) {
@@ -201,27 +210,47 @@ bool OnlineCalibrationEstimator::update() {
   return status_.version != before;
 }
 
-CalibrationData OnlineCalibrationEstimator::windowData(double begin_s, double end_s, double offset_s) const {
+double OnlineCalibrationEstimator::shiftAt(double stamp_s, double offset_s) const {
+  return clock_.initialised() ? clock_.offsetAt(stamp_s) : offset_s;
+}
+
+CalibrationData OnlineCalibrationEstimator::windowData(double begin_s, double end_s, double offset_s,
+                                                       bool along_model) const {
   CalibrationData data;
   data.camera = camera_;
-  std::map<double, int> frame_of;
+  begin_s = std::max(begin_s, window_floor_s_);
+  std::vector<const OnlineCalibrationPair*> chosen;
   for (const OnlineCalibrationPair& pair : pairs_) {
-    if (pair.stamp_a_s < begin_s || pair.stamp_b_s > end_s) continue;
-    frame_of.emplace(pair.stamp_a_s, 0);
-    frame_of.emplace(pair.stamp_b_s, 0);
+    if (pair.stamp_a_s >= begin_s && pair.stamp_b_s <= end_s) chosen.push_back(&pair);
+  }
+  const std::size_t limit = static_cast<std::size_t>(options_.max_pairs_per_window);
+  if (limit > 0 && chosen.size() > limit) {
+    // Evenly thinned, counted back from the newest pair (which is always in).
+    std::vector<const OnlineCalibrationPair*> thinned;
+    const double stride = static_cast<double>(chosen.size()) / static_cast<double>(limit);
+    for (std::size_t i = 0; i < limit; ++i) {
+      thinned.push_back(chosen[chosen.size() - 1 - static_cast<std::size_t>(std::floor(i * stride))]);
+    }
+    std::reverse(thinned.begin(), thinned.end());
+    chosen.swap(thinned);
+  }
+  std::map<double, int> frame_of;
+  for (const OnlineCalibrationPair* pair : chosen) {
+    frame_of.emplace(pair->stamp_a_s, 0);
+    frame_of.emplace(pair->stamp_b_s, 0);
   }
   int index = 0;
   for (auto& [stamp, frame] : frame_of) {
     frame = index++;
-    // The stamps are moved by the offset around which the search is centred.
-    data.frame_stamps_s.push_back(stamp + offset_s);
+    // The stamps are moved by the clock model's line (the drift removed inside the window), or by
+    // the offset around which the search is centred: the fit measures what is left, constant.
+    data.frame_stamps_s.push_back(stamp + (along_model ? shiftAt(stamp, offset_s) : offset_s));
   }
-  for (const OnlineCalibrationPair& pair : pairs_) {
-    if (pair.stamp_a_s < begin_s || pair.stamp_b_s > end_s) continue;
+  for (const OnlineCalibrationPair* pair : chosen) {
     CalibrationPair out;
-    out.frame_a = frame_of.at(pair.stamp_a_s);
-    out.frame_b = frame_of.at(pair.stamp_b_s);
-    out.matches = pair.matches;
+    out.frame_a = frame_of.at(pair->stamp_a_s);
+    out.frame_b = frame_of.at(pair->stamp_b_s);
+    out.matches = pair->matches;
     data.pairs.push_back(std::move(out));
   }
   for (const ImuSample& sample : gyro_) data.gyro.push_back(sample);
@@ -238,7 +267,7 @@ bool OnlineCalibrationEstimator::fuse(Filter& filter, double value, double sigma
   const double elapsed_s = std::max(stamp_s - filter.stamp_s, 0.0);
   const double predicted = filter.variance + std::pow(drift_per_s * elapsed_s, 2);
   const double innovation = value - filter.value;
-  if (jumped && std::abs(innovation) > options_.jump_sigmas * std::sqrt(predicted + measured_variance)) {
+  if (jumped && std::abs(innovation) > options_.clock.jump_sigmas * std::sqrt(predicted + measured_variance)) {
     *jumped = true;
     return false;
   }
@@ -249,14 +278,108 @@ bool OnlineCalibrationEstimator::fuse(Filter& filter, double value, double sigma
   return true;
 }
 
+OnlineCalibrationEstimator::ModelState OnlineCalibrationEstimator::modelState() const {
+  ModelState state;
+  state.clock = clock_;
+  state.readout = readout_;
+  for (int axis = 0; axis < 3; ++axis) state.bias[axis] = bias_[axis];
+  state.rotation = rotation_;
+  state.rotation_variance = rotation_variance_;
+  state.last_permutation = last_permutation_;
+  state.any_accepted = any_accepted_;
+  state.mount_found = status_.mount_found;
+  state.mount_permutation_index = status_.mount_permutation_index;
+  state.window_floor_s = window_floor_s_;
+  state.estimate = status_.estimate;
+  state.in_use = status_.in_use;
+  return state;
+}
+
+bool OnlineCalibrationEstimator::rewindBeforeSwap(std::uint64_t version) {
+  auto found = std::find_if(swaps_.begin(), swaps_.end(), [&](const Remembered& r) { return r.version == version; });
+  if (found == swaps_.end()) return false;
+  const ModelState& state = found->before;
+  clock_ = state.clock;
+  readout_ = state.readout;
+  for (int axis = 0; axis < 3; ++axis) bias_[axis] = state.bias[axis];
+  rotation_ = state.rotation;
+  rotation_variance_ = state.rotation_variance;
+  last_permutation_ = state.last_permutation;
+  any_accepted_ = state.any_accepted;
+  status_.mount_found = state.mount_found;
+  status_.mount_permutation_index = state.mount_permutation_index;
+  window_floor_s_ = state.window_floor_s;
+  status_.estimate = state.estimate;
+  status_.in_use = state.in_use;
+  status_.offset_noise_scale = clock_.noiseScale();
+  // What the undone swap's fit (and any later one) offered is gone with it.
+  candidate_waiting_ = false;
+  swaps_.erase(found, swaps_.end());
+  ++status_.rewinds;
+  status_.last_reason = "rewound to before the fit that offered version " + std::to_string(version) +
+                        " (undone): offset " + milliseconds(status_.estimate.time_offset_s) + " in use " +
+                        milliseconds(status_.in_use.time_offset_s);
+  return true;
+}
+
+// One window's calibration: the fit and the checks of its result; false (with the reason said)
+// when it says nothing (too few pairs, no motion, an interval too wide).
+bool OnlineCalibrationEstimator::calibrateWindow(const CalibrationData& data, const CalibrationOptions& options,
+                                                 const std::string& label, CalibrationResult* result,
+                                                 std::string* rejected) {
+  rejected->clear();
+  const std::size_t pairs_in_window = data.pairs.size();
+  if (static_cast<int>(pairs_in_window) < options.min_pairs) {
+    ++status_.fits_needing_motion;
+    status_.state = "needs motion";
+    std::ostringstream why;
+    why << "needs motion: only " << pairs_in_window << " tracked pairs in the " << label << " (at least "
+        << options.min_pairs << " with " << options.min_tracks_per_pair
+        << " tracks each): point the camera at a textured scene and move it";
+    status_.last_reason = why.str();
+    return false;
+  }
+  const auto started = std::chrono::steady_clock::now();
+  try {
+    *result = calibrateCameraImu(data, options);
+  } catch (const std::invalid_argument& error) {
+    ++status_.fits_needing_motion;
+    status_.state = "needs motion";
+    status_.last_reason = std::string("needs motion: ") + error.what();
+    return false;
+  }
+  status_.last_fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  for (const std::string& refusal : result->refusals) {
+    if (refusal.rfind("motion:", 0) == 0) {
+      ++status_.fits_needing_motion;
+      status_.state = "needs motion";
+      status_.last_reason = "needs motion: " + refusal;
+      return false;
+    }
+  }
+  const CameraImuCalibration& window = result->calibration;
+  if (!(window.time_offset_sigma_s <= options_.max_offset_sigma_s)) {
+    *rejected = "the offset's 1-sigma is too wide";
+  } else if (options.estimate_readout_time && !(window.readout_time_sigma_s <= options_.max_readout_sigma_s)) {
+    *rejected = "the readout's 1-sigma is too wide";
+  } else if (options.estimate_gyro_bias && !(window.gyro_bias_sigma_rad_s.maxCoeff() <= options_.max_bias_sigma_rad_s)) {
+    *rejected = "the bias's 1-sigma is too wide";
+  } else if (options.estimate_rotation &&
+             (!result->ok() || !(window.rotation_sigma_rad.maxCoeff() <= options_.max_rotation_sigma_rad))) {
+    *rejected = "the mount is not determined by this window" + (result->ok() ? "" : " (" + result->reason() + ")");
+  }
+  return true;
+}
+
 void OnlineCalibrationEstimator::fit() {
   new_pairs_s_ = 0.0;
+  candidate_before_ = modelState();
   const double end_s = last_pair_stamp_s_;
-  const double begin_s = end_s - options_.window_s;
-  // The window is calibrated around the estimate: its stamps are moved by the offset in use, so
-  // the coarse grid [-search, +search] is centred there.
+  const double begin_s = std::max(end_s - options_.window_s, window_floor_s_);
+  // The window is calibrated around the clock model's line: its stamps are moved by it, so the
+  // coarse grid [-search, +search] is centred there and the drift is removed inside the window.
   const double centre_s = status_.estimate.time_offset_s;
-  CalibrationData data = windowData(begin_s, end_s, centre_s);
+  CalibrationData data = windowData(begin_s, end_s, centre_s, true);
   ++status_.fits;
   CalibrationOptions options = options_.calibration;
   options.estimate_time_offset = true;
@@ -284,51 +407,20 @@ void OnlineCalibrationEstimator::fit() {
   options.max_time_offset_sigma_s = options.max_readout_time_sigma_s = 1e9;
   options.max_rotation_sigma_rad = options.max_gyro_bias_sigma_rad_s = 1e9;
 
-  const auto started = std::chrono::steady_clock::now();
   CalibrationResult result;
-  const std::size_t pairs_in_window = data.pairs.size();
-  if (static_cast<int>(pairs_in_window) < options.min_pairs) {
-    ++status_.fits_needing_motion;
-    status_.state = "needs motion";
-    std::ostringstream why;
-    why << "needs motion: only " << pairs_in_window << " tracked pairs in the last " << options_.window_s
-        << " s (at least " << options.min_pairs << " with " << options.min_tracks_per_pair
-        << " tracks each): point the camera at a textured scene and move it";
-    status_.last_reason = why.str();
-    return;
-  }
-  try {
-    result = calibrateCameraImu(data, options);
-  } catch (const std::invalid_argument& error) {
-    ++status_.fits_needing_motion;
-    status_.state = "needs motion";
-    status_.last_reason = std::string("needs motion: ") + error.what();
-    return;
-  }
-  status_.last_fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  for (const std::string& refusal : result.refusals) {
-    if (refusal.rfind("motion:", 0) == 0) {
-      ++status_.fits_needing_motion;
-      status_.state = "needs motion";
-      status_.last_reason = "needs motion: " + refusal;
-      return;
-    }
-  }
-  const CameraImuCalibration& window = result.calibration;
-  const double offset_s = window.time_offset_s + centre_s;
+  std::string rejected;
+  std::ostringstream window_label;
+  window_label << "last " << end_s - begin_s << " s";
+  if (!calibrateWindow(data, options, window_label.str(), &result, &rejected)) return;
+  CameraImuCalibration window = result.calibration;
+  // The middle of the window: the drift was removed along the line, so what the window measured
+  // is the line there moved by the window's constant.
+  double stamp_s = 0.5 * (begin_s + end_s);
+  double offset_s = window.time_offset_s + shiftAt(stamp_s, centre_s);
   std::ostringstream said;
   said << std::fixed << std::setprecision(3) << "window ending " << end_s << " s: offset " << offset_s * 1e3
        << " +- " << window.time_offset_sigma_s * 1e3 << " ms, readout " << window.readout_time_s * 1e3 << " +- "
        << window.readout_time_sigma_s * 1e3 << " ms";
-  std::string rejected;
-  if (!(window.time_offset_sigma_s <= options_.max_offset_sigma_s)) rejected = "the offset's 1-sigma is too wide";
-  else if (!(window.readout_time_sigma_s <= options_.max_readout_sigma_s)) rejected = "the readout's 1-sigma is too wide";
-  else if (options.estimate_gyro_bias && !(window.gyro_bias_sigma_rad_s.maxCoeff() <= options_.max_bias_sigma_rad_s)) {
-    rejected = "the bias's 1-sigma is too wide";
-  } else if (options.estimate_rotation && (!result.ok() || !(window.rotation_sigma_rad.maxCoeff() <=
-                                                              options_.max_rotation_sigma_rad))) {
-    rejected = "the mount is not determined by this window" + (result.ok() ? "" : " (" + result.reason() + ")");
-  }
   if (!rejected.empty()) {
     ++status_.fits_rejected;
     status_.last_reason = said.str() + ": not used, " + rejected;
@@ -338,7 +430,6 @@ void OnlineCalibrationEstimator::fit() {
   // The mount: confirmed when two consecutive accepted windows find the same permutation; then
   // only windows on that permutation count, and their small rotation is fused.
   bool restart = false;
-  const double stamp_s = end_s - 0.5 * options_.window_s;
   if (options.estimate_rotation) {
     const int permutation = nearestSignedAxisPermutation(window.imu_to_camera_rotation);
     if (status_.mount_found && permutation != status_.mount_permutation_index) {
@@ -368,39 +459,73 @@ void OnlineCalibrationEstimator::fit() {
     status_.mount_permutation_index = permutation;
   }
 
+  // Overlapping windows share their pairs: this one counts for the share of it that is new.
+  const double overlap = std::max(1.0, (end_s - begin_s) / std::max(end_s - last_fit_end_s_, 1e-3));
+  last_fit_end_s_ = end_s;
+  ClockMeasurement measured{stamp_s, offset_s, window.time_offset_sigma_s, overlap};
+  status_.window_stamp_s = stamp_s;
+  status_.window_offset_s = offset_s;
+  status_.window_offset_sigma_s = window.time_offset_sigma_s;
+  ++status_.windows_measured;
+  // A window far from the line (suspect_sigmas) may hold a jump: the newest pairs are fitted at
+  // once (ahead of the budget, within max_borrow_s) and tell. A window straddling a jump is wide
+  // and lies between the two offsets; the newest pairs are after it.
   bool jumped = false;
-  if (!restart && offset_.initialised) {
-    Eigen::Vector2d state;
-    Eigen::Matrix2d covariance;
-    predictOffset(offset_, stamp_s, &state, &covariance);
-    const double offset_variance = std::pow(window.time_offset_sigma_s, 2);
-    const double innovation = offset_s - state(0);
-    const double innovation_variance = covariance(0, 0) + offset_variance;
-    if (std::abs(innovation) > options_.jump_sigmas * std::sqrt(innovation_variance)) {
-      jumped = true;
-    } else {
-      Filter readout = readout_;
-      if (!hold_readout) {
-        fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
-             &jumped);
-      }
-      if (!jumped) {
-        readout_ = readout;
-        const Eigen::Vector2d gain = covariance.col(0) / innovation_variance;
-        offset_.state = state + gain * innovation;
-        offset_.covariance = covariance - gain * covariance.row(0);
-        offset_.stamp_s = stamp_s;
+  bool newest_measured_readout = !hold_readout;
+  const bool suspect = !restart && clock_.initialised() && clock_.isJump(measured, options_.clock.suspect_sigmas);
+  bool newest_said = false;
+  if (suspect && options_.jump_window_s > 0.0) {
+    const double newest_begin_s = end_s - options_.jump_window_s;
+    const double owed_s = threadCpuS() - work_started_cpu_s_ - credit_s_;
+    if (!(options_.cpu_share > 0.0) || owed_s < options_.max_borrow_s) {
+      if (options_.cpu_share > 0.0 && owed_s > 0.0) ++status_.fits_borrowed;
+      CalibrationOptions newest_options = options;
+      newest_options.estimate_rotation = false;  // the mount does not jump with the clock
+      newest_options.imu_to_camera_rotation = rotation_;
+      newest_options.min_pairs = std::min(options.min_pairs, 20);
+      const CalibrationData newest = windowData(newest_begin_s, end_s, offset_s, false);
+      CalibrationResult newest_result;
+      std::string newest_rejected;
+      ++status_.fits;
+      if (calibrateWindow(newest, newest_options, "newest " + std::to_string(options_.jump_window_s) + " s",
+                          &newest_result, &newest_rejected) &&
+          newest_rejected.empty()) {
+        newest_said = true;
+        const CameraImuCalibration& found = newest_result.calibration;
+        const ClockMeasurement newest_measured{0.5 * (newest_begin_s + end_s), found.time_offset_s + offset_s,
+                                               found.time_offset_sigma_s, 1.0};
+        said << "; the newest " << options_.jump_window_s << " s: offset " << newest_measured.offset_s * 1e3 << " +- "
+             << found.time_offset_sigma_s * 1e3 << " ms";
+        if (clock_.isJump(newest_measured, options_.clock.jump_sigmas)) {
+          // A jump: the filter restarts from the newest pairs, and older pairs leave the window.
+          jumped = true;
+          window = found;
+          stamp_s = newest_measured.stamp_s;
+          offset_s = newest_measured.offset_s;
+          measured = newest_measured;
+          newest_measured_readout = newest_options.estimate_readout_time;
+          window_floor_s_ = newest_begin_s;
+        }
       }
     }
   }
-  if (restart || jumped || !offset_.initialised) {
-    offset_.initialised = true;
-    offset_.state = Eigen::Vector2d(offset_s, 0.0);
-    offset_.covariance = Eigen::Vector2d(std::pow(window.time_offset_sigma_s, 2),
-                                         std::pow(options_.initial_rate_sigma, 2)).asDiagonal();
-    offset_.stamp_s = stamp_s;
+  if (suspect && !newest_said) jumped = clock_.isJump(measured, options_.clock.jump_sigmas);
+  if (!restart && clock_.initialised() && !jumped) {
+    Filter readout = readout_;
+    if (!hold_readout) {
+      fuse(readout, window.readout_time_s, window.readout_time_sigma_s, options_.readout_drift_s_per_s, stamp_s,
+           &jumped);
+    }
+    if (!jumped) {
+      readout_ = readout;
+      clock_.add(measured);
+    }
+  }
+  if (restart || jumped || !clock_.initialised()) {
+    // A jump moves the offset, not the clocks' rates: the drift rate learned so far is kept.
+    clock_.restart(measured, jumped);
     for (Filter& axis : bias_) axis = {};
-    if (hold_readout) {
+    if (!newest_measured_readout) {
       // The window did not measure the readout: the filter keeps its value, widened so that the
       // next windows measure it again (a restarted camera app may have changed the mode).
       readout_.variance = std::max(readout_.variance, std::pow(2.0 * options_.hold_readout_below_sigma_s, 2));
@@ -423,12 +548,11 @@ void OnlineCalibrationEstimator::fit() {
   status_.state = jumped ? "jump" : (status_.mount_found ? "tracking" : "converging");
 
   CameraImuCalibration& estimate = status_.estimate;
-  // The offset carried to the newest pair (the window's middle is window_s / 2 behind it).
-  Eigen::Vector2d offset_now;
-  Eigen::Matrix2d offset_now_covariance;
-  predictOffset(offset_, end_s, &offset_now, &offset_now_covariance);
-  estimate.time_offset_s = offset_now(0);
-  estimate.time_offset_sigma_s = std::sqrt(offset_now_covariance(0, 0));
+  // The offset carried along the line to the newest pair.
+  estimate.time_offset_s = clock_.offsetAt(end_s);
+  estimate.time_offset_sigma_s = clock_.sigmaAt(end_s);
+  status_.offset_noise_scale = clock_.noiseScale();
+  status_.window_correlation = clock_.windowCorrelation();
   estimate.readout_time_s = std::max(readout_.value, 0.0);
   estimate.readout_time_sigma_s = std::sqrt(readout_.variance);
   if (options.estimate_gyro_bias) {
@@ -440,29 +564,16 @@ void OnlineCalibrationEstimator::fit() {
   estimate.imu_to_camera_rotation = rotation_;
   estimate.rotation_sigma_rad = rotation_variance_.cwiseSqrt();
   said << "; estimate offset " << estimate.time_offset_s * 1e3 << " +- " << estimate.time_offset_sigma_s * 1e3
-       << " ms, readout " << estimate.readout_time_s * 1e3 << " +- " << estimate.readout_time_sigma_s * 1e3 << " ms";
+       << " ms (windows' 1-sigma x " << std::setprecision(2) << clock_.noiseScale() << std::setprecision(3)
+       << "), readout " << estimate.readout_time_s * 1e3 << " +- " << estimate.readout_time_sigma_s * 1e3 << " ms";
   status_.last_reason = said.str();
   // Offered for use once the mount is known, after the pairs that follow this window.
   if (status_.mount_found) {
     candidate_ = estimate;
-    candidate_rate_ = offset_now(1);
+    candidate_rate_ = clock_.rate();
     candidate_waiting_ = true;
     candidate_after_s_ = end_s;
   }
-}
-
-void OnlineCalibrationEstimator::predictOffset(const OffsetFilter& filter, double stamp_s, Eigen::Vector2d* state,
-                                               Eigen::Matrix2d* covariance) const {
-  const double dt = std::max(stamp_s - filter.stamp_s, 0.0);
-  Eigen::Matrix2d F;
-  F << 1.0, dt, 0.0, 1.0;
-  // A rate random walk integrated into the offset, plus the offset's own walk.
-  const double q_rate = std::pow(options_.rate_random_walk_per_sqrt_s, 2);
-  Eigen::Matrix2d Q;
-  Q << q_rate * dt * dt * dt / 3.0 + std::pow(options_.offset_random_walk_s_per_sqrt_s, 2) * dt, q_rate * dt * dt / 2.0,
-      q_rate * dt * dt / 2.0, q_rate * dt;
-  *state = F * filter.state;
-  *covariance = F * filter.covariance * F.transpose() + Q;
 }
 
 bool OnlineCalibrationEstimator::outsideEstimate(const CameraImuCalibration& in_use,
@@ -542,7 +653,10 @@ void OnlineCalibrationEstimator::scoreCandidate() {
   // to the held-out pairs' middle for the score, and to the newest pair when it is applied.
   CameraImuCalibration scored = candidate_;
   scored.time_offset_s += candidate_rate_ * 0.5 * options_.held_out_s;
-  candidate_.time_offset_s += candidate_rate_ * std::max(last_pair_stamp_s_ - candidate_after_s_, 0.0);
+  // Applied, it stays until the next swap (at least one held-out wait later): carried that far
+  // ahead again, so that the drift leaves it half as far behind at the worst.
+  candidate_.time_offset_s +=
+      candidate_rate_ * (std::max(last_pair_stamp_s_ - candidate_after_s_, 0.0) + 0.5 * options_.held_out_s);
   double in_use_px = 0.0, candidate_px = 0.0;
   int tracks = 0;
   scorePair(held_out, status_.in_use, scored, &in_use_px, &candidate_px, &tracks);
@@ -579,8 +693,11 @@ void OnlineCalibrationEstimator::scoreCandidate() {
     }
   }
   if (better || refinement) {
+    candidate_before_.in_use = status_.in_use;
     status_.in_use = candidate_;
     ++status_.version;
+    swaps_.push_back({status_.version, candidate_before_});
+    if (swaps_.size() > kRememberedSwaps) swaps_.pop_front();
     ++status_.swaps;
     if (refinement) ++status_.refinements;
     said << (better ? ": swapped (offset " : ": refined, no worse and outside the estimate's interval (offset ")

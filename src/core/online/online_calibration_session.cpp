@@ -109,6 +109,9 @@ OnlineCalibrationSession::Outcome OnlineCalibrationSession::addPair(const Online
   const std::uint32_t version_before = applied_version_;
   if (status.version != estimator_version_) {
     // Confidently better on the held-out pairs: applied now, on trial from the next pair.
+    // The estimator's version before the first swap of this trial: an undo rewinds it to before
+    // that swap (a trial replaced by a later one restores what was in use before the first).
+    if (!trials_.onTrial()) trial_first_version_ = estimator_version_ + 1;
     estimator_version_ = status.version;
     trials_.startTrial(status.in_use);
     ++applied_version_;
@@ -170,6 +173,9 @@ void OnlineCalibrationSession::judgeTrial(const OnlineCalibrationPair& scored) {
     case TrialVerdict::kUndone:
       ++applied_version_;  // the replaced calibration is applied again
       ++swaps_undone_;
+      // The estimator returns to its state before the undone swap's fit, so that it does not offer
+      // the same calibration again from the filters that produced it.
+      estimator_.rewindBeforeSwap(trial_first_version_);
       confirmation_ = "undone: worse than the calibration it replaced (" + trials_.evidence().summary() + ")";
       break;
     case TrialVerdict::kConfirmed:

@@ -57,25 +57,6 @@ double threadCpuNow() {
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
-// An 8-bit single-channel view or copy of any frame the pipeline passes.
-cv::Mat toGray8(const cv::Mat& image) {
-  cv::Mat gray;
-  if (image.channels() == 3) {
-    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);  // RGB or BGR: the weights differ slightly
-  } else if (image.channels() == 4) {
-    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
-  } else {
-    gray = image;
-  }
-  if (gray.depth() == CV_16U) {
-    cv::Mat scaled;
-    gray.convertTo(scaled, CV_8U, 1.0 / 256.0);
-    return scaled;
-  }
-  if (gray.depth() != CV_8U) throw std::invalid_argument("online learner: frames must be 8 or 16 bit");
-  return gray;
-}
-
 }  // namespace
 
 StabiliserFitOptions OnlineLearningOptions::onlineFitOptions() {
@@ -94,6 +75,9 @@ StabiliserCandidateKinds OnlineLearningOptions::onlineCandidateKinds() {
   // tuning recordings (seed 6101: excursion_soft_stroke 87.6 against 87.7 %, 50-60 s) for about a
   // fifth less of the learning's CPU.
   kinds.structural_iterations = 6;
+  // The linear-dynamics rows (a run of the chain per basis function) are not measured under the
+  // online learner's CPU share: left to train_stabiliser.
+  kinds.linear_dynamics = false;
   return kinds;
 }
 
@@ -370,28 +354,7 @@ void OnlineStabiliserLearner::trackingLoop() {
 void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
   // ---- Tracks on a reduced copy, scaled back to the camera's pixels. ----
   if (!pair.tracked) {
-    cv::Mat a = toGray8(pair.image_a), b = toGray8(pair.image_b);
-    double scale = 1.0;
-    if (a.cols > options_.tracking_width_px) {
-      scale = static_cast<double>(a.cols) / options_.tracking_width_px;
-      const cv::Size reduced(options_.tracking_width_px, static_cast<int>(std::lround(a.rows / scale)));
-      cv::Mat ra, rb;
-      cv::resize(a, ra, reduced, 0, 0, cv::INTER_AREA);
-      cv::resize(b, rb, reduced, 0, 0, cv::INTER_AREA);
-      a = ra;
-      b = rb;
-    }
-    pair.matches = tracker_.match(a, b);
-    if (scale != 1.0) {
-      // Pixel centres: reduced (u + 0.5) * scale - 0.5.
-      const auto up = [scale](cv::Point2f p) {
-        return cv::Point2f(static_cast<float>((p.x + 0.5) * scale - 0.5), static_cast<float>((p.y + 0.5) * scale - 0.5));
-      };
-      for (FeatureMatch& m : pair.matches) {
-        m.point_a_px = up(m.point_a_px);
-        m.point_b_px = up(m.point_b_px);
-      }
-    }
+    pair.matches = tracker_.matchAtWidth(pair.image_a, pair.image_b, options_.tracking_width_px);
     pair.tracked = true;
   }
   if (options_.on_tracked_pair) options_.on_tracked_pair(pair);

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "deep_ois/core/sim/intended_motion_tracker.h"
+#include "deep_ois/core/ois/intended_motion_tracker.h"
 #include "deep_ois/core/sim/ois_model.h"
 
 namespace deep_ois {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -237,6 +238,51 @@ FeatureTracker::FeatureTracker(const CornerDetectorOptions& detector, const KltO
 std::vector<FeatureMatch> FeatureTracker::match(const cv::Mat& gray_a,
                                                 const cv::Mat& gray_b) const {
   return trackFeatures(gray_a, gray_b, detectUniformCorners(gray_a, detector_), klt_);
+}
+
+cv::Mat toGray8(const cv::Mat& image) {
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);  // RGB or BGR: the weights differ slightly
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    gray = image;
+  }
+  if (gray.depth() == CV_16U) {
+    cv::Mat scaled;
+    gray.convertTo(scaled, CV_8U, 1.0 / 256.0);
+    return scaled;
+  }
+  if (gray.depth() != CV_8U) throw std::invalid_argument("toGray8: frames must be 8 or 16 bit");
+  return gray;
+}
+
+std::vector<FeatureMatch> FeatureTracker::matchAtWidth(const cv::Mat& frame_a, const cv::Mat& frame_b,
+                                                       int max_width_px) const {
+  cv::Mat a = toGray8(frame_a), b = toGray8(frame_b);
+  double scale = 1.0;
+  if (a.cols > max_width_px) {
+    scale = static_cast<double>(a.cols) / max_width_px;
+    const cv::Size reduced(max_width_px, static_cast<int>(std::lround(a.rows / scale)));
+    cv::Mat ra, rb;
+    cv::resize(a, ra, reduced, 0, 0, cv::INTER_AREA);
+    cv::resize(b, rb, reduced, 0, 0, cv::INTER_AREA);
+    a = ra;
+    b = rb;
+  }
+  std::vector<FeatureMatch> matches = match(a, b);
+  if (scale != 1.0) {
+    // Pixel centres: reduced (u + 0.5) * scale - 0.5.
+    const auto up = [scale](cv::Point2f p) {
+      return cv::Point2f(static_cast<float>((p.x + 0.5) * scale - 0.5), static_cast<float>((p.y + 0.5) * scale - 0.5));
+    };
+    for (FeatureMatch& m : matches) {
+      m.point_a_px = up(m.point_a_px);
+      m.point_b_px = up(m.point_b_px);
+    }
+  }
+  return matches;
 }
 
 }  // namespace deep_ois

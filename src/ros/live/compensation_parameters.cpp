@@ -52,6 +52,7 @@ CompensationParameters loadCompensationParameters(const ParameterSource& nh) {
   if (!std::isfinite(p.color_max_flow_px) || p.color_max_flow_px < 0.0) {
     reject(nh, "color_max_flow", "must be >= 0 pixels (0 = scale each frame by its largest flow)");
   }
+  p.fusion = nh.param("fusion", p.fusion);
   p.learning = nh.param("learning", p.learning);
   p.learning_key = nh.param("learning_key", p.learning_key);
   p.learning_dir = nh.param("learning_dir", p.learning_dir);

@@ -15,6 +15,7 @@ CompensationConfig toConfig(const CompensationLiveParameters& params) {
   config.max_wait = params.max_wait_s;
   config.learning = params.learning;
   config.learning_cpu_share = params.learning_cpu_share;
+  config.fusion = params.fusion;
   return config;
 }
 }  // namespace
@@ -36,6 +37,7 @@ std::string applyCompensationConfig(const CompensationConfig& config, Compensati
   }
   params.learning = config.learning;
   params.learning_cpu_share = config.learning_cpu_share;
+  params.fusion = config.fusion;
   params.color_max_flow_px = config.color_max_flow;
   params.warp_iterations = config.warp_iterations;
   params.warp_threads = config.warp_threads;
@@ -64,14 +66,15 @@ void CompensationReconfigure::callback(CompensationConfig& config, uint32_t) {
                        updated.warp_iterations != current_.warp_iterations ||
                        updated.warp_threads != current_.warp_threads ||
                        updated.max_wait_s != current_.max_wait_s || updated.learning != current_.learning ||
-                       updated.learning_cpu_share != current_.learning_cpu_share;
+                       updated.learning_cpu_share != current_.learning_cpu_share || updated.fusion != current_.fusion;
   current_ = updated;
   if (changed) {
     ROS_INFO_NAMED(log_name_,
                    "%s: reconfigured: color max flow %.2f px, %d warp iterations, %d warp thread(s), max wait %.3f s, "
-                   "learning %s (%.0f %% of a core)",
+                   "learning %s (%.0f %% of a core), fusion %s",
                    log_name_.c_str(), config.color_max_flow, config.warp_iterations, config.warp_threads,
-                   config.max_wait, config.learning ? "on" : "off", 100.0 * config.learning_cpu_share);
+                   config.max_wait, config.learning ? "on" : "off", 100.0 * config.learning_cpu_share,
+                   config.fusion ? "on" : "off");
   }
   apply_(current_);
 }

@@ -6,9 +6,12 @@
 
 #include <boost/make_shared.hpp>
 #include <opencv2/core/utility.hpp>
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
+#include "deep_ois/core/common/printf_text.h"
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
@@ -25,6 +28,22 @@ constexpr double kWarnPeriodS = 2.0;
 // A handling delay this much below the smallest seen means ROS time went back (seconds; the gyro
 // flow nodelet's ~time_jump_reset default).
 constexpr double kTimelineJumpS = 1.0;
+// The optional outputs shed under overload (OutputShedding indices), costliest first as measured.
+// ~fusion: the least prior sigma taken from the per-pair checks, pixels (their residual holds the
+// tracks' noise; benchmark_fusion's floor).
+constexpr double kMinFusionPriorSigmaPx = 0.1;
+constexpr std::size_t kShedColour = 0, kShedAligned = 1, kShedGhost = 2;
+// Shedding starts at a quarter of ~max_lag and ends below a tenth: the plain compensated flow keeps
+// up well before a pair would be dropped.
+OutputShedding makeShedding(double max_lag_s) {
+  OutputSheddingOptions options;
+  options.shed_above_s = 0.25 * max_lag_s;
+  options.restore_below_s = 0.1 * max_lag_s;
+  return OutputShedding({"compensated_flow/color", "aligned/image_raw", "aligned/ghost"}, options);
+}
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 }  // namespace
 
 CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -35,7 +54,8 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
       compensator_kind_(compensatorKindFor(params_.model_path)),
       it_(nh),
       matcher_(FlowFrameMatcherOptions{static_cast<std::size_t>(params_.image_cache_size),
-                                       static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}) {
+                                       static_cast<std::size_t>(params_.max_pending_flows), params_.max_wait_s}),
+      shedding_(makeShedding(params_.max_lag_s)) {
   if (compensator_kind_ == CompensatorKind::kStabiliserModel) {
     stabiliser_ = std::make_unique<StabiliserFlowCompensator>(StabiliserModelFile::load(params_.model_path));
   } else {
@@ -59,6 +79,10 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   } else {
     diagnostics_->setValue("model kind", "learned stabiliser model");
   }
+  if (params_.fusion && model_) {
+    ROS_WARN_NAMED("compensation", "%s: ~fusion applies to a stabiliser model's per-patch motion only: the network's "
+                   "flow %s is published unfused", log_name_.c_str(), params_.model_path.c_str());
+  }
   // A generic model (trained on several cameras, or before models recorded theirs) cannot be
   // checked against the stream; say so rather than "matches".
   diagnostics_->setValue("model camera", modelCamera().known() ? modelCamera().summary()
@@ -67,7 +91,7 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   reconfigure_ = std::make_unique<CompensationReconfigure>(
       private_nh_, "compensation",
       CompensationLiveParameters{params_.color_max_flow_px, params_.warp_iterations, params_.warp_threads,
-                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share},
+                                 params_.max_wait_s, params_.learning, params_.learning_cpu_share, params_.fusion},
       [this](const CompensationLiveParameters& live) {
         std::lock_guard<std::mutex> lock(mutex_);
         params_.color_max_flow_px = live.color_max_flow_px;
@@ -82,6 +106,11 @@ CompensationRos::CompensationRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
         params_.learning = live.learning;
         params_.learning_cpu_share = live.learning_cpu_share;
         if (learning_) learning_->setLearning(live.learning, live.learning_cpu_share);
+        params_.fusion = live.fusion;
+        if (stabiliser_) diagnostics_->setValue("fusion", live.fusion ? "on" : "off");
+        // Said from the moment the fusion is on (the reconfigure applies the loaded values at start).
+        if (stabiliser_ && live.fusion && fusion_counts_.pairs == 0)
+          diagnostics_->setValue("fusion: last prior kept", "none yet");
       });
   // Held across every advertise (compensation_check's too): a subscriber connecting meanwhile
   // waits in connectCallback until the publishers exist.
@@ -227,12 +256,28 @@ void CompensationRos::settle(const std::vector<Matcher::Settled>& settled) {
       continue;
     }
     const double lag_s = lagS(s.flow->header.stamp);
+    // Late: the optional outputs go first (one more per late pair), the pair only beyond ~max_lag.
+    const std::size_t shed_before = shedding_.level();
+    if (shedding_.beforePair(lag_s) != shed_before) sayShedding(lag_s, shed_before);
     if (lag_s > params_.max_lag_s) {
       countDrop("compensation more than ~max_lag behind its input");
       guarded(gyro_flow_sub_.getTopic(), [&] { observeOnly(*s.flow); });
       continue;
     }
     guarded(gyro_flow_sub_.getTopic(), [&] { process(*s.flow, s.frame_a, s.frame_b); });
+  }
+}
+
+void CompensationRos::sayShedding(double lag_s, std::size_t shed_before) {
+  diagnostics_->setValue("overload: shedding now", shedding_.describeShed());
+  diagnostics_->setValue("overload: pairs with an output shed", shedding_.describeCounts());
+  if (shedding_.level() > shed_before) {
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation",
+                            "%s: compensation %.3f s behind its input on %s: shedding %s (the costliest optional "
+                            "outputs first: %s) until it keeps up; the compensated flow goes on, and a pair is "
+                            "dropped only beyond ~max_lag (%.3f s)",
+                            log_name_.c_str(), lag_s, gyro_flow_sub_.getTopic().c_str(),
+                            shedding_.describeShed().c_str(), shedding_.describeOrder().c_str(), params_.max_lag_s);
   }
 }
 
@@ -304,6 +349,23 @@ void CompensationRos::sayTimeJump(const GyroFlow& gyro, double back_s) {
                  kStabiliserWarmUpS);
 }
 
+void CompensationRos::sayCalibrationChange(const GyroFlow& gyro) {
+  const int changes = stabiliser_->calibrationChanges();
+  if (changes == calibration_changes_said_) return;
+  calibration_changes_said_ = changes;
+  const int restarts = stabiliser_->calibrationRestarts();
+  diagnostics_->setValue("stabiliser: calibration changes carried across",
+                         std::to_string(changes - restarts) + " (" + std::to_string(restarts) +
+                             " restarted: moved back beyond the model's history)");
+  // Once per applied calibration (a few a minute at most): not throttled.
+  ROS_INFO_NAMED("compensation",
+                 "%s: gyro flows on %s now use calibration epoch %u (time offset %.3f ms): the stabiliser model %s",
+                 log_name_.c_str(), gyro_flow_sub_.getTopic().c_str(), gyro.calibration_epoch, 1e3 * gyro.time_offset,
+                 restarts > calibration_restarts_said_ ? "restarts (the offset moved back beyond its history)"
+                                                       : "carries its state across the change");
+  calibration_restarts_said_ = restarts;
+}
+
 void CompensationRos::checkStampClock(const ros::Time& stamp, const std::string& topic) {
   const bool say = stamp_clock_.observe(stamp.toSec(), ros::Time::now().toSec());
   diagnostics_->setClockProblem(stamp_clock_.describe());
@@ -343,7 +405,10 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::asMeasured(co
   // (as at the start of a stream) rather than mixing in lens-corrected ones; a stabiliser model
   // keeps following the gyro stream.
   if (stream_) stream_->reset();
-  if (stabiliser_) sayTimeJump(gyro, stabiliser_->observe(gyro));
+  if (stabiliser_) {
+    sayTimeJump(gyro, stabiliser_->observe(gyro));
+    sayCalibrationChange(gyro);
+  }
   return CompensatedMotion{gyro_flow.clone(), {}, {}};
 }
 
@@ -351,20 +416,76 @@ std::optional<CompensationRos::CompensatedMotion> CompensationRos::withStabilise
     const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a, const sensor_msgs::ImageConstPtr& image_b,
     const std::vector<Eigen::Matrix3d>& gyro_homographies, const cv::Mat& gyro_flow) {
   if (learning_) learning_->beforePair(gyro, *stabiliser_);  // the model in use (a swap is said once)
-  StabiliserFlowResult result = stabiliser_->compensate(gyro);
+  std::vector<FeatureMatch> tracks;
+  const std::optional<PairFusion> fusion = params_.fusion ? fusionFor(image_a, image_b, tracks) : std::nullopt;
+  const auto compensate_start = std::chrono::steady_clock::now();
+  StabiliserFlowResult result = stabiliser_->compensate(gyro, fusion ? &*fusion : nullptr);
+  if (fusion && result.ok) countFusion(result, secondsSince(compensate_start));
   sayTimeJump(gyro, result.time_jump_back_s);
+  sayCalibrationChange(gyro);
   if (!result.ok) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no compensation for gyro flow %.6f: %s",
                             log_name_.c_str(), gyro.header.stamp.toSec(), result.reason.c_str());
     countDrop("stabiliser model: " + result.reason);
     return std::nullopt;
   }
-  if (learning_) learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies);
+  if (learning_) learning_->afterPair(gyro, image_a, image_b, result, gyro_homographies, fusion ? &tracks : nullptr);
   // The checks found the model worse than the plain gyro: the gyro's motion is published.
   if (publishesPlainGyro(CompensationMethod::kStabiliserModel, learning_ && learning_->fallingBack())) {
     return CompensatedMotion{gyro_flow.clone(), gyro_homographies, result.camera};
   }
   return CompensatedMotion{result.flow, std::move(result.homographies), result.camera};
+}
+
+std::optional<PairFusion> CompensationRos::fusionFor(const sensor_msgs::ImageConstPtr& image_a,
+                                                     const sensor_msgs::ImageConstPtr& image_b,
+                                                     std::vector<FeatureMatch>& tracks) {
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    tracks = fusion_tracker_.matchAtWidth(cv_bridge::toCvShare(image_a)->image, cv_bridge::toCvShare(image_b)->image,
+                                          params_.learning_tracking_width_px);
+  } catch (const std::exception& e) {  // an encoding the tracker cannot read (cv_bridge, toGray8)
+    diagnostics_->setValue("fusion: pairs not tracked (model's motion published)",
+                           std::to_string(++fusion_counts_.untracked));
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: ~fusion: cannot track the %s frames on %s (%s): the "
+                            "model's motion is published", log_name_.c_str(), image_b->encoding.c_str(),
+                            image_sub_.getTopic().c_str(), e.what());
+    return std::nullopt;
+  }
+  fusion_counts_.tracking_s += secondsSince(start);
+  PairFusion fusion;
+  fusion.options = &fusion_options_;
+  fusion.tracks = &tracks;
+  // The prior's sigma: the median model residual of the recent per-pair checks (never below 0.1
+  // px: it holds the tracks' noise), as benchmark_fusion takes it; the default before the first.
+  const std::optional<double> recent = learning_ ? learning_->recentModelResidualPx() : std::nullopt;
+  if (recent) fusion.prior_sigma_px = std::max(kMinFusionPriorSigmaPx, *recent);
+  return fusion;
+}
+
+void CompensationRos::countFusion(const StabiliserFlowResult& result, double compensate_s) {
+  FusionCounts& c = fusion_counts_;
+  ++c.pairs;
+  c.compensate_s += compensate_s;
+  if (result.fusion_failed) {
+    ++c.failed;
+    ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: ~fusion: %s", log_name_.c_str(),
+                            result.fused->reason.c_str());
+  }
+  if (result.fused && result.fused->refined) {
+    ++c.refined;
+    c.correction_sum_px += result.fused->mean_correction_px;
+  } else if (result.fused) {
+    diagnostics_->setValue("fusion: last prior kept", result.fused->reason);
+  }
+  const auto fixed = [](double value, int digits) { return printfText("%.*f", digits, value); };
+  diagnostics_->setValue("fusion: pairs refined [%]", fixed(100.0 * c.refined / c.pairs, 1) + " (" +
+                                                          std::to_string(c.refined) + " of " +
+                                                          std::to_string(c.pairs) + ")");
+  diagnostics_->setValue("fusion: mean correction [px]", c.refined ? fixed(c.correction_sum_px / c.refined, 3) : "-");
+  diagnostics_->setValue("fusion: failures (model's motion published)", std::to_string(c.failed));
+  diagnostics_->setValue("fusion: tracking a pair [ms]", fixed(1e3 * c.tracking_s / c.pairs, 2));
+  diagnostics_->setValue("fusion: model and fusion a pair [ms]", fixed(1e3 * c.compensate_s / c.pairs, 2));
 }
 
 std::optional<CompensationRos::CompensatedMotion> CompensationRos::withNetwork(const GyroFlow& gyro,
@@ -463,13 +584,25 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
   if (compensated_msg) compensated_pub_.publish(compensated_msg);
   const cv::Size camera_size(static_cast<int>(gyro.image_width), static_cast<int>(gyro.image_height));
   flow_image_pub_.publish(gyro.header, compensated);
-  if (color_pub_.getNumSubscribers() > 0) {
+  // The optional outputs, each unless shed under overload (OutputShedding), each timed for the
+  // shedding order (wall time: what the pipeline's lag is made of).
+  const bool subscribed_color = color_pub_.getNumSubscribers() > 0;
+  const bool subscribed_aligned = aligned_pub_.getNumSubscribers() > 0;
+  const bool subscribed_ghost = ghost_pub_.getNumSubscribers() > 0;
+  const bool want_color = subscribed_color && !shedding_.shed(kShedColour, subscribed_color);
+  const bool want_aligned = subscribed_aligned && !shedding_.shed(kShedAligned, subscribed_aligned);
+  const bool want_ghost = subscribed_ghost && !shedding_.shed(kShedGhost, subscribed_ghost);
+  if (want_color) {
+    const auto start = std::chrono::steady_clock::now();
     cv::Mat color;
     sensor_msgs::ImagePtr msg = makeImageMsg(gyro.header, sensor_msgs::image_encodings::RGB8, compensated.size(), color);
     colorizeFlow(compensated, params_.color_max_flow_px, color);
     color_pub_.publish(msg);
+    shedding_.measured(kShedColour, secondsSince(start));
   }
-  const bool want_aligned = aligned_pub_.getNumSubscribers() > 0, want_ghost = ghost_pub_.getNumSubscribers() > 0;
+  // The map serves both: its cost goes to the aligned frame when it is made, else to the ghost.
+  const auto map_start = std::chrono::steady_clock::now();
+  double map_s = 0.0;
   if (want_aligned || want_ghost) {
     // The flow inverted on its grid; per camera pixel only the map's interpolation and the remaps.
     if (!compensated_homographies.empty()) {
@@ -483,19 +616,23 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     } else {
       buildFixedPointBackwardMap(compensated, camera_size, params_.warp_iterations, warp_map_);
     }
+    map_s = secondsSince(map_start);
   }
   const std_msgs::Header& header = image_b->header;
   cv::Mat aligned;
   if (want_aligned) {
+    const auto start = std::chrono::steady_clock::now();
     // Any encoding: the warp works per channel on the frame's own pixels.
     const cv_bridge::CvImageConstPtr a = cv_bridge::toCvShare(image_a);
     sensor_msgs::ImagePtr msg = makeImageMsg(header, image_a->encoding, camera_size, aligned);
     warpWithFixedPointMap(a->image, warp_map_, aligned);
     aligned_pub_.publish(msg);
+    shedding_.measured(kShedAligned, map_s + secondsSince(start));
   }
   // The pair has its output now: a ghost that cannot be drawn is said and counted on its own,
   // not as a flow without output.
   if (want_ghost) {
+    const auto start = std::chrono::steady_clock::now();
     try {
       cv::Mat ghost;
       sensor_msgs::ImagePtr msg = makeImageMsg(header, sensor_msgs::image_encodings::RGB8, camera_size, ghost);
@@ -509,6 +646,7 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
         ghostOverlay(ghost, b->image, ghost);
       }
       ghost_pub_.publish(msg);
+      shedding_.measured(kShedGhost, (want_aligned ? 0.0 : map_s) + secondsSince(start));
     } catch (const std::exception& e) {  // cv_bridge::Exception, or cv::Exception from OpenCV
       ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "compensation", "%s: no ghost overlay for the %s frames on %s: %s",
                               log_name_.c_str(), image_b->encoding.c_str(), image_sub_.getTopic().c_str(), e.what());
@@ -516,6 +654,8 @@ void CompensationRos::process(const GyroFlow& gyro, const sensor_msgs::ImageCons
     }
   }
   ++published_;
+  // The measured order every 15 pairs (a second at 30 fps): it moves slowly.
+  if (published_ % 15 == 1) diagnostics_->setValue("overload: shed order (mean cost a pair)", shedding_.describeOrder());
 }
 
 }  // namespace deep_ois

@@ -10,8 +10,8 @@
 
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
-#include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
+#include "deep_ois/core/pipeline/frame_pair_processor.h"
 #include "deep_ois/ros/live/callback_guard.h"
 #include "deep_ois/ros/messages/conversions.h"
 #include "deep_ois/ros/messages/message_validation.h"
@@ -34,6 +34,16 @@ void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& par
   diagnostics.setValue("grid [px]", std::to_string(params.grid_size.width) + "x" +
                                         std::to_string(params.grid_size.height));
 }
+
+// Whether the calibration a flow is made with differs: timing, mount (or its source) or gyro bias.
+bool calibrationDiffers(const GyroFlowParameters& a, const GyroFlowParameters& b) {
+  const RollingShutterConfig &x = a.rolling_shutter, &y = b.rolling_shutter;
+  return x.time_offset_s != y.time_offset_s || x.readout_time_s != y.readout_time_s ||
+         x.patch_count != y.patch_count || x.patch_time != y.patch_time ||
+         a.rotation_from_tf != b.rotation_from_tf ||
+         (!a.rotation_from_tf && x.imu_to_camera_rotation != y.imu_to_camera_rotation) ||
+         a.integration.gyro_bias_rad_s != b.integration.gyro_bias_rad_s;
+}
 }  // namespace
 
 GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
@@ -55,6 +65,13 @@ GyroFlowRos::GyroFlowRos(ros::NodeHandle nh, ros::NodeHandle private_nh)
   reconfigure_ = std::make_unique<GyroFlowReconfigure>(
       private_nh_, "gyro_flow", params_, [this](const GyroFlowParameters& updated) {
         std::lock_guard<std::mutex> lock(mutex_);
+        // The flows after a calibration change carry a new epoch (GyroFlow.calibration_epoch): a
+        // downstream model then moves its times with the offset instead of taking the change for a
+        // jump in time.
+        if (calibrationDiffers(params_, updated)) {
+          ++calibration_epoch_;
+          diagnostics_->setValue("calibration epoch", std::to_string(calibration_epoch_));
+        }
         params_ = updated;
         // Back to tf (an empty imu_to_camera_rotation) when the start had the parameter.
         if (params_.rotation_from_tf && !tf_listener_)
@@ -480,9 +497,16 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
 
   RollingShutterConfig config = params_.rolling_shutter;
   config.imu_to_camera_rotation = *rotation;
-  const RollingShutterHomographies result = computeRollingShutterHomographies(
-      imu_buffer_, params_.integration, config, frame.camera.K(), secondsSinceBase(previous.stamp),
-      secondsSinceBase(frame.stamp));
+  // The pair for the frame-pair processor: its first step (the gyro's motion) runs here, alone,
+  // because the pair may have to wait for IMU data and then for the lens log between the steps.
+  FramePair pair;
+  pair.stamp_a_s = secondsSinceBase(previous.stamp);
+  pair.stamp_b_s = secondsSinceBase(frame.stamp);
+  pair.timing = config;
+  pair.camera = &frame.camera;
+  pair.imu = &imu_buffer_;
+  pair.integration = params_.integration;
+  RollingShutterHomographies result = FramePairProcessor::gyroMotion(pair);
   if (!result.ok()) {
     const ros::Time now = ros::Time::now();
     const double waited_s = (now - frame.received).toSec();
@@ -518,25 +542,25 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   // The lens log, when the camera has one: wait while it may still come (a phone delivers it with
   // the capture result, after the frame), then use it if it covers the pair, else the gyro alone.
   // The wait is bounded per frame, so a log on a wrong clock delays pairs but never drops them.
-  std::vector<Eigen::Matrix3d> homographies = result.homographies;
-  bool with_lens_log = false;
   if (params_.use_lens_shift_log && !lens_log_.empty()) {
     lens_log_.setConvention(params_.lens_shift_convention);
-    const LensLogInterval needed =
-        lensLogInterval(config, secondsSinceBase(previous.stamp), secondsSinceBase(frame.stamp));
+    const LensLogInterval needed = lensLogInterval(config, pair.stamp_a_s, pair.stamp_b_s);
     const ros::Time now = ros::Time::now();
     if (pair_rules_.lensLogWait(lens_log_.newestStampS(), needed.end_s, (now - frame.received).toSec(),
                                 (now - last_lens_arrival_).toSec()) == FrameWait::kWait) {
       return Outcome::kWaitForLensLog;
     }
-    with_lens_log = lensLogHomographiesFor(previous, frame, config, result.rotations, homographies);
+    pair.lens_log = &lens_log_;
   }
-
-  if (!renderer_ || !renderer_->compatible(frame.camera, params_.grid_size, config.patch_count)) {
-    renderer_ = std::make_unique<HomographyFlowRenderer>(frame.camera, params_.grid_size, config.patch_count);
-  }
-  cv::Mat flow;
-  renderer_->render(homographies, flow);
+  // The rest of the recipe: the lens log where it covers the pair, and the flow on the grid.
+  pair.rotations = std::move(result.rotations);
+  pair.gyro_homographies = std::move(result.homographies);
+  const bool lens_log_given = pair.lens_log != nullptr;
+  FramePairMotion motion = processor_.process(std::move(pair), params_.grid_size);
+  const bool with_lens_log = motion.source == PairMotionSource::kLensLog;
+  if (lens_log_given) countLensLogUse(previous, frame, config, motion);
+  const std::vector<Eigen::Matrix3d>& homographies = motion.homographies;
+  const cv::Mat& flow = motion.flow;
 
   GyroFlowMetadata metadata;
   metadata.header.stamp = frame.stamp;
@@ -546,15 +570,14 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   metadata.distortion_model = frame.distortion_model;
   metadata.distortion = frame.distortion;
   metadata.rolling_shutter = config;
+  metadata.calibration_epoch = calibration_epoch_;
   {
     // The gyro stream behind the pair (for stabiliser models downstream): from the model's warm-up
     // before frame a's first patch to frame b's last patch, relative to frame b's stamp. Every
     // message carries the warm-up, so a consumer that starts (or restarts) anywhere in the stream
     // starts from the same history as the evaluator; later messages only add their newest samples.
     const double stamp_a_s = secondsSinceBase(previous.stamp), stamp_b_s = secondsSinceBase(frame.stamp);
-    const double from_s = patchImuTime(config, stamp_a_s, 0) - kStabiliserWarmUpS;
-    const double until_s = patchImuTime(config, stamp_b_s, config.patch_count - 1);
-    for (CameraRateSample rate : cameraRates(imu_buffer_, config.imu_to_camera_rotation, from_s, until_s)) {
+    for (CameraRateSample rate : pairGyroStream(imu_buffer_, config, stamp_a_s, stamp_b_s)) {
       rate.stamp_s -= stamp_b_s;
       metadata.camera_rates.push_back(rate);
     }
@@ -587,35 +610,25 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   return Outcome::kPublished;
 }
 
-bool GyroFlowRos::lensLogHomographiesFor(const Frame& previous, const Frame& frame, const RollingShutterConfig& config,
-                                         const std::vector<Eigen::Matrix3d>& rotations,
-                                         std::vector<Eigen::Matrix3d>& homographies) {
+void GyroFlowRos::countLensLogUse(const Frame& previous, const Frame& frame, const RollingShutterConfig& config,
+                                  const FramePairMotion& motion) {
   const double stamp_a_s = secondsSinceBase(previous.stamp), stamp_b_s = secondsSinceBase(frame.stamp);
-  const std::optional<std::vector<Eigen::Matrix3d>> lens =
-      lensLogHomographies(frame.camera.K(), rotations, lens_log_, config, stamp_a_s, stamp_b_s);
-  if (lens) {
-    homographies = *lens;
+  if (motion.source == PairMotionSource::kLensLog) {
     ++lens_log_pairs_;
     diagnostics_->setValue("pairs with the lens-shift log", std::to_string(lens_log_pairs_));
     // The next pair starts at this frame: older samples are not needed any more.
     lens_log_.dropBefore(lensLogInterval(config, stamp_a_s, stamp_b_s).begin_s);
-    return true;
+    return;
   }
   ++lens_fallback_pairs_;
   diagnostics_->setValue("pairs the lens-shift log did not cover", std::to_string(lens_fallback_pairs_));
-  const LensLogInterval needed = lensLogInterval(config, stamp_a_s, stamp_b_s);
-  const std::string why = lens_log_.newestStampS() < needed.end_s    ? "the log stopped before the pair's last row"
-                          : lens_log_.oldestStampS() > needed.begin_s ? "the log starts after the pair's first row"
-                                                                      : "a gap longer than ~lens_shift_max_gap " +
-                                                                            std::to_string(params_.lens_shift_max_gap_s) + " s";
   ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow",
-                          "%s: the lens-shift log on %s does not cover frames %.6f -> %.6f (%s): gyro "
-                          "homographies without the lens for this pair (motion_model '%s'; %zu such pair(s) since "
-                          "start, %zu with the log)",
+                          "%s: the lens-shift log on %s does not cover frames %.6f -> %.6f (%s; ~lens_shift_max_gap "
+                          "%g s): gyro homographies without the lens for this pair (motion_model '%s'; %zu such "
+                          "pair(s) since start, %zu with the log)",
                           log_name_.c_str(), lens_sub_.getTopic().c_str(), previous.stamp.toSec(),
-                          frame.stamp.toSec(), why.c_str(),
+                          frame.stamp.toSec(), motion.reason.c_str(), params_.lens_shift_max_gap_s,
                           GyroFlow::MOTION_GYRO.c_str(), lens_fallback_pairs_, lens_log_pairs_);
-  return false;
 }
 
 void GyroFlowRos::skipPair(const std::string& reason) {

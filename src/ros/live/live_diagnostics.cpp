@@ -29,8 +29,8 @@ LiveDiagnostics::LiveDiagnostics(const ros::NodeHandle& nh, const ros::NodeHandl
   updater_.setHardwareID(hardware_id);
   updater_.add("status", this, &LiveDiagnostics::report);
   // Read with the nodelets' strict parameter source: a wrong type or value is an error naming it.
-  const double period_s = loadDiagnosticPeriodS(NodeHandleParameters(private_nh));
-  timer_ = private_nh.createWallTimer(ros::WallDuration(period_s), &LiveDiagnostics::timerCallback, this);
+  period_s_ = loadDiagnosticPeriodS(NodeHandleParameters(private_nh));
+  timer_ = private_nh.createWallTimer(ros::WallDuration(period_s_), &LiveDiagnostics::timerCallback, this);
 }
 
 LiveDiagnostics::~LiveDiagnostics() { timer_.stop(); }

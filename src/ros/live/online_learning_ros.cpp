@@ -8,10 +8,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <sstream>
 
 #include <deep_ois/CompensationPairCheck.h>
 
+#include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/ros/messages/conversions.h"
 #include "deep_ois/ros/messages/message_validation.h"
 
@@ -70,7 +72,15 @@ OnlineLearningRos::OnlineLearningRos(ros::NodeHandle nh, const CompensationParam
   } else {
     diagnostics_.setValue("online calibration", "off (~online_calibration)");
   }
+  // The learner's figures change while no pair comes (a fit ends after a bag stops or pauses):
+  // refreshed on /diagnostics' own period as well as every 15 pairs, so that they are never stale.
+  diagnostics_timer_ = nh_.createWallTimer(ros::WallDuration(diagnostics_.periodS()), [this](const ros::WallTimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    updateDiagnostics();
+  });
 }
+
+OnlineLearningRos::~OnlineLearningRos() { diagnostics_timer_.stop(); }
 
 void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   learner_.reset();  // its threads stop before the calibration restarts for this camera
@@ -151,6 +161,7 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
 }
 
 void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensator& compensator) {
+  std::lock_guard<std::mutex> lock(mutex_);
   const bool new_camera = !learner_ || gyro.header.frame_id != frame_id_ ||
                           learnedModelPath(params_.learning_dir, params_.learning_key, gyro) != model_path_;
   if (new_camera) {
@@ -181,7 +192,9 @@ void OnlineLearningRos::beforePair(const GyroFlow& gyro, StabiliserFlowCompensat
 
 void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                                   const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
-                                  const std::vector<Eigen::Matrix3d>& gyro_homographies) {
+                                  const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                                  const std::vector<FeatureMatch>* tracks) {
+  std::lock_guard<std::mutex> lock(mutex_);
   if (!learner_) return;
   ++pairs_;
   if (!trackableEncoding(image_a->encoding) || !trackableEncoding(image_b->encoding)) {
@@ -199,7 +212,14 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.camera = result.camera;
     pair.rotations = result.rotations;
     pair.gyro_homographies = gyro_homographies;
-    pair.model_homographies = result.homographies;
+    // The check scores the model's motion: the fusion's prior when the pair was fused.
+    const std::vector<Eigen::Matrix3d>& model_homographies =
+        result.prior_homographies.empty() ? result.homographies : result.prior_homographies;
+    pair.model_homographies = model_homographies;
+    if (tracks) {  // tracked already (for the fusion): the learner does not track the frames again
+      pair.matches = *tracks;
+      pair.tracked = true;
+    }
     std::string problem;
     pair.rates = readGyroFlowRates(gyro, &problem);
     auto alive = std::make_shared<FramesAlive>();
@@ -209,11 +229,15 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
     pair.image_b = alive->b->image;
     pair.keep_alive = alive;
     // Before the submit: the tracking thread looks up the lens the compensation used for the pair.
-    if (calibration_) calibration_->rememberLens(gyro, result, fallingBack() || result.homographies.empty());
+    if (calibration_) calibration_->rememberLens(gyro, result, fallingBackLocked() || model_homographies.empty());
     learner_->submit(std::move(pair));  // a full queue drops it (counted in the status)
   }
   if (calibration_) calibration_->afterPair(gyro);
   for (const PairVerdict& verdict : learner_->takeVerdicts()) {
+    if (verdict.check.usable && std::isfinite(verdict.check.model_residual_px)) {
+      recent_model_residuals_px_.push_back(verdict.check.model_residual_px);
+      if (recent_model_residuals_px_.size() > kRecentChecks) recent_model_residuals_px_.pop_front();
+    }
     if (check_pub_.getNumSubscribers() == 0) continue;
     auto msg = boost::make_shared<CompensationPairCheck>();
     msg->header.stamp.fromSec(verdict.stamp_b_s);
@@ -246,16 +270,29 @@ void OnlineLearningRos::afterPair(const GyroFlow& gyro, const sensor_msgs::Image
   }
 }
 
+std::optional<double> OnlineLearningRos::recentModelResidualPx() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (recent_model_residuals_px_.empty()) return std::nullopt;
+  return median(std::vector<double>(recent_model_residuals_px_.begin(), recent_model_residuals_px_.end()));
+}
+
 bool OnlineLearningRos::fallingBack() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return fallingBackLocked();
+}
+
+bool OnlineLearningRos::fallingBackLocked() const {
   return params_.fallback_to_gyro && learner_ && learner_->fallingBack();
 }
 
 void OnlineLearningRos::timeWentBack() {
+  std::lock_guard<std::mutex> lock(mutex_);
   if (learner_) learner_->restartTimeline();
   if (calibration_) calibration_->timeWentBack();
 }
 
 void OnlineLearningRos::setLearning(bool on, double cpu_share) {
+  std::lock_guard<std::mutex> lock(mutex_);
   params_.learning = on;
   params_.learning_cpu_share = cpu_share;
   if (!learner_) return;
@@ -263,7 +300,16 @@ void OnlineLearningRos::setLearning(bool on, double cpu_share) {
   learner_->setCpuShare(cpu_share);
 }
 
-bool OnlineLearningRos::waitIdle(double timeout_s) { return !learner_ || learner_->waitIdle(timeout_s); }
+bool OnlineLearningRos::waitIdle(double timeout_s) {
+  OnlineStabiliserLearner* learner = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    learner = learner_.get();
+  }
+  // Not under the lock: the pairs keep coming while this waits (the learner lives until the next
+  // camera, which the caller does not switch to meanwhile).
+  return !learner || learner->waitIdle(timeout_s);
+}
 
 void OnlineLearningRos::updateDiagnostics() {
   if (!learner_) return;

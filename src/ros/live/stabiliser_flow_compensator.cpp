@@ -16,7 +16,8 @@ Eigen::Matrix3d rowMajor(const boost::array<double, 9>& values) {
   return M;
 }
 
-// The message's rolling-shutter timing as the gyro flow nodelet used it.
+// The message's rolling-shutter timing as the gyro flow nodelet used it (its rates are in the
+// camera frame already: the IMU-to-camera rotation stays the identity).
 RollingShutterConfig timingOf(const GyroFlow& msg) {
   RollingShutterConfig rs;
   rs.patch_count = static_cast<int>(msg.patch_count);
@@ -27,33 +28,48 @@ RollingShutterConfig timingOf(const GyroFlow& msg) {
   return rs;
 }
 
+// The message's camera. When its distortion cannot be read (*problem set), a camera of its K alone:
+// enough to carry the stabiliser's state, not to render.
+CameraModel cameraOf(const GyroFlow& msg, std::string* problem) {
+  sensor_msgs::CameraInfo info;
+  info.width = msg.image_width;
+  info.height = msg.image_height;
+  info.K = msg.K;
+  info.distortion_model = msg.distortion_model;
+  info.D = msg.D;
+  CameraModel camera;
+  *problem = toCameraModel(info, camera);
+  if (!problem->empty())
+    camera = CameraModel(static_cast<int>(msg.image_width), static_cast<int>(msg.image_height), rowMajor(msg.K));
+  return camera;
+}
+
 }  // namespace
 
-StabiliserCompensator& StabiliserFlowCompensator::compensatorFor(const GyroFlow& msg,
-                                                                 std::string* problem,
-                                                                 double* time_jump_back_s) {
-  const Eigen::Matrix3d K = rowMajor(msg.K);
-  if (!compensator_ || !K.isApprox(K_, 1e-12)) {
-    compensator_ = std::make_unique<StabiliserCompensator>(model_.parameters, K);
-    K_ = K;
-  }
-  // Before the rates: the state of another timeline must not take in this one's samples.
-  const RollingShutterConfig rs = timingOf(msg);
-  *time_jump_back_s = compensator_->followTimeline(patchImuTime(rs, msg.previous_stamp.toSec(), 0),
-                                                   patchImuTime(rs, msg.header.stamp.toSec(), 0));
-  const std::vector<CameraRateSample> rates = readGyroFlowRates(msg, problem);
-  compensator_->addRates(rates);
-  return *compensator_;
+FramePair StabiliserFlowCompensator::pairOf(const GyroFlow& msg, const CameraModel& camera,
+                                            const std::vector<CameraRateSample>& rates) {
+  FramePair pair;
+  pair.stamp_a_s = msg.previous_stamp.toSec();
+  pair.stamp_b_s = msg.header.stamp.toSec();
+  pair.timing = timingOf(msg);
+  pair.camera = &camera;
+  pair.rates = &rates;
+  // A new epoch is an applied calibration: the frames' IMU times moved by the change of offset.
+  pair.calibration_shift_s =
+      last_epoch_ && *last_epoch_ != msg.calibration_epoch ? msg.time_offset - last_time_offset_s_ : 0.0;
+  last_epoch_ = msg.calibration_epoch;
+  last_time_offset_s_ = msg.time_offset;
+  return pair;
 }
 
 double StabiliserFlowCompensator::observe(const GyroFlow& msg) {
-  std::string problem;
-  double time_jump_back_s = 0.0;
-  compensatorFor(msg, &problem, &time_jump_back_s);
-  return time_jump_back_s;
+  std::string camera_problem, rates_problem;
+  const CameraModel camera = cameraOf(msg, &camera_problem);
+  const std::vector<CameraRateSample> rates = readGyroFlowRates(msg, &rates_problem);
+  return processor_.observe(pairOf(msg, camera, rates));
 }
 
-StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) {
+StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg, const PairFusion* fusion) {
   StabiliserFlowResult result;
   std::vector<Eigen::Matrix3d> gyro_homographies;
   cv::Mat gyro_flow;
@@ -64,50 +80,45 @@ StabiliserFlowResult StabiliserFlowCompensator::compensate(const GyroFlow& msg) 
                     "model needs (a gyro flow nodelet older than the model?)";
     return result;
   }
-  std::string problem;
-  StabiliserCompensator& compensator = compensatorFor(msg, &problem, &result.time_jump_back_s);
-  if (!problem.empty()) {
-    result.reason = problem;
+  std::string camera_problem, rates_problem;
+  const CameraModel camera = cameraOf(msg, &camera_problem);
+  const std::vector<CameraRateSample> rates = readGyroFlowRates(msg, &rates_problem);
+  FramePair pair = pairOf(msg, camera, rates);
+  // A message that cannot be compensated still carries the gyro stream the lens moved with.
+  if (!rates_problem.empty() || !camera_problem.empty()) {
+    result.time_jump_back_s = processor_.observe(pair);
+    result.reason = !rates_problem.empty() ? rates_problem : camera_problem;
     return result;
   }
-  const RollingShutterConfig rs = timingOf(msg);
-  const double stamp_a_s = msg.previous_stamp.toSec(), stamp_b_s = msg.header.stamp.toSec();
-  std::vector<double> times_a, times_b;
-  std::vector<Eigen::Matrix3d> rotations;
-  for (int i = 0; i < rs.patch_count; ++i) {
-    times_a.push_back(patchImuTime(rs, stamp_a_s, i));
-    times_b.push_back(patchImuTime(rs, stamp_b_s, i));
-    // The gyro's rotation back from its homography K R K^-1 (scaled to H[2][2] = 1).
-    Eigen::Matrix3d R = K_.inverse() * gyro_homographies[static_cast<std::size_t>(i)] * K_;
+  // The gyro's rotation back from its homography K R K^-1 (scaled to H[2][2] = 1).
+  const Eigen::Matrix3d K = camera.K(), K_inverse = K.inverse();
+  for (const Eigen::Matrix3d& H : gyro_homographies) {
+    Eigen::Matrix3d R = K_inverse * H * K;
     R /= std::cbrt(R.determinant());
-    rotations.push_back(R);
+    pair.rotations.push_back(R);
   }
-  const StabiliserCompensation compensation = compensator.compensate(rotations, times_a, times_b);
-  if (!compensation.ok) {
-    result.reason = compensation.reason;
+  pair.gyro_homographies = gyro_homographies;
+  if (fusion) {
+    pair.fusion = fusion->options;
+    pair.tracks = fusion->tracks;
+    pair.prior_sigma_px = fusion->prior_sigma_px;
+  }
+  FramePairMotion motion = processor_.process(std::move(pair), gyro_flow.size());
+  result.time_jump_back_s = motion.time_jump_back_s;
+  if (!motion.ok) {
+    result.reason = motion.reason;
     return result;
   }
-  CameraModel camera;
-  sensor_msgs::CameraInfo info;
-  info.width = msg.image_width;
-  info.height = msg.image_height;
-  info.K = msg.K;
-  info.distortion_model = msg.distortion_model;
-  info.D = msg.D;
-  problem = toCameraModel(info, camera);
-  if (!problem.empty()) {
-    result.reason = problem;
-    return result;
-  }
-  if (!renderer_ || !renderer_->compatible(camera, gyro_flow.size(), rs.patch_count))
-    renderer_ = std::make_unique<HomographyFlowRenderer>(camera, gyro_flow.size(), rs.patch_count);
-  renderer_->render(compensation.homographies, result.flow);
-  result.homographies = compensation.homographies;
+  result.homographies = std::move(motion.homographies);
+  result.flow = motion.flow;
   result.camera = camera;
-  result.shift_a_px = compensation.shift_a_px;
-  result.shift_b_px = compensation.shift_b_px;
-  result.rotations = std::move(rotations);
-  result.timing = rs;
+  result.shift_a_px = std::move(motion.shift_a_px);
+  result.shift_b_px = std::move(motion.shift_b_px);
+  result.rotations = std::move(motion.rotations);
+  result.fused = std::move(motion.fused);
+  result.prior_homographies = std::move(motion.prior_homographies);
+  result.fusion_failed = motion.fusion_failed;
+  result.timing = timingOf(msg);
   result.ok = true;
   return result;
 }

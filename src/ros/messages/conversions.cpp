@@ -151,6 +151,7 @@ void fillGyroFlowMsg(const GyroFlowMetadata& metadata, const std::vector<Eigen::
   msg.time_offset = rs.time_offset_s;
   msg.patch_time_fraction = rs.patch_time == PatchTimeReference::kPatchCentre ? 0.5 : 0.0;
   matrixToRowMajor(rs.imu_to_camera_rotation, msg.imu_to_camera_rotation.data());
+  msg.calibration_epoch = metadata.calibration_epoch;
   msg.angular_velocity_times.clear();
   msg.angular_velocity.clear();
   for (const CameraRateSample& rate : metadata.camera_rates) {

@@ -2,6 +2,7 @@
 // train_stabiliser (selectStabiliser) and the online learner (chooseStabiliserModel) share.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -139,7 +140,7 @@ TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMarg
 
 TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
   const auto& table = stabiliserCandidateDescriptions();
-  ASSERT_EQ(table.size(), 11u);
+  ASSERT_EQ(table.size(), 13u);
   for (std::size_t k = 1; k < table.size(); ++k) EXPECT_LT(table[k - 1].complexity, table[k].complexity);
   // Fitted on a recording of the chain with a linear bank: one candidate per row, in the table's
   // order, each named after its row and ranked as its row.
@@ -160,14 +161,18 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
     if (k > 0) {
       EXPECT_NE(candidates[k].name.find(table[k].name), std::string::npos);
     }
-    if (!table[k].feature_set.empty()) {
-      EXPECT_NE(candidates[k].name.find("(" + table[k].feature_set + ")"), std::string::npos);
+    const std::string feature_set = table[k].featureSet();
+    if (!feature_set.empty()) {
+      EXPECT_NE(candidates[k].name.find("(" + feature_set + ")"), std::string::npos);
     }
-    EXPECT_EQ(candidates[k].parameters.anti_windup, table[k].structure.anti_windup);
-    EXPECT_EQ(candidates[k].parameters.soft_stroke, table[k].structure.soft_stroke);
-    EXPECT_EQ(candidates[k].parameters.nonlinear_features, table[k].feature_set);
+    auto listed = [&](const char* token) {
+      return std::find(table[k].stages.begin(), table[k].stages.end(), token) != table[k].stages.end();
+    };
+    EXPECT_EQ(candidates[k].parameters.anti_windup, listed("stroke:anti_windup"));
+    EXPECT_EQ(candidates[k].parameters.soft_stroke, listed("stroke:soft"));
+    EXPECT_EQ(candidates[k].parameters.nonlinear_features, feature_set);
     // Ranked as its row; a refit whose coupling stayed at 0 is the simpler chain it equals.
-    if (table[k].structure.actuator_coupling) {
+    if (listed("actuator_coupling")) {
       EXPECT_LE(stabiliserComplexity(candidates[k].parameters), table[k].complexity);
     } else {
       EXPECT_EQ(stabiliserComplexity(candidates[k].parameters), table[k].complexity);
@@ -177,7 +182,7 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
   StabiliserCandidateKinds kinds;
   kinds.structural = false;
   const std::vector<ModelCandidate> quick = stabiliserCandidates(fit, {recording}, options, kinds);
-  ASSERT_EQ(quick.size(), 5u);
+  ASSERT_EQ(quick.size(), 7u);
   EXPECT_NE(quick[2].name.find("rate_bank_v1"), std::string::npos);
 }
 
@@ -197,12 +202,12 @@ TEST(StabiliserCandidates, AModelFileIsRankedByTheRowThatDescribesIt) {
   EXPECT_EQ(complexity("soft_stroke_excursion_centring"), 8);
   EXPECT_EQ(complexity("learned_excursion_v1"), 10);
   // Anti-windup and a learned set together: no row; after every row.
-  EXPECT_EQ(complexity("learned_excursion_rate_v1"), 12);
+  EXPECT_EQ(complexity("learned_excursion_rate_v1"), 14);
   // The generic learned lens dynamics: a network, last (simpler candidates win within the margin).
   EXPECT_EQ(stabiliserComplexity(StabiliserModelFile::load(std::string(DEEP_OIS_SOURCE_DIR) +
                                                            "/test/ros/stabiliser_model_generic_dynamics.yaml")
                                      .parameters),
-            13);
+            15);
 }
 
 }  // namespace

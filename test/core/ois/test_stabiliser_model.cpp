@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 
 #include "deep_ois/core/camera/camera_description.h"
@@ -24,6 +26,7 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "known_stabiliser.h"
 
 namespace deep_ois {
 namespace {
@@ -49,18 +52,6 @@ std::vector<CameraRateSample> shake(double t0, double duration_s, unsigned seed)
     rates.push_back(sample);
   }
   return rates;
-}
-
-StabiliserParameters knownStabiliser() {
-  StabiliserParameters p;
-  p.gain << 0.0, 0.9, -1.05, 0.0;
-  p.highpass_corner_hz = 0.8;
-  p.actuator_natural_hz = 30.0;
-  p.actuator_damping = 0.6;
-  p.sensor_lag_s = 0.002;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 1.2;
-  return p;
 }
 
 TEST(LensShiftPredictor, FeedingFrameByFrameCarriesTheStateExactly) {
@@ -689,9 +680,9 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
     std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
                 c.training.rms_px, c.held_out.rms_px);
   std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, the six structural variants, rate filter, nonlinear, both: the nonlinear set is
-  // what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 10u);
+  // physical, the six structural variants, rate filter, nonlinear, both, the two linear-dynamics
+  // rows: the nonlinear set is what the truth has.
+  ASSERT_EQ(selection.candidates.size(), 12u);
   EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
   EXPECT_NE(selection.candidates[4].name.find("actuator coupling"), std::string::npos);
   EXPECT_NE(selection.candidates[5].name.find("soft stroke"), std::string::npos);
@@ -1074,5 +1065,112 @@ TEST(StabiliserCompensator, TimeGoingBackRestartsTheStateWithNothingOfTheOtherTi
   EXPECT_EQ(looped.timeJumps(), 1);
 }
 
+
+// A 30 fps stream of `pairs` pairs over `rates` (camera frame k at first_frame_s + k / 30) made with
+// time offset offset_s(k) (IMU time = camera time + offset), fed as the nodelet feeds it. When
+// `told`, the compensator is given the calibration shift at each change (what the gyro flow's
+// calibration_epoch lets the compensation tell); else it sees only the moved times. Every pair's
+// result goes to `results`.
+void compensateAcrossCalibration(StabiliserCompensator& compensator, const std::vector<CameraRateSample>& rates,
+                                 double first_frame_s, int pairs, const std::function<double(int)>& offset_s,
+                                 bool told, std::vector<StabiliserCompensation>& results) {
+  const std::vector<Eigen::Matrix3d> rotations(6, Eigen::Matrix3d::Identity());
+  for (int k = 0; k < pairs; ++k) {
+    std::vector<double> times_a, times_b;
+    const double offset = offset_s(k);
+    for (int i = 0; i < 6; ++i) {
+      times_a.push_back(first_frame_s + k / 30.0 + offset + 0.02 * (i + 0.5) / 6.0);
+      times_b.push_back(times_a.back() + 1.0 / 30.0);
+    }
+    const double shift_s = told && k > 0 ? offset - offset_s(k - 1) : 0.0;
+    compensator.followTimeline(times_a.front(), times_b.front(), shift_s);
+    std::vector<CameraRateSample> carried;
+    for (const CameraRateSample& r : rates) {
+      if (r.stamp_s > times_a.front() - kStabiliserWarmUpS && r.stamp_s <= times_b.back() + 0.003) carried.push_back(r);
+    }
+    compensator.addRates(carried);
+    results.push_back(compensator.compensate(rotations, times_a, times_b));
+  }
+}
+
+// Issue 40 item 2: an applied offset change (up or down) moves the times the model is asked about,
+// not time itself: the state is carried across it, and every pair after it answers exactly what a
+// model that ran on the gyro stream without interruption answers at the new times.
+TEST(StabiliserCompensator, AnAppliedOffsetChangeCarriesTheStateAcrossIt) {
+  Eigen::Matrix3d K;
+  K << kFocalPx, 0.0, 180.0, 0.0, kFocalPx, 135.0, 0.0, 0.0, 1.0;
+  const std::vector<CameraRateSample> rates = shake(99.0, 6.0, 11);
+  for (double change_s : {0.001, -0.001, 0.015, -0.015}) {
+    SCOPED_TRACE("offset change " + std::to_string(1e3 * change_s) + " ms");
+    auto offset = [change_s](int k) { return k < 60 ? 0.004 : 0.004 + change_s; };
+    StabiliserCompensator applied(knownStabiliser(), K), uninterrupted(knownStabiliser(), K);
+    std::vector<StabiliserCompensation> got, expected;
+    compensateAcrossCalibration(applied, rates, 100.5, 90, offset, true, got);
+    // The reference is never told of timelines: it follows the gyro stream and answers at the
+    // same times.
+    const std::vector<Eigen::Matrix3d> rotations(6, Eigen::Matrix3d::Identity());
+    for (int k = 0; k < 90; ++k) {
+      std::vector<double> times_a, times_b;
+      for (int i = 0; i < 6; ++i) {
+        times_a.push_back(100.5 + k / 30.0 + offset(k) + 0.02 * (i + 0.5) / 6.0);
+        times_b.push_back(times_a.back() + 1.0 / 30.0);
+      }
+      std::vector<CameraRateSample> carried;
+      for (const CameraRateSample& r : rates) {
+        if (r.stamp_s > times_a.front() - kStabiliserWarmUpS && r.stamp_s <= times_b.back() + 0.003) carried.push_back(r);
+      }
+      uninterrupted.addRates(carried);
+      expected.push_back(uninterrupted.compensate(rotations, times_a, times_b));
+    }
+    EXPECT_EQ(applied.timeJumps(), 0);
+    EXPECT_EQ(applied.stateResets(), 0);
+    EXPECT_EQ(applied.calibrationChanges(), 1);
+    EXPECT_EQ(applied.calibrationRestarts(), 0);
+    for (int k = 0; k < 90; ++k) {
+      ASSERT_TRUE(got[k].ok) << "pair " << k << ": " << got[k].reason;
+      ASSERT_TRUE(expected[k].ok) << "pair " << k << ": " << expected[k].reason;
+      for (std::size_t i = 0; i < 6; ++i) {
+        EXPECT_LT((got[k].shift_a_px[i] - expected[k].shift_a_px[i]).norm(), 1e-12) << "pair " << k << " patch " << i;
+        EXPECT_LT((got[k].shift_b_px[i] - expected[k].shift_b_px[i]).norm(), 1e-12) << "pair " << k << " patch " << i;
+      }
+    }
+  }
+}
+
+// Without being told (what the compensation did before GyroFlow.calibration_epoch), a decrease
+// reads as time going back: the model restarts and its output jumps. This is what the test above
+// guards against; it also shows the comparison can fail.
+TEST(StabiliserCompensator, AnUntoldOffsetDecreaseReadsAsTimeGoingBack) {
+  Eigen::Matrix3d K;
+  K << kFocalPx, 0.0, 180.0, 0.0, kFocalPx, 135.0, 0.0, 0.0, 1.0;
+  const std::vector<CameraRateSample> rates = shake(99.0, 6.0, 11);
+  auto offset = [](int k) { return k < 60 ? 0.004 : 0.004 - 0.015; };
+  StabiliserCompensator untold(knownStabiliser(), K), told(knownStabiliser(), K);
+  std::vector<StabiliserCompensation> a, b;
+  compensateAcrossCalibration(untold, rates, 100.5, 61, offset, false, a);
+  compensateAcrossCalibration(told, rates, 100.5, 61, offset, true, b);
+  EXPECT_EQ(untold.timeJumps(), 1);
+  EXPECT_EQ(told.timeJumps(), 0);
+  ASSERT_TRUE(a.back().ok && b.back().ok);
+  double largest_px = 0.0;
+  for (std::size_t i = 0; i < 6; ++i) largest_px = std::max(largest_px, (a.back().shift_b_px[i] - b.back().shift_b_px[i]).norm());
+  EXPECT_GT(largest_px, 1e-3) << "a restart warmed up on 1 s of gyro should differ from the carried state";
+}
+
+// A calibration moved back further than the model's retained history (0.5 s) cannot be answered
+// from the state: it restarts, counted as a calibration restart, and compensates again at once.
+TEST(StabiliserCompensator, AnOffsetMovedBackBeyondTheHistoryRestartsAndSaysWhy) {
+  Eigen::Matrix3d K;
+  K << kFocalPx, 0.0, 180.0, 0.0, kFocalPx, 135.0, 0.0, 0.0, 1.0;
+  const std::vector<CameraRateSample> rates = shake(98.0, 7.0, 12);
+  auto offset = [](int k) { return k < 60 ? 0.0 : -0.8; };
+  StabiliserCompensator applied(knownStabiliser(), K);
+  std::vector<StabiliserCompensation> got;
+  compensateAcrossCalibration(applied, rates, 100.5, 70, offset, true, got);
+  EXPECT_EQ(applied.timeJumps(), 0);
+  EXPECT_EQ(applied.calibrationChanges(), 1);
+  EXPECT_EQ(applied.calibrationRestarts(), 1);
+  for (int k = 60; k < 70; ++k) EXPECT_TRUE(got[k].ok) << "pair " << k << ": " << got[k].reason;
+}
 }  // namespace
 }  // namespace deep_ois

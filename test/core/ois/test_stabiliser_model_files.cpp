@@ -234,6 +234,25 @@ std::vector<Fixture> fixtures() {
          p->excursion_centring = 1.2;
        },
        [](StabiliserParameters* p) { p->excursion_centring = 0.0; }},
+      // The mechanisms' interactions: a soft elliptic stroke (the radial tanh), pan detection
+      // overriding the excursion-dependent corner while it pans, coupling after the actuator.
+      {"soft_elliptic_pan_excursion_coupling",
+       [](StabiliserParameters* p) {
+         p->circular_stroke = true;
+         p->soft_stroke = true;
+         p->excursion_centring = 1.4;
+         p->pan_detection_rate_rad_s = 0.6;
+         p->pan_release_corner_hz = 4.0;
+         p->actuator_coupling = Eigen::Vector2d(-0.06, 0.09);
+       },
+       [](StabiliserParameters* p) { p->pan_detection_rate_rad_s = 0.0; }},
+      {"anti_windup_elliptic_coupling",
+       [](StabiliserParameters* p) {
+         p->circular_stroke = true;
+         p->anti_windup = true;
+         p->actuator_coupling = Eigen::Vector2d(0.07, 0.05);
+       },
+       [](StabiliserParameters* p) { p->anti_windup = false; }},
       {"learned_rate_bank_v1", [](StabiliserParameters* p) { addNonlinear(p, "rate_bank_v1"); },
        dropNonlinear},
       {"learned_excursion_v1", [](StabiliserParameters* p) { addNonlinear(p, "excursion_v1"); },
@@ -291,6 +310,10 @@ TEST(StabiliserModelFiles, TheRepositorysModelsPredictAsWhenTheyWereWritten) {
     expectPinned(kSource + "/test/ros/" + name + ".yaml", std::string("repository_test_ros_") + name,
                  slower_centring);
   }
+  // The learned lens dynamics (a recurrent network embedded in the file, the chain off).
+  expectPinned(kSource + "/test/ros/stabiliser_model_generic_dynamics.yaml",
+               "repository_test_ros_stabiliser_model_generic_dynamics",
+               [](StabiliserParameters* p) { p->learned_dynamics.output_map *= 1.01; });
 }
 
 // A model loaded and saved again is the same file, byte for byte: the writer emits every field

@@ -357,6 +357,74 @@ TEST(OnlineCalibrationEstimator, RunsOnTheLearnersTrackingThread) {
   EXPECT_GE(learning_status.cpu_s, 0.8 * status.cpu_s);
 }
 
+// An undo (the session's per-pair check found a swap worse) rewinds the estimator to the state it
+// had before the fit that offered the swap: the calibration in use then, the estimate and the clock
+// model; the data stay, the version does not go back, and a second rewind of the same swap does
+// nothing.
+TEST(OnlineCalibrationEstimator, AnUndoRewindsToTheStateBeforeTheUndoneStep) {
+  sim::SyntheticTrackOptions options;
+  options.duration_s = 20.0;
+  options.seed = 8;
+  const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(false), options);
+  OnlineCalibrationEstimator estimator(unbudgeted(), recording.camera, wrongStart(recording));
+  // The status and clock model before each update that fitted (the swap's candidate comes from the
+  // last fit before the update that scored it: an update scores first, then fits).
+  struct Before {
+    OnlineCalibrationStatus status;
+    ClockOffsetFilter clock;
+  };
+  Before before_last_fit{estimator.status(), estimator.clockModel()};
+  std::size_t next_gyro = 0;
+  bool swapped = false;
+  Before before_swap_fit = before_last_fit;
+  OnlineCalibrationStatus after_swap;
+  for (const sim::SyntheticTrackPair& pair : recording.pairs) {
+    const double gyro_until_s = pair.stamp_b_s + recording.time_offset_s(pair.stamp_b_s) + 0.2;
+    while (next_gyro < recording.gyro.size() && recording.gyro[next_gyro].stamp_s <= gyro_until_s) {
+      estimator.addGyro(recording.gyro[next_gyro++]);
+    }
+    const Before before{estimator.status(), estimator.clockModel()};
+    estimator.addPair({pair.stamp_a_s, pair.stamp_b_s, pair.matches});
+    const std::size_t fits_before = estimator.status().fits;
+    const bool changed = estimator.update();
+    const bool fitted = estimator.status().fits != fits_before;
+    if (changed) {
+      // Scored before this update's own fit: the candidate is the last fit's.
+      before_swap_fit = before_last_fit;
+      after_swap = estimator.status();
+      swapped = true;
+      break;
+    }
+    if (fitted) before_last_fit = before;
+  }
+  ASSERT_TRUE(swapped) << "no swap in 20 s from the wrong start";
+  ASSERT_EQ(after_swap.version, 1u);
+  EXPECT_NE(after_swap.in_use.time_offset_s, before_swap_fit.status.in_use.time_offset_s);
+
+  EXPECT_FALSE(estimator.rewindBeforeSwap(2));  // no such swap: nothing changes
+  EXPECT_EQ(estimator.status().in_use.time_offset_s, after_swap.in_use.time_offset_s);
+  ASSERT_TRUE(estimator.rewindBeforeSwap(1));
+  const OnlineCalibrationStatus& rewound = estimator.status();
+  EXPECT_EQ(rewound.in_use.time_offset_s, before_swap_fit.status.in_use.time_offset_s);
+  EXPECT_EQ(rewound.in_use.readout_time_s, before_swap_fit.status.in_use.readout_time_s);
+  EXPECT_TRUE(rewound.in_use.imu_to_camera_rotation.isApprox(before_swap_fit.status.in_use.imu_to_camera_rotation));
+  EXPECT_EQ(rewound.estimate.time_offset_s, before_swap_fit.status.estimate.time_offset_s);
+  EXPECT_EQ(rewound.estimate.time_offset_sigma_s, before_swap_fit.status.estimate.time_offset_sigma_s);
+  EXPECT_EQ(rewound.estimate.readout_time_s, before_swap_fit.status.estimate.readout_time_s);
+  EXPECT_EQ(rewound.mount_found, before_swap_fit.status.mount_found);
+  EXPECT_EQ(estimator.clockModel().initialised(), before_swap_fit.clock.initialised());
+  if (before_swap_fit.clock.initialised()) {
+    EXPECT_EQ(estimator.clockModel().offsetAt(10.0), before_swap_fit.clock.offsetAt(10.0));
+    EXPECT_EQ(estimator.clockModel().rate(), before_swap_fit.clock.rate());
+    EXPECT_EQ(estimator.clockModel().noiseScale(), before_swap_fit.clock.noiseScale());
+  }
+  EXPECT_EQ(rewound.version, 1u);  // it counts swaps; the session applies the replaced state
+  EXPECT_EQ(rewound.rewinds, 1u);
+  EXPECT_EQ(rewound.pairs, after_swap.pairs);  // the data stay
+  EXPECT_FALSE(estimator.rewindBeforeSwap(1));  // once only
+  EXPECT_EQ(estimator.status().rewinds, 1u);
+}
+
 TEST(OnlineCalibrationEstimator, BadInputIsNamed) {
   CameraModel camera = sim::nominalCamera(sim::SensorConfig{});
   OnlineCalibrationOptions options;

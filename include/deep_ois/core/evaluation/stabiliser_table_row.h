@@ -1,6 +1,6 @@
-// The table row of a learned stabiliser model (core/ois/): per recording, one
-// StabiliserCompensator fed with the recording's gyro stream in pair order, so the stabiliser's
-// state is carried across pairs exactly as the compensation nodelet carries it.
+// The table row of a learned stabiliser model (core/ois/): per recording, one frame-pair processor
+// (core/pipeline/frame_pair_processor.h) fed with the recording's gyro stream in pair order, so
+// the stabiliser's state is carried across pairs exactly as the compensation nodelet carries it.
 #pragma once
 
 #include <string>

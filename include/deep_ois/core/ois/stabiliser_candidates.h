@@ -7,7 +7,7 @@
 //  - "physical": the fitted chain alone;
 //  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
 //    returns);
-//  - the chain with a better structure, refitted (refitStabiliserStructure): an integrator held at
+//  - the chain with a better structure, refitted (refitStabiliserStages): an integrator held at
 //    the end stop (anti-windup), a re-centring corner that grows with the excursion, both; the
 //    stroke in the actuator's own axes with a cross-coupling after the actuator (a turned or
 //    coupled mount); a soft stroke (stroke x tanh(u / stroke)) instead of an end stop, alone and
@@ -16,7 +16,9 @@
 //    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
 //    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,
 //    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
-//    or estimator the chain does not name; and both (excursion_rate_v1).
+//    or estimator the chain does not name; and both (excursion_rate_v1);
+//  - a linear filter of free order of the three gyro axes (the linear_dynamics stage) instead of
+//    the centring, before the fitted stroke (with or without its actuator), fitted in closed form.
 // Pure C++/Eigen: no ROS.
 #pragma once
 
@@ -39,28 +41,50 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
                                           const std::string& feature_set = "excursion_v1",
                                           double ridge = 1e-4);
 
+// `base`'s stroke and actuator (as `stages` lists them: linear_dynamics and any of stroke,
+// actuator) with a linear-dynamics stage of `basis` before them (stages/linear_dynamics_stage.cpp):
+// its coefficients fitted in closed form, the other stages held, in two steps: a ridge least
+// squares (`ridge` relative to each basis function's energy) on every usable lens motion, then
+// again on those whose fitted lens stays inside 80 % of the stroke (Huber-weighted as
+// options.huber_px). Returns a model whose stages are `stages`. Throws std::invalid_argument for
+// another stage in `stages` or when fewer lens motions than coefficients are usable.
+StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
+                                       const std::vector<std::string>& stages,
+                                       const LinearDynamicsBasisSpec& basis,
+                                       const std::vector<StabiliserFitRecording>& recordings,
+                                       const StabiliserFitOptions& options, double ridge = 1e-6);
+
 // A stabiliser model with a name for messages ("fit", "no lens motion", "generic", ...).
 struct ModelCandidate {
   std::string name;
   StabiliserParameters parameters;
 };
 
-// A candidate described as data: one row of the table stabiliserCandidates builds from.
+// A candidate described as data: one row of the table stabiliserCandidates builds from. Its
+// composition is a list of stage tokens (core/ois/stabiliser_stage.h, stabiliserComposition), in
+// the chain's order: {"centring", "stroke:soft", "actuator", "linear_residual"}. How the row is
+// fitted follows from it:
+//  - the chain's stages only (centring, stroke, actuator, with or without linear_residual): the
+//    physical fit itself (the row with linear_residual is left out when the fit has no bank);
+//  - another stage or a stroke variant: the chain refitted with it (refitStabiliserStages, which
+//    fits its own linear bank and keeps it where it helps);
+//  - learned_residual:SET: that feature set ridge-fitted on top of the physical fit;
+//  - linear_dynamics: its coefficients in closed form, the stages around it held
+//    (fitLinearDynamics).
+// Pan detection is the fit's choice for every row, so a row never names it.
 struct StabiliserCandidateDescription {
   // What it adds to the chain, for its name ("anti-windup integrator"); "" for the chain itself.
   std::string name;
-  // The chain's mechanisms: any set = the chain refitted with them (refitStabiliserStructure,
-  // which fits its own linear bank and keeps it where it helps).
-  StabiliserStructure structure;
-  // The fitted chain's linear residual bank (the row is left out when the fit has none).
-  bool linear_residual = false;
-  // The learned residual on top of the fitted chain, ridge-fitted ("" none; nonlinearFeatureCount).
-  std::string feature_set;
+  std::vector<std::string> stages;
   // Simplest first: the choice rule keeps the simpler of two candidates within its margin
   // (stabiliser_choice_rule.h). "No lens motion" is 0.
   int complexity = 0;
 
-  bool structural() const;  // any mechanism of `structure` set
+  // The learned residual's feature set ("" when the row has none).
+  std::string featureSet() const;
+  // A refit of the chain with a stage or variant more.
+  bool structural() const;
+  bool linearDynamics() const;
 };
 
 // The candidate table, simplest first: the chain, its linear bank, the six structural variants,
@@ -80,6 +104,8 @@ struct StabiliserCandidateKinds {
   // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
   int structural_iterations = 0;
   bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
+  // The linear-dynamics rows (one run of the chain per basis function and recording each).
+  bool linear_dynamics = true;
   // The generic learned lens dynamics (core/ois/lens_dynamics_network.h), pretrained on generated
   // designs: adapted to the camera (its conditioning vector; then with a 2x2 map of its lens too),
   // the chain off. Null: not a candidate.

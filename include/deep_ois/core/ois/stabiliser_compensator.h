@@ -50,7 +50,15 @@ class StabiliserCompensator {
   // restarted, a clock reset), so the model restarts from a centred lens and is warmed up again
   // from the gyro history fed next; nothing of the other timeline's state is used. Returns how far
   // time went back (seconds), 0 when it did not.
-  double followTimeline(double frame_a_s, double frame_b_s);
+  //
+  // `calibration_shift_s`: how far a calibration applied since the last pair moved the IMU times
+  // of the camera's frames (the new time offset minus the old, seconds; 0 when the calibration did
+  // not change). An applied calibration is not a time jump: the gyro stream (IMU clock) goes on,
+  // only the times the model is asked about move, so the state is carried across it (counted in
+  // calibrationChanges()); only a move back beyond the shift is another timeline. A shift back
+  // further than the model's retained history cannot be answered: the model restarts then, as
+  // after a gap (counted in calibrationRestarts(), not as a time jump).
+  double followTimeline(double frame_a_s, double frame_b_s, double calibration_shift_s = 0.0);
   // Appends camera-frame rates in time order; older or repeated samples are ignored (consecutive
   // pairs carry overlapping gyro history).
   void addRates(const std::vector<CameraRateSample>& rates);
@@ -68,6 +76,8 @@ class StabiliserCompensator {
   void reset() { predictor_.reset(); }
   int stateResets() const { return predictor_.resets(); }
   int timeJumps() const { return time_jumps_; }
+  int calibrationChanges() const { return calibration_changes_; }
+  int calibrationRestarts() const { return calibration_restarts_; }
   const LensShiftPredictor& predictor() const { return predictor_; }
 
  private:
@@ -77,6 +87,8 @@ class StabiliserCompensator {
   bool seen_pair_ = false;
   double last_frame_b_s_ = 0.0;
   int time_jumps_ = 0;
+  int calibration_changes_ = 0;   // applied calibrations the state was carried across
+  int calibration_restarts_ = 0;  // of which: moved back beyond the retained history (restarted)
 };
 
 }  // namespace deep_ois

@@ -13,6 +13,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -133,24 +135,18 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
                                   const StabiliserFitOptions& options,
                                   const ProgressCallback& progress = {});
 
-// Structural variants of the chain (StabiliserParameters::anti_windup, excursion_centring,
-// actuator_coupling, soft_stroke).
-struct StabiliserStructure {
-  bool anti_windup = false;
-  bool excursion_centring = false;  // its k fitted (from 1) with the other parameters
-  bool actuator_coupling = false;   // fitted (from 0) with the other parameters
-  bool soft_stroke = false;         // exclusive with anti_windup
-};
-
-// The chain of `fitted` (a fitStabiliser result) with `structure` switched on, refined by
-// Levenberg-Marquardt from fitted's physical parameters (the stroke scanned again around them, pan
-// detection and stroke shape kept), then its linear residual bank as fitStabiliser fits it. The
-// training RMS and the review are filled; rms_without_model_px and the timing check are not (they
-// do not depend on the structure). Throws std::invalid_argument as fitStabiliser.
-StabiliserFitResult refitStabiliserStructure(const StabiliserParameters& fitted,
-                                             const StabiliserStructure& structure,
-                                             const std::vector<StabiliserFitRecording>& recordings,
-                                             const StabiliserFitOptions& options);
+// The chain of `fitted` (a fitStabiliser result) composed of `stages` (stage tokens, as
+// stabiliserComposition writes them: {"excursion_centring", "centring", "stroke:soft",
+// "actuator"}): each stage that a refit starts (StabiliserStage::start) set up as listed or left
+// out, refined by Levenberg-Marquardt from fitted's physical parameters with the listed stages'
+// parameters free (the stroke scanned again around them, pan detection and stroke shape kept), then
+// its linear residual bank as fitStabiliser fits it. The training RMS and the review are filled;
+// rms_without_model_px and the timing check are not (they do not depend on the composition).
+// Throws std::invalid_argument as fitStabiliser, and for an unknown stage or variant.
+StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
+                                          const std::vector<std::string>& stages,
+                                          const std::vector<StabiliserFitRecording>& recordings,
+                                          const StabiliserFitOptions& options);
 
 // A model's RMS lens-motion residual on recordings (pixels, weighted by the observations'
 // weights) beside that of no lens motion (motion 0), over the observations the model predicts.
@@ -174,5 +170,15 @@ StabiliserParameters noLensMotion();
 std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
                                                const StabiliserFitRecording& recording,
                                                double step_s = 1e-3, double warm_up_s = 1.0);
+
+// How the fit and every closed-form stage fit see a recording: a predictor of `parameters` fed
+// `recording`'s gyro (its own gaps fed, not restarted) in the order of the observations' ends, and
+// `visit(predictor, observation index)` for each observation past the warm-up whose two ends the
+// predictor covers. `prepare`, when given, runs on the new predictor before the first rate (for
+// example to record its features or its learned state).
+void visitCoveredObservations(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+                              double step_s, double warm_up_s,
+                              const std::function<void(const LensShiftPredictor&, std::size_t)>& visit,
+                              const std::function<void(LensShiftPredictor&)>& prepare = {});
 
 }  // namespace deep_ois

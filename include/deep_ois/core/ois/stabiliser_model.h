@@ -22,8 +22,9 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/ois/lens_actuator.h"
 #include "deep_ois/core/ois/lens_dynamics_network.h"
+#include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/stabiliser_signal.h"
 
 namespace deep_ois {
 
@@ -40,6 +41,50 @@ struct LearnedLensDynamics {
   // turned against the designs'); the identity unless the adaptation fitted it.
   Eigen::Matrix2d output_map = Eigen::Matrix2d::Identity();
   bool active() const { return network != nullptr; }
+};
+
+// The linear-dynamics stage's values (src/core/ois/stages/linear_dynamics_stage.cpp): raw command
+// += focal_px * coefficients * the state of an orthonormal basis of the three gyro axes
+// (core/ois/linear_dynamics_basis.h).
+struct LinearDynamicsValues {
+  LinearDynamicsBasisSpec basis;
+  Eigen::MatrixXd coefficients;  // 2 x 3 basis.order (focal units per basis state); empty = off
+  bool active() const { return coefficients.size() != 0; }
+};
+
+// The stages of a sampled digital controller, as the simulator's generated designs are built
+// (core/sim/stabiliser_design.h says what each mechanism does; its ranges bound them). Each stage
+// acts when its values are set. Words as the design names them.
+struct GyroLoopValues {  // gyro_loop: the stabiliser's own gyro and when the controller samples it
+  double roll_deg = 0.0, tilt_deg = 0.0, pan_deg = 0.0;  // camera -> gyro: roll, then tilt, pan
+  double rate_hz = 4000.0;  // controller rate; the step's rate is a multiple of it
+  bool averaged = false;    // the mean rate over its period (else the newest sample)
+};
+struct MotionModeValues {  // motion_mode: pan detection (release, hold) and the gain schedule
+  std::string action = "none";  // none, release, hold
+  double threshold_rad_s = 0.2, time_constant_s = 0.2, release_factor = 6.0, hold_time_constant_s = 0.1;
+  double schedule_depth = 0.0;  // 0 = not scheduled
+  double schedule_start_rad_s = 0.1, schedule_span_rad_s = 0.3, schedule_time_constant_s = 0.1;
+};
+struct IntendedMotionValues {  // intended_motion: the angle to cancel, its gain
+  // highpass_first_order, highpass_second_order, velocity_loop, kalman_cv, alpha_beta
+  std::string kind = "highpass_first_order";
+  double corner_hz = 0.6, damping = 0.8, rate_corner_hz = 0.5;
+  double excursion_gain = 0.0, excursion_power = 2.0;  // 0 = a fixed corner
+  double gain_x = 1.0, gain_y = 1.0;
+};
+struct TravelValues {  // travel: the stroke per axis and direction, anti-windup, the DAC
+  std::string shape = "box";  // box, ellipse, soft_box, soft_ellipse
+  double x_positive_deg = 1.0, x_negative_deg = 1.0, y_positive_deg = 1.0, y_negative_deg = 1.0;
+  std::string anti_windup = "none";  // none, clamp, back_calculation
+  double back_calculation_rate_per_s = 20.0;
+  double quantiser_bits = 0.0;  // 0 = not quantised
+};
+struct HallActuatorValues {  // hall_actuator: transport delay, the lens' position loop, Hall sensor
+  double delay_s = 0.0;
+  std::string order = "second";  // first, second
+  double bandwidth_hz = 35.0, damping = 0.7, rate_limit_deg_s = 0.0, stiction_fraction = 0.0;
+  double end_stop_margin = 1.1, hall_c2 = 0.0, hall_c3 = 0.0;
 };
 
 struct StabiliserParameters {
@@ -96,6 +141,17 @@ struct StabiliserParameters {
   std::string nonlinear_features;
   Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
   LearnedLensDynamics learned_dynamics;
+  LinearDynamicsValues linear_dynamics;
+  std::optional<GyroLoopValues> gyro_loop;
+  std::optional<MotionModeValues> motion_mode;
+  std::optional<IntendedMotionValues> intended_motion;
+  std::optional<TravelValues> travel;
+  std::optional<HallActuatorValues> hall_actuator;
+  // The model's stages by name, when it is not the default chain ({"linear_dynamics", "stroke",
+  // "actuator"}: no centring); only these run (each still only when its values make it act).
+  // Empty: every stage whose values make it act (centring, stroke and actuator always), as every
+  // file before the key.
+  std::vector<std::string> stages;
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
@@ -149,27 +205,23 @@ class LensShiftPredictor {
   // Keeps the learned stage's state (the network's hidden vector and, with a skip path, its
   // inputs; extrapolated between its steps as its lens is) of every retained step, and answers it like lensShiftAt: the features a refit
   // of the network's output layer regresses on (core/ois/lens_dynamics_adaptation.h).
-  void recordLearnedState() { record_learned_ = true; }
+  void recordLearnedState() {
+    record_learned_ = true;
+    chain_.signal().want_learned_state = true;
+  }
   Eigen::VectorXd learnedStateAt(double t_s) const;
 
   double max_gap_s = 0.1;
 
  private:
-  // One internal step: the rate at its middle (the chain) and at its end (the learned stage, which
-  // reads the rate at its own step times).
+  // One internal step: the rate at its middle (the chain) and at its end (a stage that reads the
+  // rate at its own step times): the stages' runners in the chain's order.
   void step(const Eigen::Vector3d& rate_rad_s, const Eigen::Vector3d& end_rate_rad_s);
 
-  StabiliserParameters parameters_;
-  double focal_px_;
   double step_s_;
   std::size_t history_steps_;
-  // Per-step constants.
-  double decay_hold_ = 1.0, weight_hold_ = 0.0, decay_pan_ = 1.0, weight_pan_ = 0.0;
-  double pan_smoothing_ = 0.0;
-  Eigen::Vector2d stroke_px_;
-  std::vector<double> residual_decay_, residual_weight_;
-  std::size_t lag_steps_ = 0;  // whole steps of sensor lag
-  double lag_fraction_ = 0.0;   // and the fraction of one more
+  // The runners of the stages that act for the parameters (core/ois/stabiliser_stage.h).
+  StabiliserChain chain_;
 
   // State.
   bool started_ = false;
@@ -178,34 +230,10 @@ class LensShiftPredictor {
   double start_s_ = 0.0;      // stamp of the first sample since the last reset
   long long steps_ = 0;       // internal steps since then
   double clock_s_ = 0.0;      // time of the newest internal step: start_s_ + steps_ * step_s_
-  Eigen::Vector2d theta_ = Eigen::Vector2d::Zero();
-  double smoothed_rate_ = 0.0;
-  bool panning_ = false;
-  std::vector<Eigen::Vector2d> residual_state_;  // per time constant, (x, y) leaky rate integral
-  std::deque<Eigen::Vector2d> pending_commands_;
-  LensActuator actuator_x_, actuator_y_;
   std::deque<Eigen::Vector2d> shifts_;  // lens shift at clock_s_ - (size - 1 - j) * step_s_
-  // Nonlinear residual: per time constant the leaky integral of the excursion-weighted command.
-  std::vector<double> nonlinear_decay_, nonlinear_weight_;
-  std::vector<Eigen::Vector2d> nonlinear_state_;
-  bool excursion_features_ = false;
-  std::vector<double> rate_bank_decay_, rate_bank_weight_;
-  std::vector<Eigen::Vector2d> rate_bank_state_;
-  Eigen::VectorXd features_;
   bool record_features_ = false;
-  // Anti-windup: the inverse of the gain (valid when the gain is invertible) maps the limited
-  // command back to the angle.
-  bool anti_windup_ = false;
-  Eigen::Matrix2d inverse_gain_ = Eigen::Matrix2d::Zero();
-  double excursion_sq_ = 0.0;  // e^2 of the last step's command (excursion_centring)
   std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
-  // The learned stage: its runner, updated every learned_every_steps_ internal steps, and its last
-  // two outputs (focal units, through the output map) for the steps in between.
-  std::optional<LensDynamicsRunner> learned_;
-  long long learned_every_steps_ = 0;
-  Eigen::Vector2d learned_last_ = Eigen::Vector2d::Zero(), learned_before_ = Eigen::Vector2d::Zero();
   bool record_learned_ = false;
-  Eigen::VectorXd hidden_last_, hidden_before_;
   std::deque<Eigen::VectorXd> learned_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };

@@ -12,15 +12,21 @@
 //    there is one residual and one cost for both. The coarse search spans `first_search_s` around
 //    the calibration in use until a fit is accepted, then `search_s` around the estimate.
 //  - Each window's estimate is a measurement with its reported 1-sigma. A random-walk filter per
-//    quantity (readout, bias per axis; the offset's below) fuses them: the variance grows by
-//    (drift rate x elapsed)^2 between windows, so old windows are forgotten at the pace the
-//    quantity may drift. A window that disagrees with the filter by more than `jump_sigmas` (offset or
-//    readout) is a jump (a camera app restarted): the filter restarts from that window.
+//    quantity (readout, bias per axis) fuses them: the variance grows by (drift rate x elapsed)^2
+//    between windows, so old windows are forgotten at the pace the quantity may drift.
+//  - The offset's model is a line with a drift rate (clock_offset_filter.h): the window's stamps
+//    are moved by that line, so the drift is removed inside the window; overlapping windows count
+//    once per window length, and the windows' 1-sigma is scaled by what the innovations show, so
+//    that the reported 1-sigma is honest. The estimate is the line at the newest pair.
+//  - A window further from the line than clock.suspect_sigmas may hold a jump (a camera app
+//    restarted): the newest `jump_window_s` of pairs are fitted at once (ahead of the CPU budget:
+//    it may owe up to `max_borrow_s`); when they are beyond clock.jump_sigmas, the filter restarts
+//    there (keeping the drift rate) and older pairs leave the window.
 //  - The mount is searched over the 24 signed axis permutations until two consecutive accepted
 //    windows find the same permutation; from then on a window finding another permutation is not
 //    used, and the small rotation about the permutation is fused like the other quantities.
-//  - The offset's filter also holds its drift rate (a constant-velocity model), and the estimate
-//    is that filter carried to the newest pair: a steady drift is followed without lag.
+//  - Each swap remembers the state before the fit that offered it: when the caller's per-pair
+//    check undoes the swap, rewindBeforeSwap() returns the estimator there.
 //  - A candidate (the filtered estimate after a fit) waits for `held_out_s` of pairs after its
 //    window and is scored there against the calibration in use: the mean track residual over the
 //    tracks that either explains (within `outlier_px`). It replaces the calibration in use only when
@@ -40,6 +46,7 @@
 
 #include "deep_ois/core/calibration/camera_imu_calibration.h"
 #include "deep_ois/core/camera/camera_model.h"
+#include "deep_ois/core/online/clock_offset_filter.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/vision/feature_tracker.h"
@@ -51,6 +58,9 @@ struct OnlineCalibrationOptions {
   double refit_every_s = 1.5;  // seconds of new pairs between fits
   double held_out_s = 1.5;     // seconds of pairs after a fit's window on which its candidate is scored
   int max_tracks_per_pair = 60;  // more tracks per pair are thinned evenly (cost)
+  // A window with more pairs is thinned evenly, counted back from the newest pair (cost: a long
+  // window then costs what a short one does, and sees more of the motion). 0 = every pair.
+  int max_pairs_per_window = 0;
   // CPU budget, share of one core on the stream's clock (the pairs' stamps): a credit accrues at
   // this share and each fit or score is charged its thread CPU time; a fit starts only when the
   // credit covers what the last one cost (else it waits for later pairs: fits_over_budget). The
@@ -67,18 +77,18 @@ struct OnlineCalibrationOptions {
   // Coarse offset search half-width around the estimate: before the first accepted fit, and after.
   double first_search_s = 0.1;
   double search_s = 0.03;
-  // The offset's filter holds the offset and its drift rate: the offset walks by
-  // offset_random_walk_s_per_sqrt_s (s per sqrt(s)) and the rate by rate_random_walk_per_sqrt_s
-  // (s/s per sqrt(s)); the rate starts at 0 with initial_rate_sigma (s/s: 1e-4 = 6 ms a minute).
-  double offset_random_walk_s_per_sqrt_s = 3e-5;
-  double rate_random_walk_per_sqrt_s = 1.5e-5;
-  double initial_rate_sigma = 1e-4;
+  // The offset's clock model: its random walks, the jump threshold (also the readout's), the
+  // learned scale of the windows' 1-sigma.
+  ClockModelOptions clock;
+  // A suspected jump: the newest this many seconds of pairs are fitted at once and, when they are a
+  // jump, the filter restarts from them (0 = the suspect window itself is tested for a jump).
+  double jump_window_s = 1.5;
+  // CPU seconds the budget may owe for a jump's fit: it runs when the debt is below this, and the
+  // next fits wait until the debt is repaid. Beyond the share, at most this plus one fit is spent.
+  double max_borrow_s = 1.0;
   // How fast the readout and the bias may drift (their filters' random walk), per second.
   double readout_drift_s_per_s = 2e-5;
   double bias_drift_rad_s_per_s = 2e-4;
-  // A window whose offset or readout is further than this many combined sigmas from the filter
-  // restarts it (a jump).
-  double jump_sigmas = 5.0;
   // A window's estimate counts only when its reported 1-sigma is below these (the window
   // determines it at all); the filter then narrows it further.
   double max_offset_sigma_s = 2e-3;
@@ -132,6 +142,14 @@ struct OnlineCalibrationStatus {
   std::size_t pairs = 0, pairs_without_tracks = 0;
   std::size_t fits = 0, fits_needing_motion = 0, fits_rejected = 0, jumps = 0;
   std::size_t fits_over_budget = 0;  // times a due fit waited for its CPU credit
+  std::size_t fits_borrowed = 0;     // jump fits run on borrowed credit
+  std::size_t rewinds = 0;           // rewindBeforeSwap() calls that found their swap
+  double offset_noise_scale = 1.0;   // the clock model's learned scale of the windows' 1-sigma
+  double window_correlation = 0.0;   // ... and the learned correlation of consecutive windows
+  // The last accepted window's own measurement of the offset: where (camera clock, the window's
+  // middle), what, and its reported 1-sigma (seconds); windows_measured counts them.
+  double window_stamp_s = 0.0, window_offset_s = 0.0, window_offset_sigma_s = 0.0;
+  std::size_t windows_measured = 0;
   double cpu_s = 0.0;                // thread CPU time of fits and scores so far, seconds
   double stream_s = 0.0;             // seconds of pairs seen (the budget's clock)
   std::size_t candidates_scored = 0;
@@ -161,6 +179,15 @@ class OnlineCalibrationEstimator {
   // Time went back: the buffered pairs and gyro belong to the other timeline and are dropped; the
   // estimate and the calibration in use stay.
   void restartTimeline();
+  // The swap that made status().version equal to `version` was undone by the caller (its per-pair
+  // check found it worse): the estimator returns to the state it had before the fit that offered
+  // it (the filters, the mount, the estimate, the calibration in use then); later swaps are
+  // forgotten, the buffered pairs and gyro stay (they are data) and version does not go back (it
+  // counts swaps). False, and nothing changes, when that swap is not among the last kRememberedSwaps.
+  bool rewindBeforeSwap(std::uint64_t version);
+  static constexpr std::size_t kRememberedSwaps = 8;
+  // The offset's clock model (its line, rate, learned scale).
+  const ClockOffsetFilter& clockModel() const { return clock_; }
 
   // The held-out score: mean |x_b - predicted| over the tracks of `pairs` that either calibration
   // explains within outlier_px, for both (pixels); NaN when no pair is covered by the gyro.
@@ -172,16 +199,6 @@ class OnlineCalibrationEstimator {
     bool initialised = false;
     double value = 0.0, variance = 0.0, stamp_s = 0.0;
   };
-  // The offset and its drift rate (s/s), at stamp_s.
-  struct OffsetFilter {
-    bool initialised = false;
-    Eigen::Vector2d state = Eigen::Vector2d::Zero();
-    Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
-    double stamp_s = 0.0;
-  };
-  // Predicts `filter` to stamp_s (state and covariance).
-  void predictOffset(const OffsetFilter& filter, double stamp_s, Eigen::Vector2d* state,
-                     Eigen::Matrix2d* covariance) const;
   // Whether the candidate differs from the calibration in use by more than refine_sigmas.
   bool outsideEstimate(const CameraImuCalibration& in_use, const CameraImuCalibration& estimate) const;
   // With offset_threshold, also when the offsets differ by more than refine_offset_s.
@@ -192,7 +209,29 @@ class OnlineCalibrationEstimator {
   // Kalman update of a random-walk filter; with `jumped`, a value further than jump_sigmas combined
   // sigmas sets *jumped and changes nothing (returns false).
   bool fuse(Filter& filter, double value, double sigma, double drift_per_s, double stamp_s, bool* jumped) const;
-  CalibrationData windowData(double begin_s, double end_s, double offset_s) const;
+  // The pairs of [begin_s, end_s] (not before window_floor_s_), each frame's stamp moved by the
+  // clock model's offset at it (along_model: the drift removed; `offset_s` before the model
+  // starts), else by `offset_s`.
+  CalibrationData windowData(double begin_s, double end_s, double offset_s, bool along_model) const;
+  // One window's fit and the checks of its result: false when it says nothing (counted, the
+  // reason in last_reason); *rejected names an interval too wide.
+  bool calibrateWindow(const CalibrationData& data, const CalibrationOptions& options, const std::string& label,
+                       CalibrationResult* result, std::string* rejected);
+  double shiftAt(double stamp_s, double offset_s) const;
+  // What a fit changes, kept to rewind an undone swap.
+  struct ModelState {
+    ClockOffsetFilter clock;
+    Filter readout;
+    Filter bias[3];
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d rotation_variance;
+    int last_permutation = -1;
+    bool any_accepted = false, mount_found = false;
+    int mount_permutation_index = -1;
+    double window_floor_s = -1e300;
+    CameraImuCalibration estimate, in_use;
+  };
+  ModelState modelState() const;
   double gyroEnd() const;
   bool withinBudget() const;
 
@@ -202,7 +241,9 @@ class OnlineCalibrationEstimator {
   std::deque<ImuSample> gyro_;
   double new_pairs_s_ = 0.0;  // of pairs since the last fit
   double last_pair_stamp_s_ = -1e300;
-  OffsetFilter offset_;
+  ClockOffsetFilter clock_;
+  double window_floor_s_ = -1e300;  // camera clock: pairs before it are not fitted (before a jump)
+  double last_fit_end_s_ = -1e300;  // the last accepted window's end (its overlap with the next)
   Filter readout_;
   Filter bias_[3];
   Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
@@ -214,10 +255,17 @@ class OnlineCalibrationEstimator {
   CameraImuCalibration candidate_;
   double candidate_rate_ = 0.0;  // the offset filter's drift rate with it (s/s)
   double candidate_after_s_ = 0.0;
+  ModelState candidate_before_;  // before the fit that offered the candidate
+  struct Remembered {
+    std::uint64_t version = 0;  // the version the swap made
+    ModelState before;
+  };
+  std::deque<Remembered> swaps_;  // the last kRememberedSwaps, oldest first
   OnlineCalibrationStatus status_;
   double credit_s_ = 0.0;          // CPU seconds the budget allows now
   double last_work_cpu_s_ = 0.0;   // what the last fit cost
   bool budget_said_ = false;       // the due fit waiting for credit was counted
+  double work_started_cpu_s_ = 0.0;  // thread CPU clock when the current update() began
 };
 
 }  // namespace deep_ois

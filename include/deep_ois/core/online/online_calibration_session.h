@@ -5,7 +5,8 @@
 // (the shifts the compensation used; none while it fell back to the plain gyro), goes through
 // DelayedCalibrationFeed into the OnlineCalibrationEstimator, and a calibration the estimator
 // offers is put on trial (ConfirmedState): each later pair is scored with it, with the one it
-// replaced and with the session's start, until it is confirmed (persisted) or undone.
+// replaced and with the session's start, until it is confirmed (persisted) or undone; an undo also
+// rewinds the estimator to its state before the undone swap (rewindBeforeSwap).
 //
 // Not thread-safe: one caller (the tracking thread, a replay) owns it. Pure Eigen + OpenCV: no ROS.
 #pragma once
@@ -82,6 +83,7 @@ class OnlineCalibrationSession {
   CameraImuCalibration session_start_;
   std::string confirmation_;  // the last trial's verdict
   std::uint64_t estimator_version_ = 0;
+  std::uint64_t trial_first_version_ = 0;  // the estimator's version the trial's first swap made
   std::uint32_t applied_version_ = 0;
   std::size_t swaps_undone_ = 0, swaps_confirmed_ = 0, saves_failed_ = 0;
 };

@@ -16,6 +16,8 @@
 //   scheduled by the motion) -> stroke -> anti-windup -> quantiser -> transport delay ->
 //   actuator (order, slew limit, stiction, end stop) -> Hall sensor (nonlinearity, noise) -> lens.
 // Angles in degrees and rates in Hz in the design; pixels only once a focal length is given.
+// It runs as a model of the stabiliser stage library (designModel, stabiliser_design_runner.h):
+// these structs are what the generator draws and validates, the stages' values what runs.
 #pragma once
 
 #include <Eigen/Core>

@@ -1,15 +1,19 @@
 // A stabiliser design (core/sim/stabiliser_design.h) run over a gyro: its chain of stages at
 // kDesignPhysicsRateHz, from the camera-frame angular velocity to the lens shift.
 //
-// Two callers, one code path, as runStabiliser (stabiliser_lens_loop.h) for the hand-named
-// modules: the simulator's OisModel runs it on the true motion with the stabiliser's own gyro and
-// Hall noise (ois.design_seed), and its oracle (StabiliserOracle) runs it on a camera's gyro.
+// A design is a stabiliser model (core/ois/stabiliser_model.h) of the stage library's sampled
+// controller stages (gyro_loop, motion_mode, intended_motion, travel, hall_actuator), and runs
+// through the same chain of stage runners as the model's predictor: saved as a model file, it
+// predicts its own lens. Two callers: the simulator's OisModel runs it on the true motion with the
+// stabiliser's own gyro and Hall noise (ois.design_seed), and its oracle (StabiliserOracle) runs it
+// on a camera's gyro.
 #pragma once
 
 #include <Eigen/Core>
 #include <functional>
 #include <random>
 
+#include "deep_ois/core/ois/stabiliser_model.h"
 #include "deep_ois/core/sim/lens_shift_grid.h"
 #include "deep_ois/core/sim/stabiliser_design.h"
 
@@ -24,6 +28,10 @@ namespace sim {
 // turned by design.mount. `noise`: per step, the Hall reading's white noise (hall.noise_px, drawn
 // only when not 0: x, y) and then the stabiliser gyro's (mount.noise_rad_s: x, y in the gyro's
 // frame, always drawn); null: none (the oracle).
+// The design as a model of the stage library, for the predictor's step of 1 / kDesignPhysicsRateHz
+// (its lens then equals runDesign's without noise).
+StabiliserParameters designModel(const StabiliserDesign& design);
+
 LensShiftGrid runDesign(const StabiliserDesign& design, double focal_px, double start_s, int steps,
                         const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s,
                         std::mt19937* noise);

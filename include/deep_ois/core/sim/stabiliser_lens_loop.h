@@ -6,6 +6,12 @@
 // stabiliser's own gyro noise and Hall noise; the oracle (stabiliser_oracle.h) runs the same
 // design on a camera's recorded gyro, to say what the best model of that design could do with the
 // camera's IMU.
+//
+// Not yet built from the stabiliser stage library, as the generated designs are (runDesign,
+// stabiliser_design_runner.h): the modules' controller (a high-pass on the step's mean rate with pan
+// detection on the rate's norm, a Kalman filter with a manoeuvre gate, excursion re-centring on the
+// angle), their quantiser in degrees and the PI position loop have no stage of the same behaviour.
+// test_sim's StabiliserLensGolden.CommittedModules pins this chain's lens for when they move.
 #pragma once
 
 #include <Eigen/Core>

@@ -82,6 +82,10 @@ std::vector<FeatureMatch> trackFeatures(const cv::Mat& gray_a, const cv::Mat& gr
                                         const KltOptions& options,
                                         std::vector<TrackStatus>* status = nullptr);
 
+// An 8-bit single-channel view (or copy) of a frame of 1, 3 or 4 channels (RGB or BGR), 8 or 16 bit
+// (16 bit scaled by 1/256). Throws std::invalid_argument for another depth.
+cv::Mat toGray8(const cv::Mat& image);
+
 // Detection in frame a followed by tracking into frame b, with fixed options. Stateless apart
 // from its options, so one instance can serve several threads.
 class FeatureTracker {
@@ -91,6 +95,10 @@ class FeatureTracker {
   FeatureTracker(const CornerDetectorOptions& detector, const KltOptions& klt);
 
   std::vector<FeatureMatch> match(const cv::Mat& gray_a, const cv::Mat& gray_b) const;
+  // match() on copies reduced to at most `max_width_px` wide (INTER_AREA; frames no wider are used
+  // as they are), the tracks scaled back to the frames' pixels: the live pipeline's tracking, cheap
+  // at any resolution. Frames as toGray8() takes them.
+  std::vector<FeatureMatch> matchAtWidth(const cv::Mat& frame_a, const cv::Mat& frame_b, int max_width_px) const;
 
   const CornerDetectorOptions& detectorOptions() const { return detector_; }
   const KltOptions& kltOptions() const { return klt_; }

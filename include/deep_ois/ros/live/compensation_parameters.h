@@ -65,6 +65,9 @@ struct CompensationParameters {
   // (a test kills the process during it); 0 in normal use
   double learning_test_write_pause_s = 0.0;
   bool fallback_to_gyro = true;          // ~fallback_to_gyro: publish the plain gyro while the model does worse
+  // ~fusion: a stabiliser model's motion refined per pair by the pair's tracks (core/fusion/
+  // fused_motion.h; docs/fusion.md). Off by default: the output stays the model's.
+  bool fusion = false;
 
   // Online camera-IMU calibration (core/online/online_calibration_estimator.h, fed from the
   // learner's tracks; ros/live/online_calibration_ros.h). ~online_calibration: on by default, so a

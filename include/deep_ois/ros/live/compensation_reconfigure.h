@@ -21,6 +21,7 @@ struct CompensationLiveParameters {
   double max_wait_s = 1.0;         // wall time a gyro flow waits for its frames
   bool learning = true;            // online learning of the stabiliser model on or off
   double learning_cpu_share = 0.3; // its average CPU, share of one core, (0, 1]
+  bool fusion = false;             // a stabiliser model's motion refined by the tracks (docs/fusion.md)
 };
 
 // Empty when `config` is valid (and copied into `params`); otherwise a sentence naming the bad

@@ -17,6 +17,7 @@
 #include "deep_ois/core/flow/backward_map.h"
 #include "deep_ois/core/flow/patch_homography_map.h"
 #include "deep_ois/core/common/drop_tally.h"
+#include "deep_ois/core/common/output_shedding.h"
 #include "deep_ois/core/common/stamp_clock_check.h"
 #include "deep_ois/core/ois/compensation_method.h"
 #include "deep_ois/core/flow/flow_frame_matcher.h"
@@ -97,6 +98,12 @@ class CompensationRos {
   void observeOnly(const GyroFlow& gyro);
   // Says once that the stabiliser model restarted because time went back by `back_s` (> 0).
   void sayTimeJump(const GyroFlow& gyro, double back_s);
+  // Says (once per change, and in /diagnostics) that the flows' calibration changed and the
+  // stabiliser model carried its state across it (GyroFlow.calibration_epoch).
+  void sayCalibrationChange(const GyroFlow& gyro);
+  // Says (throttled, and in /diagnostics) what is shed under overload now that the shedding level
+  // moved from `shed_before` outputs; `lag_s`: the pair's lag that moved it.
+  void sayShedding(double lag_s, std::size_t shed_before);
   // Processing delay of the pair ending at `stamp_b` beyond the smallest seen, seconds.
   double lagS(const ros::Time& stamp_b);
   // The throttled warning of everything dropped since the last one.
@@ -110,6 +117,12 @@ class CompensationRos {
                                                        const sensor_msgs::ImageConstPtr& image_b,
                                                        const std::vector<Eigen::Matrix3d>& gyro_homographies,
                                                        const cv::Mat& gyro_flow);
+  // ~fusion: the pair's tracks (frames at ~learning_tracking_width) into `tracks` and the fusion's
+  // inputs; none (counted, said) when the frames cannot be tracked. Timed for /diagnostics.
+  std::optional<PairFusion> fusionFor(const sensor_msgs::ImageConstPtr& image_a,
+                                      const sensor_msgs::ImageConstPtr& image_b, std::vector<FeatureMatch>& tracks);
+  // Counts a fused pair (refined or prior kept) and updates its /diagnostics.
+  void countFusion(const StabiliserFlowResult& result, double compensate_s);
   std::optional<CompensatedMotion> withNetwork(const GyroFlow& gyro, const cv::Mat& gyro_flow);
   // Says once (per timeline) when the stamps on `topic` are far from ROS time (use_sim_time).
   void checkStampClock(const ros::Time& stamp, const std::string& topic);
@@ -134,6 +147,14 @@ class CompensationRos {
   std::unique_ptr<StabiliserFlowCompensator> stabiliser_;
   // With a stabiliser model: the per-pair checks, the fallback and the online learning.
   std::unique_ptr<OnlineLearningRos> learning_;
+  // ~fusion: the tracker (the learner's options) and the counts for /diagnostics.
+  FeatureTracker fusion_tracker_{OnlineLearningOptions::learningCorners(), OnlineLearningOptions::learningKlt()};
+  FusionOptions fusion_options_;
+  struct FusionCounts {
+    std::size_t pairs = 0, refined = 0, failed = 0, untracked = 0;
+    double correction_sum_px = 0.0;       // over the refined pairs
+    double tracking_s = 0.0, compensate_s = 0.0;  // wall time, summed over the fused pairs
+  } fusion_counts_;
   // The model's camera against the stream's, checked on the first flow (and when the camera
   // changes): empty when they match, else the difference.
   std::string camera_check_;
@@ -156,6 +177,9 @@ class CompensationRos {
 
   Matcher matcher_;
   DropTally drops_;                  // gyro flows without an output, by reason
+  // Graceful overload: the optional outputs (colour, aligned frame, ghost) left out of late pairs,
+  // costliest first by their measured wall time, before a pair is dropped by ~max_lag.
+  OutputShedding shedding_;
   ros::WallTime last_drop_report_;
   std::optional<ros::Time> last_flow_stamp_;  // frame b of the last gyro flow received
   std::optional<double> min_delay_s_;         // smallest handling delay seen (see ~max_lag)
@@ -163,6 +187,7 @@ class CompensationRos {
   StampClockCheck stamp_clock_;               // input stamps against ROS time
   std::size_t errors_ = 0;  // exceptions caught at the callbacks
   std::size_t published_ = 0;
+  int calibration_changes_said_ = 0, calibration_restarts_said_ = 0;  // stabiliser model, said so far
   std::size_t ghosts_not_drawn_ = 0;  // pairs with an output whose ghost could not be drawn
   std::unique_ptr<LiveDiagnostics> diagnostics_;  // /diagnostics: rates, drops, latency, model
   std::unique_ptr<CompensationReconfigure> reconfigure_;

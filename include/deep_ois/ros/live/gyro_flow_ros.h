@@ -13,6 +13,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <cstdint>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -23,9 +24,9 @@
 #include "deep_ois/core/common/drop_tally.h"
 #include "deep_ois/core/common/stamp_clock_check.h"
 #include "deep_ois/core/gyro/frame_pair_rules.h"
-#include "deep_ois/core/flow/homography_flow.h"
 #include "deep_ois/core/gyro/imu_sample_buffer.h"
 #include "deep_ois/core/ois/lens_shift_log.h"
+#include "deep_ois/core/pipeline/frame_pair_processor.h"
 #include "deep_ois/ros/live/gyro_flow_parameters.h"
 #include "deep_ois/ros/live/flow_image_publisher.h"
 #include "deep_ois/ros/live/gyro_flow_reconfigure.h"
@@ -85,11 +86,10 @@ class GyroFlowRos {
   // Publishes the gyro flow from previous_ to `frame`; false when IMU data is not there yet.
   enum class Outcome { kPublished, kWaitForImu, kWaitForLensLog, kWaitForTransform, kDropped };
   Outcome processFrame(const Frame& frame);
-  // The pair's homographies from the lens log when it covers the pair (true), else false after
-  // counting and warning (throttled) why the pair falls back to the gyro alone.
-  bool lensLogHomographiesFor(const Frame& previous, const Frame& frame, const RollingShutterConfig& config,
-                              const std::vector<Eigen::Matrix3d>& rotations,
-                              std::vector<Eigen::Matrix3d>& homographies);
+  // Counts a pair given the lens log: with it (older samples then dropped), or without it, with
+  // a throttled warning saying why the pair fell back to the gyro alone.
+  void countLensLogUse(const Frame& previous, const Frame& frame, const RollingShutterConfig& config,
+                       const FramePairMotion& motion);
   // Counts a frame pair that gives no flow, with the reason (also the watchdog's latest problem).
   void skipPair(const std::string& reason);
   // The throttled warning of every pair skipped since the last one.
@@ -141,7 +141,9 @@ class GyroFlowRos {
   std::size_t lens_log_pairs_ = 0;    // pairs published with the lens log since start
   std::size_t lens_fallback_pairs_ = 0;  // pairs with a log that did not cover them (gyro alone)
   std::optional<Frame> previous_;
-  std::unique_ptr<HomographyFlowRenderer> renderer_;  // rebuilt when camera or grid changes
+  // The per-pair recipe (no stabiliser model here: the gyro, or the lens log where it covers the
+  // pair), with the flow renderer it keeps per camera and grid.
+  FramePairProcessor processor_;
   std::optional<Eigen::Matrix3d> cached_rotation_;     // tf rotation for cached_rotation_frames_
   std::string cached_rotation_frames_;
   ros::Time last_ros_time_;
@@ -163,6 +165,8 @@ class GyroFlowRos {
   ros::Time last_imu_arrival_;  // ROS time the latest IMU message was handled
   std::size_t frames_received_ = 0;
   std::size_t flows_published_ = 0;
+  // GyroFlow.calibration_epoch: +1 per change of the calibration in use (reconfigure or online).
+  std::uint32_t calibration_epoch_ = 0;
   std::size_t imu_in_window_ = 0, frames_in_window_ = 0, flows_in_window_ = 0;
   std::string window_problem_;          // the latest reason a pair gave no flow in the window
   bool input_stopped_reported_ = false;  // said once when the input stops, until it resumes

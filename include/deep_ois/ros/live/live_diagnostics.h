@@ -51,12 +51,15 @@ class LiveDiagnostics {
   // The input stamps disagree with ROS time (StampClockCheck::describe(); empty: they agree).
   // While set, the latency figures are replaced by this text and the status is a warning.
   void setClockProblem(const std::string& problem);
+  // Seconds between two statuses (~diagnostic_period).
+  double periodS() const { return period_s_; }
 
  private:
   void report(diagnostic_updater::DiagnosticStatusWrapper& status);
   void timerCallback(const ros::WallTimerEvent&);
 
   std::mutex mutex_;
+  double period_s_ = 1.0;
   std::vector<std::string> streams_;
   std::string output_stream_;
   std::map<std::string, std::size_t> window_ticks_, total_ticks_;

@@ -16,8 +16,11 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 
+#include <deque>
 #include <functional>
+#include <optional>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "deep_ois/core/online/online_stabiliser_learner.h"
@@ -40,6 +43,9 @@ class OnlineLearningRos {
   OnlineLearningRos(ros::NodeHandle nh, const CompensationParameters& params, StabiliserModelFile shipped,
                     LiveDiagnostics& diagnostics, const std::string& log_name,
                     std::function<void()> on_check_subscribers = {});
+  ~OnlineLearningRos();
+  OnlineLearningRos(const OnlineLearningRos&) = delete;
+  OnlineLearningRos& operator=(const OnlineLearningRos&) = delete;
 
   // Whether compensation_check has a subscriber.
   bool checksWanted() const { return check_pub_.getNumSubscribers() > 0; }
@@ -49,9 +55,16 @@ class OnlineLearningRos {
   void beforePair(const GyroFlow& gyro, StabiliserFlowCompensator& compensator);
   // After: hands the pair to the learner (dropped and counted when it is busy), publishes the
   // checks made since, updates /diagnostics. `gyro_homographies`: the plain gyro's per patch.
+  // `tracks`: the pair's tracks when the caller made them (the fusion), handed to the learner
+  // instead of the frames being tracked again. A fused pair is checked on its prior (the model's).
   void afterPair(const GyroFlow& gyro, const sensor_msgs::ImageConstPtr& image_a,
                  const sensor_msgs::ImageConstPtr& image_b, const StabiliserFlowResult& result,
-                 const std::vector<Eigen::Matrix3d>& gyro_homographies);
+                 const std::vector<Eigen::Matrix3d>& gyro_homographies,
+                 const std::vector<FeatureMatch>* tracks = nullptr);
+  // The median model residual of the last usable per-pair checks (up to kRecentChecks), pixels:
+  // the fusion's prior sigma. None before the first.
+  std::optional<double> recentModelResidualPx() const;
+  static constexpr std::size_t kRecentChecks = 10;
   // Whether the plain gyro should be published instead of the model (~fallback_to_gyro and the
   // checks' hysteresis).
   bool fallingBack() const;
@@ -63,7 +76,13 @@ class OnlineLearningRos {
 
  private:
   void startFor(const GyroFlow& gyro);
-  void updateDiagnostics();
+  void updateDiagnostics();         // with mutex_ held
+  bool fallingBackLocked() const;  // with mutex_ held
+
+  // The pair callbacks and the /diagnostics timer run on the manager's worker threads: one lock
+  // for the learner (made anew per camera) and the counts said in the log.
+  mutable std::mutex mutex_;
+  ros::WallTimer diagnostics_timer_;
 
   ros::NodeHandle nh_;
   CompensationParameters params_;
@@ -78,6 +97,7 @@ class OnlineLearningRos {
   std::string frame_id_;
   std::uint64_t version_in_use_ = 0;
   std::size_t pairs_ = 0;
+  std::deque<double> recent_model_residuals_px_;  // usable checks' model residuals, newest last
   std::size_t untrackable_ = 0;  // frames of an encoding the tracker cannot read (counted)
   // The learner's verdicts and replayed data already said in the log (each said once).
   std::size_t verdicts_logged_ = 0;

@@ -9,6 +9,7 @@
 #include <sensor_msgs/Imu.h>
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -47,6 +48,7 @@ struct GyroFlowMetadata {
   std::string distortion_model;
   std::vector<double> distortion;  // CameraInfo D as received
   RollingShutterConfig rolling_shutter;
+  std::uint32_t calibration_epoch = 0;  // GyroFlow.calibration_epoch: +1 per calibration change
   // The gyro stream behind the pair (GyroFlow.angular_velocity*): camera-frame rates, stamps in
   // IMU-clock seconds relative to header.stamp.
   std::vector<CameraRateSample> camera_rates;

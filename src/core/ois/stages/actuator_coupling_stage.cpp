@@ -7,25 +7,39 @@
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
 namespace {
 
 bool coupled(const StabiliserParameters& p) { return !p.actuator_coupling.isZero(0.0); }
 
+// The actuator's axes to the image's (after the stroke: a coupled lens can leave the box).
+class ActuatorCouplingRunner final : public StabiliserStageRunner {
+ public:
+  ActuatorCouplingRunner(const StabiliserParameters& p, const StabiliserRunContext&)
+      : coupling_(p.actuator_coupling) {}
+  void reset(StabiliserSignal&) override {}
+  void advance(StabiliserSignal& signal) override {
+    Eigen::Vector2d& shift = signal.lens_px;
+    shift += Eigen::Vector2d(coupling_.x() * shift.y(), coupling_.y() * shift.x());
+  }
+
+ private:
+  Eigen::Vector2d coupling_;  // (c_xy, c_yx)
+};
+
 }  // namespace
 
 const StabiliserStage& actuatorCouplingStage() {
   static const StabiliserStage stage{
-      "actuator coupling",
+      "actuator_coupling",
       "the image shift mixes the actuator's axes: (a_x + c_xy a_y, a_y + c_yx a_x); 0 = none",
       true,
       {{"actuator_coupling", "actuator coupling c_xy", "", false, -0.5, 0.5, 1e-4,
-        stabiliser_mechanism::kActuatorCoupling,
         [](const StabiliserParameters& p) { return p.actuator_coupling.x(); },
         [](StabiliserParameters* p, double value) { p->actuator_coupling.x() = value; }, coupled},
        {"actuator_coupling", "actuator coupling c_yx", "", false, -0.5, 0.5, 1e-4,
-        stabiliser_mechanism::kActuatorCoupling,
         [](const StabiliserParameters& p) { return p.actuator_coupling.y(); },
         [](StabiliserParameters* p, double value) { p->actuator_coupling.y() = value; }, coupled}},
       {"actuator_coupling"},
@@ -49,7 +63,13 @@ const StabiliserStage& actuatorCouplingStage() {
               << p.actuator_coupling.y() << ")";
         return why.str();
       },
-      nullptr};
+      nullptr,
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return coupled(p) ? stage_numerics::runner<ActuatorCouplingRunner>(p, context) : nullptr;
+      },
+      [](const StabiliserParameters& p) { return std::string(coupled(p) ? "actuator_coupling" : ""); },
+      // Starts at none: the chain itself, its gain then mapping into the stroke's axes.
+      [](StabiliserParameters* p, const char*) { p->actuator_coupling.setZero(); }};
   return stage;
 }
 

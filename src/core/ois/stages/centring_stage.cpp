@@ -8,9 +8,47 @@
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
 namespace {
+
+// Integrates the pan/tilt rate into the angle, leaking back with the corner (or as the stages
+// before it decided), and commands f * gain * tan(angle).
+class CentringRunner final : public StabiliserStageRunner {
+ public:
+  CentringRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : corner_rad_s_(2.0 * stage_numerics::kPi * p.highpass_corner_hz),
+        step_s_(context.step_s),
+        decay_(stage_numerics::leakDecay(corner_rad_s_, step_s_)),
+        weight_(stage_numerics::leakWeight(corner_rad_s_, step_s_)),
+        gain_(p.gain),
+        focal_px_(context.focal_px) {}
+  void reset(StabiliserSignal& signal) override { signal.angle_rad.setZero(); }
+  void advance(StabiliserSignal& signal) override {
+    using stage_numerics::leakDecay;
+    using stage_numerics::leakWeight;
+    const Eigen::Vector2d pan_tilt = signal.rate_rad_s.head<2>();
+    Eigen::Vector2d& theta = signal.angle_rad;
+    if (signal.released) {
+      theta = signal.release_decay * theta + signal.release_weight * pan_tilt;
+    } else if (signal.corner_scale != 1.0) {
+      const double corner = corner_rad_s_ * signal.corner_scale;
+      theta = leakDecay(corner, step_s_) * theta + leakWeight(corner, step_s_) * pan_tilt;
+    } else {
+      theta = decay_ * theta + weight_ * pan_tilt;
+    }
+    signal.raw_command_px =
+        focal_px_ * (gain_ * Eigen::Vector2d(std::tan(theta.x()), std::tan(theta.y())));
+    // Until a stroke or an actuator after it acts.
+    signal.command_px = signal.lens_px = signal.raw_command_px;
+  }
+
+ private:
+  double corner_rad_s_, step_s_, decay_, weight_;
+  Eigen::Matrix2d gain_;
+  double focal_px_;
+};
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -24,7 +62,6 @@ FittedStabiliserParameter gainEntry(const char* name) {
           -kInf,
           kInf,
           1e-4,
-          "",
           [](const StabiliserParameters& p) { return p.gain(kRow, kCol); },
           [](StabiliserParameters* p, double value) { p->gain(kRow, kCol) = value; },
           nullptr};
@@ -40,7 +77,7 @@ const StabiliserStage& centringStage() {
       true,
       {gainEntry<0, 0>("gain_xx"), gainEntry<0, 1>("gain_xy"), gainEntry<1, 0>("gain_yx"),
        gainEntry<1, 1>("gain_yy"),
-       {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3, "",
+       {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3,
         [](const StabiliserParameters& p) { return p.highpass_corner_hz; },
         [](StabiliserParameters* p, double value) { p->highpass_corner_hz = value; }, nullptr}},
       {"gain", "highpass_corner_hz"},
@@ -65,7 +102,9 @@ const StabiliserStage& centringStage() {
         }
         return why.str();
       },
-      nullptr};
+      nullptr,
+      stage_numerics::runner<CentringRunner>,
+      [](const StabiliserParameters&) { return std::string("centring"); }, nullptr};
   return stage;
 }
 

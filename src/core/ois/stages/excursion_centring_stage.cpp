@@ -2,22 +2,45 @@
 // the stroke, corner * (1 + k e^2) (a stabiliser that pulls back harder near its end stop).
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
+namespace {
+
+// Excursions beyond this many strokes are not weighted further (keeps the corner bounded when a
+// badly fitted stroke is small).
+constexpr double kMaxExcursion = 3.0;
+
+// Scales the centring's corner by the last step's excursion (unless a pan releases it).
+class ExcursionCentringRunner final : public StabiliserStageRunner {
+ public:
+  ExcursionCentringRunner(const StabiliserParameters& p, const StabiliserRunContext&)
+      : k_(p.excursion_centring) {}
+  void reset(StabiliserSignal& signal) override { signal.corner_scale = 1.0; }
+  void advance(StabiliserSignal& signal) override {
+    signal.corner_scale =
+        signal.released ? 1.0 : 1.0 + k_ * std::min(signal.excursion_sq, kMaxExcursion * kMaxExcursion);
+  }
+
+ private:
+  double k_;
+};
+
+}  // namespace
 
 const StabiliserStage& excursionCentringStage() {
   static const StabiliserStage stage{
-      "excursion re-centring",
+      "excursion_centring",
       "the centring corner grows with the command's excursion e against the stroke: corner * (1 + "
       "k e^2); k = 0 is a fixed corner",
       true,
       {{"excursion_centring", "excursion-dependent re-centring", "", true, 1e-3, 100.0, 1e-3,
-        stabiliser_mechanism::kExcursionCentring,
         [](const StabiliserParameters& p) { return p.excursion_centring; },
         [](StabiliserParameters* p, double value) { p->excursion_centring = value; },
         [](const StabiliserParameters& p) { return p.excursion_centring > 0.0; }}},
@@ -37,7 +60,17 @@ const StabiliserStage& excursionCentringStage() {
           why << "excursion_centring: must be >= 0, 0 = off (got " << p.excursion_centring << ")";
         return why.str();
       },
-      nullptr};
+      nullptr,
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return p.excursion_centring > 0.0
+                   ? stage_numerics::runner<ExcursionCentringRunner>(p, context)
+                   : nullptr;
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.excursion_centring > 0.0 ? "excursion_centring" : "");
+      },
+      // Starts from k = 1 (its fit's bound 0.001 is named when it wants none).
+      [](StabiliserParameters* p, const char* variant) { p->excursion_centring = variant ? 1.0 : 0.0; }};
   return stage;
 }
 

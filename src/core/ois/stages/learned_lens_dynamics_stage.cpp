@@ -3,16 +3,78 @@
 // chain's. The file embeds the network, so a model file stands alone.
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
+namespace {
+
+// Runs the network at its own step (a whole number of internal steps, reading the rate there);
+// in between, its lens is extrapolated from its last two outputs.
+class LearnedLensDynamicsRunner final : public StabiliserStageRunner {
+ public:
+  LearnedLensDynamicsRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : learned_(p.learned_dynamics),
+        runner_(p.learned_dynamics.network, p.learned_dynamics.conditioning),
+        focal_px_(context.focal_px) {
+    const double network_step_s = learned_.network->step_s;
+    every_steps_ = std::llround(network_step_s / context.step_s);
+    if (every_steps_ < 1 ||
+        std::abs(static_cast<double>(every_steps_) * context.step_s - network_step_s) > 1e-9)
+      throw std::invalid_argument("stabiliser model: the learned dynamics' step (" +
+                                  std::to_string(network_step_s) +
+                                  " s) must be a whole number of the predictor's steps (" +
+                                  std::to_string(context.step_s) + " s)");
+    skip_ = learned_.network->w_skip.size() != 0;
+  }
+  void reset(StabiliserSignal& signal) override {
+    runner_.reset();
+    last_.setZero();
+    before_.setZero();
+    hidden_last_ = hidden_before_ =
+        Eigen::VectorXd::Zero(runner_.state().size() + (skip_ ? runner_.inputs().size() : 0));
+    signal.learned_state = hidden_last_;
+  }
+  void advance(StabiliserSignal& signal) override {
+    const long long since = signal.step_index % every_steps_;
+    if (since == 0) {
+      before_ = last_;
+      last_ = learned_.output_map * runner_.step(signal.end_rate_rad_s);
+      if (signal.want_learned_state) {
+        // The state the layer reads: the hidden vector, then the skip path's inputs.
+        hidden_before_ = hidden_last_;
+        hidden_last_.resize(runner_.state().size() + (skip_ ? runner_.inputs().size() : 0));
+        hidden_last_.head(runner_.state().size()) = runner_.state();
+        if (skip_) hidden_last_.tail(runner_.inputs().size()) = runner_.inputs();
+      }
+    }
+    const double fraction = static_cast<double>(since) / static_cast<double>(every_steps_);
+    signal.lens_px += focal_px_ * (last_ + fraction * (last_ - before_));
+    if (signal.want_learned_state)
+      signal.learned_state = hidden_last_ + fraction * (hidden_last_ - hidden_before_);
+  }
+
+ private:
+  LearnedLensDynamics learned_;
+  LensDynamicsRunner runner_;
+  double focal_px_;
+  long long every_steps_ = 1;
+  bool skip_ = false;
+  // Its last two outputs (focal units, through the output map) and states.
+  Eigen::Vector2d last_ = Eigen::Vector2d::Zero(), before_ = Eigen::Vector2d::Zero();
+  Eigen::VectorXd hidden_last_, hidden_before_;
+};
+
+}  // namespace
 
 const StabiliserStage& learnedLensDynamicsStage() {
   static const StabiliserStage stage{
-      "learned lens dynamics",
+      "learned_lens_dynamics",
       "a recurrent network pretrained on generated stabiliser designs, conditioned on the "
       "camera's vector; its lens (focal units, through a 2 x 2 output map) is added to the chain's",
       false,
@@ -67,7 +129,16 @@ const StabiliserStage& learnedLensDynamicsStage() {
         }
         return why.str();
       },
-      [](StabiliserParameters* p) { p->learned_dynamics = LearnedLensDynamics(); }};
+      [](StabiliserParameters* p) { p->learned_dynamics = LearnedLensDynamics(); },
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return p.learned_dynamics.active()
+                   ? stage_numerics::runner<LearnedLensDynamicsRunner>(p, context)
+                   : nullptr;
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.learned_dynamics.active() ? "learned_lens_dynamics" : "");
+      },
+      nullptr};
   return stage;
 }
 

@@ -7,12 +7,47 @@
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
+namespace {
+
+// Adds residual * (the leaky rate integrals) to the lens.
+class LinearResidualRunner final : public StabiliserStageRunner {
+ public:
+  LinearResidualRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : residual_(p.residual), focal_px_(context.focal_px) {
+    for (double tau : p.residual_time_constants_s) {
+      decay_.push_back(stage_numerics::leakDecay(1.0 / tau, context.step_s));
+      weight_.push_back(stage_numerics::leakWeight(1.0 / tau, context.step_s));
+    }
+    features_.resize(2 * static_cast<long>(decay_.size()));
+  }
+  void reset(StabiliserSignal&) override { state_.assign(decay_.size(), Eigen::Vector2d::Zero()); }
+  void advance(StabiliserSignal& signal) override {
+    const Eigen::Vector2d pan_tilt = signal.rate_rad_s.head<2>();
+    const std::size_t k_count = state_.size();
+    for (std::size_t k = 0; k < k_count; ++k) {
+      state_[k] = decay_[k] * state_[k] + weight_[k] * pan_tilt;
+      features_(static_cast<long>(k)) = state_[k].x();
+      features_(static_cast<long>(k_count + k)) = state_[k].y();
+    }
+    if (residual_.size() != 0) signal.lens_px += focal_px_ * (residual_ * features_);
+  }
+
+ private:
+  Eigen::MatrixXd residual_;
+  double focal_px_;
+  std::vector<double> decay_, weight_;
+  std::vector<Eigen::Vector2d> state_;  // per time constant, (x, y) leaky rate integral
+  Eigen::VectorXd features_;            // x's then y's
+};
+
+}  // namespace
 
 const StabiliserStage& linearResidualStage() {
   static const StabiliserStage stage{
-      "linear residual",
+      "linear_residual",
       "adds a linear map (2 x 2K, unitless) of K leaky integrals of the pan/tilt rate to the lens "
       "(focal units): dynamics the chain does not name",
       false,
@@ -61,7 +96,16 @@ const StabiliserStage& linearResidualStage() {
       [](StabiliserParameters* p) {
         p->residual_time_constants_s.clear();
         p->residual.resize(0, 0);
-      }};
+      },
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return p.residual_time_constants_s.empty()
+                   ? nullptr
+                   : stage_numerics::runner<LinearResidualRunner>(p, context);
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.residual.size() != 0 ? "linear_residual" : "");
+      },
+      nullptr};
   return stage;
 }
 

@@ -9,17 +9,50 @@
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
+namespace {
+
+// Decides, before the centring runs, whether this step re-centres with the release corner.
+class PanDetectionRunner final : public StabiliserStageRunner {
+ public:
+  PanDetectionRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : threshold_rad_s_(p.pan_detection_rate_rad_s),
+        smoothing_(-std::expm1(-context.step_s / p.pan_detection_time_constant_s)),
+        release_decay_(stage_numerics::leakDecay(2.0 * stage_numerics::kPi * p.pan_release_corner_hz,
+                                                 context.step_s)),
+        release_weight_(stage_numerics::leakWeight(
+            2.0 * stage_numerics::kPi * p.pan_release_corner_hz, context.step_s)) {}
+  void reset(StabiliserSignal& signal) override {
+    smoothed_rate_ = 0.0;
+    panning_ = false;
+    signal.released = false;
+  }
+  void advance(StabiliserSignal& signal) override {
+    smoothed_rate_ += smoothing_ * (signal.rate_rad_s.head<2>().norm() - smoothed_rate_);
+    if (!panning_ && smoothed_rate_ > threshold_rad_s_) panning_ = true;
+    if (panning_ && smoothed_rate_ < 0.7 * threshold_rad_s_) panning_ = false;
+    signal.released = panning_;
+    signal.release_decay = release_decay_;
+    signal.release_weight = release_weight_;
+  }
+
+ private:
+  double threshold_rad_s_, smoothing_, release_decay_, release_weight_;
+  double smoothed_rate_ = 0.0;  // low-passed |pan/tilt rate|, rad/s
+  bool panning_ = false;
+};
+
+}  // namespace
 
 const StabiliserStage& panDetectionStage() {
   static const StabiliserStage stage{
-      "pan detection",
+      "pan_detection",
       "while the low-passed pan/tilt rate exceeds the threshold (0 = off) the angle re-centres "
       "with the release corner; below 0.7 x the threshold it holds again",
       true,
       {{"pan_release_corner_hz", "pan release corner", "Hz", true, 0.05, 100.0, 1e-3,
-        stabiliser_mechanism::kPanDetection,
         [](const StabiliserParameters& p) { return p.pan_release_corner_hz; },
         [](StabiliserParameters* p, double value) { p->pan_release_corner_hz = value; },
         [](const StabiliserParameters& p) { return p.pan_detection_rate_rad_s > 0.0; }}},
@@ -48,6 +81,14 @@ const StabiliserStage& panDetectionStage() {
           why << "pan_release_corner_hz: must be positive";
         }
         return why.str();
+      },
+      nullptr,
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return p.pan_detection_rate_rad_s > 0.0 ? stage_numerics::runner<PanDetectionRunner>(p, context)
+                                                : nullptr;
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.pan_detection_rate_rad_s > 0.0 ? "pan_detection" : "");
       },
       nullptr};
   return stage;

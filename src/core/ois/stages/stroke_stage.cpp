@@ -3,12 +3,83 @@
 // stroke)); with an end stop, an integrator that winds up beyond it or is held there (anti-windup).
 #include <yaml-cpp/yaml.h>
 
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
 
 namespace deep_ois {
+namespace {
+
+// The command the stroke lets through: per axis for a box, radially for an ellipse; an end stop
+// (the nearest point of the stroke) or, soft, stroke * tanh(command / stroke).
+Eigen::Vector2d limitToStroke(const Eigen::Vector2d& command, const Eigen::Vector2d& limit_px,
+                              bool circular, bool soft) {
+  if (soft && !circular) {
+    return Eigen::Vector2d(limit_px.x() * std::tanh(command.x() / limit_px.x()),
+                           limit_px.y() * std::tanh(command.y() / limit_px.y()));
+  }
+  if (soft) {
+    const double r = std::hypot(command.x() / limit_px.x(), command.y() / limit_px.y());
+    return r > 1e-12 ? Eigen::Vector2d(command * (std::tanh(r) / r)) : command;
+  }
+  if (!circular) {
+    return Eigen::Vector2d(std::clamp(command.x(), -limit_px.x(), limit_px.x()),
+                           std::clamp(command.y(), -limit_px.y(), limit_px.y()));
+  }
+  const double r = std::hypot(command.x() / limit_px.x(), command.y() / limit_px.y());
+  return r > 1.0 ? Eigen::Vector2d(command / r) : command;
+}
+
+// Limits the raw command; with anti-windup holds the angle where its command meets the stroke.
+class StrokeRunner final : public StabiliserStageRunner {
+ public:
+  StrokeRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : stroke_px_(stage_numerics::strokePx(p, context.focal_px)),
+        circular_(p.circular_stroke),
+        soft_(p.soft_stroke),
+        focal_px_(context.focal_px) {
+    // Anti-windup needs the angle that gives a limited command, through the centring's gain: with
+    // a gain that is not invertible (no lens motion, gain 0) there is none, and nothing winds up
+    // that the lens would show.
+    if (p.anti_windup) {
+      const double scale = p.gain.cwiseAbs().maxCoeff();
+      if (scale > 0.0 && std::abs(p.gain.determinant()) > 1e-6 * scale * scale) {
+        anti_windup_ = true;
+        inverse_gain_ = p.gain.inverse();
+      }
+    }
+  }
+  void reset(StabiliserSignal& signal) override { signal.excursion_sq = 0.0; }
+  void advance(StabiliserSignal& signal) override {
+    Eigen::Vector2d& raw_command = signal.raw_command_px;
+    signal.command_px = limitToStroke(raw_command, stroke_px_, circular_, soft_);
+    if (anti_windup_ && signal.command_px != raw_command) {
+      // Held at the end stop: the angle is the one whose command is the limited one.
+      const Eigen::Vector2d tangent = inverse_gain_ * (signal.command_px / focal_px_);
+      signal.angle_rad = Eigen::Vector2d(std::atan(tangent.x()), std::atan(tangent.y()));
+      raw_command = signal.command_px;
+    }
+    signal.excursion_sq = (raw_command.cwiseQuotient(stroke_px_)).squaredNorm();
+    signal.lens_px = signal.command_px;  // until an actuator after it moves the lens
+  }
+
+ private:
+  Eigen::Vector2d stroke_px_;
+  bool circular_, soft_;
+  double focal_px_;
+  bool anti_windup_ = false;
+  Eigen::Matrix2d inverse_gain_ = Eigen::Matrix2d::Zero();
+};
+
+}  // namespace
 
 const StabiliserStage& strokeStage() {
   static const StabiliserStage stage{
@@ -17,10 +88,10 @@ const StabiliserStage& strokeStage() {
       "it), at an end stop or softly (tanh); at an end stop the integrator winds up or is held "
       "(anti-windup)",
       true,
-      {{"stroke_x_deg", "stroke x", "deg", true, 0.02, 20.0, 1e-3, "",
+      {{"stroke_x_deg", "stroke x", "deg", true, 0.02, 20.0, 1e-3,
         [](const StabiliserParameters& p) { return p.stroke_x_deg; },
         [](StabiliserParameters* p, double value) { p->stroke_x_deg = value; }, nullptr},
-       {"stroke_y_deg", "stroke y", "deg", true, 0.02, 20.0, 1e-3, "",
+       {"stroke_y_deg", "stroke y", "deg", true, 0.02, 20.0, 1e-3,
         [](const StabiliserParameters& p) { return p.stroke_y_deg; },
         [](StabiliserParameters* p, double value) { p->stroke_y_deg = value; }, nullptr}},
       {"stroke_x_deg", "stroke_y_deg", "circular_stroke", "soft_stroke", "anti_windup"},
@@ -54,7 +125,18 @@ const StabiliserStage& strokeStage() {
         }
         return why.str();
       },
-      nullptr};
+      nullptr,
+      stage_numerics::runner<StrokeRunner>,
+      [](const StabiliserParameters& p) {
+        return std::string(p.soft_stroke ? "stroke:soft" : p.anti_windup ? "stroke:anti_windup" : "stroke");
+      },
+      [](StabiliserParameters* p, const char* variant) {
+        const std::string v = variant ? variant : "";
+        if (v != "" && v != "soft" && v != "anti_windup")
+          throw std::invalid_argument("stroke: no variant '" + v + "' (soft, anti_windup)");
+        p->soft_stroke = v == "soft";
+        p->anti_windup = v == "anti_windup";
+      }};
   return stage;
 }
 

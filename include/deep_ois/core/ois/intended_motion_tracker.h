@@ -3,13 +3,12 @@
 #include <Eigen/Core>
 
 namespace deep_ois {
-namespace sim {
 
 // The intended-motion estimator of a Kalman stabiliser, one axis: a constant-velocity path
 // (angle [rad], rate [rad/s]) under white acceleration of spectral density q, the shake as
 // measurement noise of density r = q / wn^4, which makes the steady filter a second-order tracker
 // of bandwidth wn (a critically damped-like second-order high-pass for the lens). Shared by the
-// simulator's Kalman module and the generated designs' Kalman estimator.
+// simulator's Kalman module and the intended_motion stage's Kalman estimator.
 struct IntendedMotionTrackerStep {
   double step_s = 0.0;
   double bandwidth_hz = 1.0;
@@ -26,5 +25,4 @@ struct IntendedMotionTrackerStep {
 void advanceIntendedMotion(const IntendedMotionTrackerStep& step, double integrated_angle_rad,
                            Eigen::Vector2d& intended, Eigen::Matrix2d& covariance);
 
-}  // namespace sim
 }  // namespace deep_ois

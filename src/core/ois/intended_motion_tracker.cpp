@@ -1,9 +1,8 @@
-#include "deep_ois/core/sim/intended_motion_tracker.h"
+#include "deep_ois/core/ois/intended_motion_tracker.h"
 
 #include <cmath>
 
 namespace deep_ois {
-namespace sim {
 
 void advanceIntendedMotion(const IntendedMotionTrackerStep& step, double integrated_angle_rad,
                            Eigen::Vector2d& intended, Eigen::Matrix2d& covariance) {
@@ -31,5 +30,4 @@ void advanceIntendedMotion(const IntendedMotionTrackerStep& step, double integra
   covariance = 0.5 * (P + P.transpose());
 }
 
-}  // namespace sim
 }  // namespace deep_ois

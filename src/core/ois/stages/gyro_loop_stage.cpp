@@ -1,0 +1,95 @@
+// The gyro-loop stage: the stabiliser's own gyro, turned against the camera (roll about the optical
+// axis, then small tilt and pan errors of the die: it sees part of the camera's roll as pan and
+// tilt), and a controller that samples it at its own rate (the newest sample or the mean over its
+// period) and holds its command in between. The first stage of a sampled controller
+// (motion_mode, intended_motion, travel and hall_actuator update only when it ticks).
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "deep_ois/core/ois/stabiliser_stage.h"
+#include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
+
+namespace deep_ois {
+namespace {
+
+stabiliser_file_fields::ValueFields fields(GyroLoopValues& v) {
+  return {{{"roll_deg", &v.roll_deg}, {"tilt_deg", &v.tilt_deg}, {"pan_deg", &v.pan_deg}, {"rate_hz", &v.rate_hz}},
+          {},
+          {{"averaged", &v.averaged}}};
+}
+
+class GyroLoopRunner final : public StabiliserStageRunner {
+ public:
+  GyroLoopRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : averaged_(p.gyro_loop->averaged), tick_(stage_numerics::controlTick(p, context)) {
+    using stage_numerics::kDegToRad;
+    const GyroLoopValues& v = *p.gyro_loop;
+    to_gyro_ = (Eigen::AngleAxisd(v.pan_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(v.tilt_deg * kDegToRad, Eigen::Vector3d::UnitX()) *
+                Eigen::AngleAxisd(v.roll_deg * kDegToRad, Eigen::Vector3d::UnitZ()))
+                   .toRotationMatrix()
+                   .transpose();
+  }
+  void reset(StabiliserSignal&) override { sum_rate_.setZero(); }
+  void advance(StabiliserSignal& signal) override {
+    // The gyro at the end of the step, in its own axes, with its noise (a simulator's).
+    const Eigen::Vector3d w = to_gyro_ * signal.end_rate_rad_s;
+    const Eigen::Vector2d measured = w.head<2>() + signal.gyro_noise_rad_s;
+    sum_rate_ += measured;
+    signal.control_tick = signal.step_index % tick_ == 0;
+    if (!signal.control_tick) return;
+    signal.sampled_rate_rad_s = averaged_ ? Eigen::Vector2d(sum_rate_ / static_cast<double>(tick_)) : measured;
+    sum_rate_.setZero();
+  }
+
+ private:
+  Eigen::Matrix3d to_gyro_;
+  bool averaged_;
+  long long tick_;
+  Eigen::Vector2d sum_rate_ = Eigen::Vector2d::Zero();
+};
+
+}  // namespace
+
+const StabiliserStage& gyroLoopStage() {
+  static const StabiliserStage stage{
+      "gyro_loop",
+      "the stabiliser's gyro turned against the camera (roll, tilt, pan, deg) and sampled by a "
+      "controller at rate_hz (newest sample or averaged), its command held in between",
+      true,
+      {},
+      {"gyro_loop"},
+      [](YAML::Emitter& out, const StabiliserParameters& p) {
+        if (!p.gyro_loop) return;  // optional: files without it load without the stage
+        GyroLoopValues v = *p.gyro_loop;
+        stabiliser_file_fields::writeValueMap(out, "gyro_loop", fields(v));
+      },
+      [](const YAML::Node& s, StabiliserParameters* p) {
+        GyroLoopValues v;
+        if (stabiliser_file_fields::readValueMap(s, "gyro_loop", fields(v))) p->gyro_loop = v;
+      },
+      [](const StabiliserParameters& p) {
+        std::ostringstream why;
+        if (!p.gyro_loop) return why.str();
+        const GyroLoopValues& v = *p.gyro_loop;
+        if (!(std::abs(v.roll_deg) <= 45.0 && std::abs(v.tilt_deg) <= 45.0 && std::abs(v.pan_deg) <= 45.0))
+          why << "gyro_loop: roll_deg, tilt_deg and pan_deg must be within +-45";
+        else if (!(v.rate_hz > 0.0 && v.rate_hz < 1e6))
+          why << "gyro_loop.rate_hz: must be positive (got " << v.rate_hz << ")";
+        return why.str();
+      },
+      nullptr,
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return p.gyro_loop ? stage_numerics::runner<GyroLoopRunner>(p, context) : nullptr;
+      },
+      [](const StabiliserParameters& p) { return std::string(p.gyro_loop ? "gyro_loop" : ""); },
+      nullptr};
+  return stage;
+}
+
+}  // namespace deep_ois

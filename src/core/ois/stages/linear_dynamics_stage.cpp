@@ -1,0 +1,223 @@
+// The linear-dynamics stage: a linear filter of free order from the three gyro axes to the raw
+// command, raw command += focal * coefficients * (orthonormal basis state of the rate)
+// (core/ois/linear_dynamics_basis.h). It stands in for what no mechanism names: a Kalman or
+// alpha-beta intended-motion estimator, a velocity loop, a second-order centring, all linear
+// filters of the gyro inside the stroke. Written before the stroke (and the actuator, when the
+// model has one), so the stroke limits what it commands. Fitted in closed form (a ridge least
+// squares) with the rest of the chain held: fitLinearDynamics below.
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+#include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/stabiliser_candidates.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
+#include "stabiliser_file_fields.h"
+#include "stage_numerics.h"
+
+namespace deep_ois {
+namespace {
+
+// Adds focal * coefficients * basis state to the raw command (the lens follows it at once until a
+// stroke or an actuator after it acts).
+class LinearDynamicsRunner final : public StabiliserStageRunner {
+ public:
+  LinearDynamicsRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+      : basis_(p.linear_dynamics.basis, context.step_s),
+        coefficients_(p.linear_dynamics.coefficients),
+        focal_px_(context.focal_px) {}
+  void reset(StabiliserSignal&) override { basis_.reset(); }
+  void advance(StabiliserSignal& signal) override {
+    signal.raw_command_px += focal_px_ * (coefficients_ * basis_.advance(signal.rate_rad_s));
+    signal.command_px = signal.lens_px = signal.raw_command_px;
+  }
+
+ private:
+  LinearDynamicsBasis basis_;
+  Eigen::MatrixXd coefficients_;  // 2 x 3 order, focal units per basis state
+  double focal_px_;
+};
+
+}  // namespace
+
+const StabiliserStage& linearDynamicsStage() {
+  static const StabiliserStage stage{
+      "linear_dynamics",
+      "adds a linear filter of free order of the three gyro axes to the raw command: 2 x 3N "
+      "coefficients (focal units) of an orthonormal (Laguerre) basis of N functions per axis",
+      true,
+      {},
+      {"linear_dynamics"},
+      [](YAML::Emitter& out, const StabiliserParameters& p) {
+        const LinearDynamicsValues& v = p.linear_dynamics;
+        if (!v.active()) return;  // optional: files without it load without the stage
+        out << YAML::Key << "linear_dynamics" << YAML::Value << YAML::BeginMap;
+        out << YAML::Key << "pole_hz" << YAML::Value << v.basis.pole_hz;
+        out << YAML::Key << "second_pole_hz" << YAML::Value << v.basis.second_pole_hz;
+        out << YAML::Key << "order" << YAML::Value << v.basis.order;
+        std::vector<double> coefficients;
+        for (long r = 0; r < v.coefficients.rows(); ++r)
+          for (long c = 0; c < v.coefficients.cols(); ++c) coefficients.push_back(v.coefficients(r, c));
+        out << YAML::Key << "coefficients" << YAML::Value << YAML::Flow << coefficients;
+        out << YAML::EndMap;
+      },
+      [](const YAML::Node& s, StabiliserParameters* p) {
+        using stabiliser_file_fields::optional;
+        using stabiliser_file_fields::required;
+        p->linear_dynamics = LinearDynamicsValues();
+        if (!s["linear_dynamics"]) return;
+        const YAML::Node node = s["linear_dynamics"];
+        LinearDynamicsValues& v = p->linear_dynamics;
+        v.basis.pole_hz = required<double>(node, "pole_hz");
+        v.basis.second_pole_hz = optional<double>(node, "second_pole_hz", 0.0);
+        v.basis.order = required<int>(node, "order");
+        const auto coefficients = required<std::vector<double>>(node, "coefficients");
+        const long n = 3L * std::max(0, v.basis.order);
+        if (n == 0 || static_cast<long>(coefficients.size()) != 2 * n)
+          throw StabiliserModelFileError("field 'linear_dynamics.coefficients' must have 2 x 3 x "
+                                         "order values (row x, then row y)");
+        v.coefficients.resize(2, n);
+        for (long r = 0; r < 2; ++r)
+          for (long c = 0; c < n; ++c) v.coefficients(r, c) = coefficients[static_cast<std::size_t>(r * n + c)];
+      },
+      [](const StabiliserParameters& p) {
+        const LinearDynamicsValues& v = p.linear_dynamics;
+        if (!v.active()) return std::string();
+        std::ostringstream why;
+        // The predictor's step is at most 1 ms in every use: a pole the basis cannot run at 1 ms is
+        // refused here, the rest by the runner at its own step.
+        if (const std::string problem = v.basis.validate(1e-3); !problem.empty()) {
+          why << "linear_dynamics: " << problem;
+        } else if (v.coefficients.rows() != 2 || v.coefficients.cols() != 3 * v.basis.order ||
+                   !v.coefficients.allFinite()) {
+          why << "linear_dynamics.coefficients: must be a finite 2 x " << 3 * v.basis.order
+              << " matrix (3 x order)";
+        }
+        return why.str();
+      },
+      nullptr,
+      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+        return p.linear_dynamics.active() ? stage_numerics::runner<LinearDynamicsRunner>(p, context)
+                                          : nullptr;
+      },
+      [](const StabiliserParameters& p) {
+        return std::string(p.linear_dynamics.active() ? "linear_dynamics" : "");
+      },
+      nullptr};
+  return stage;
+}
+
+namespace {
+
+// The lens (px) at each observation's t_a and t_b for p over `recording` (NaN where the predictor
+// does not cover them, or before the warm-up), fed as the fit feeds its predictor.
+std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lensAtObservations(
+    const StabiliserParameters& p, const StabiliserFitRecording& recording,
+    const StabiliserFitOptions& options) {
+  const Eigen::Vector2d nan = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lens(recording.observations.size(),
+                                                                {nan, nan});
+  visitCoveredObservations(p, recording, options.step_s, options.warm_up_s,
+                           [&](const LensShiftPredictor& predictor, std::size_t index) {
+                             const LensMotionObservation& o = recording.observations[index];
+                             lens[index] = {predictor.lensShiftAt(o.t_a_s), predictor.lensShiftAt(o.t_b_s)};
+                           });
+  return lens;
+}
+
+// Whether a lens position (px) is inside `fraction` of the stroke (its shape's).
+bool insideStroke(const Eigen::Vector2d& lens_px, const Eigen::Vector2d& stroke_px, bool circular,
+                  double fraction) {
+  const Eigen::Vector2d e = lens_px.cwiseQuotient(stroke_px).cwiseAbs();
+  return circular ? e.norm() <= fraction : e.maxCoeff() <= fraction;
+}
+
+}  // namespace
+
+StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
+                                       const std::vector<std::string>& stages,
+                                       const LinearDynamicsBasisSpec& basis,
+                                       const std::vector<StabiliserFitRecording>& recordings,
+                                       const StabiliserFitOptions& options, double ridge) {
+  if (std::find(stages.begin(), stages.end(), "linear_dynamics") == stages.end())
+    throw std::invalid_argument("fitLinearDynamics: the stages must include linear_dynamics");
+  for (const std::string& name : stages)
+    if (name != "linear_dynamics" && name != "stroke" && name != "actuator")
+      throw std::invalid_argument("fitLinearDynamics: the chain around linear_dynamics must be "
+                                  "linear inside the stroke (stroke, actuator), not '" + name + "'");
+  const long n = 3L * basis.order;
+  StabiliserParameters model = base.physicalChain();
+  model.stages = stages;
+  model.linear_dynamics.basis = basis;
+  // The chain without the stroke is linear in the coefficients: its lens for a coefficient matrix
+  // with `probe` in column j of both rows is probe times the j-th regressor. The probe is small so
+  // that the actuator's end stop (at the stroke) is never met.
+  StabiliserParameters probe = model;
+  probe.stages.erase(std::remove(probe.stages.begin(), probe.stages.end(), "stroke"), probe.stages.end());
+  constexpr double kProbe = 1e-6;
+  // Per observation (all recordings, in order): the x lens of each column at t_a and t_b.
+  std::vector<const LensMotionObservation*> observations;
+  std::vector<Eigen::Vector2d> stroke_px;
+  for (const StabiliserFitRecording& recording : recordings)
+    for (const LensMotionObservation& o : recording.observations) {
+      observations.push_back(&o);
+      stroke_px.push_back(stage_numerics::strokePx(model, recording.focal_px));
+    }
+  const long m = static_cast<long>(observations.size());
+  Eigen::MatrixXd at_a(m, n), at_b(m, n);
+  for (long j = 0; j < n; ++j) {
+    probe.linear_dynamics.coefficients = Eigen::MatrixXd::Zero(2, n);
+    probe.linear_dynamics.coefficients.col(j).setConstant(kProbe);
+    long i = 0;
+    for (const StabiliserFitRecording& recording : recordings)
+      for (const auto& [a, b] : lensAtObservations(probe, recording, options)) {
+        at_a(i, j) = a.x() / kProbe;
+        at_b(i++, j) = b.x() / kProbe;
+      }
+  }
+  // Usable rows: covered (the predictor answers every column alike).
+  std::vector<long> rows;
+  for (long i = 0; i < m; ++i)
+    if (std::isfinite(at_a(i, 0)) && std::isfinite(at_b(i, 0))) rows.push_back(i);
+  if (rows.size() < static_cast<std::size_t>(n))
+    throw std::invalid_argument("fitLinearDynamics: fewer usable lens motions than coefficients");
+  // Each axis' lens depends on its own row of coefficients only, through the same chain (the
+  // actuator's axes share their dynamics): one regressor matrix (the x responses) for both rows.
+  const long used = static_cast<long>(rows.size());
+  Eigen::MatrixXd states(used, n), targets(used, 2);
+  Eigen::VectorXd weights(used);
+  for (long r = 0; r < used; ++r) {
+    const long i = rows[static_cast<std::size_t>(r)];
+    states.row(r) = at_b.row(i) - at_a.row(i);
+    targets.row(r) = observations[static_cast<std::size_t>(i)]->motion_px.transpose();
+    weights(r) = std::max(0.0, observations[static_cast<std::size_t>(i)]->weight);
+  }
+  // First step: every usable motion; second: only where the fitted lens stays inside 80 % of the
+  // stroke at both ends (where the chain is linear: the best linear approximation), Huber-weighted
+  // by the first step's residual.
+  Eigen::MatrixXd coefficients = fitLinearDynamicsCoefficients(states, targets, weights, ridge);
+  Eigen::VectorXd inside = weights;
+  long kept = 0;
+  for (long r = 0; r < used; ++r) {
+    const long i = rows[static_cast<std::size_t>(r)];
+    const Eigen::Vector2d lens_a = coefficients * at_a.row(i).transpose();
+    const Eigen::Vector2d lens_b = coefficients * at_b.row(i).transpose();
+    const double residual =
+        (targets.row(r).transpose() - coefficients * states.row(r).transpose()).norm();
+    const Eigen::Vector2d& stroke = stroke_px[static_cast<std::size_t>(i)];
+    const bool linear = insideStroke(lens_a, stroke, model.circular_stroke, 0.8) &&
+                        insideStroke(lens_b, stroke, model.circular_stroke, 0.8);
+    inside(r) *= !linear ? 0.0 : residual <= options.huber_px ? 1.0 : options.huber_px / residual;
+    if (inside(r) > 0.0) ++kept;
+  }
+  if (kept >= 2 * n) coefficients = fitLinearDynamicsCoefficients(states, targets, inside, ridge);
+  model.linear_dynamics.coefficients = coefficients;
+  return model;
+}
+
+}  // namespace deep_ois

@@ -1,0 +1,172 @@
+// The linear-dynamics stage (src/core/ois/stages/linear_dynamics_stage.cpp): its runner is the
+// basis' filter times its coefficients, its closed-form fit recovers known coefficients through a
+// held actuator and stands in for a chain it was not written as, and a model of it is a file that
+// loads and predicts as it was saved.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+#include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/stabiliser_candidates.h"
+#include "deep_ois/core/ois/stabiliser_fit.h"
+#include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
+
+namespace deep_ois {
+namespace {
+
+constexpr double kFocalPx = 500.0;
+
+// A hand shake of 12 s at 400 Hz (all three axes), frame pairs at 30 fps with 12 row patches.
+StabiliserFitRecording shake() {
+  StabiliserFitRecording recording;
+  recording.name = "shake";
+  recording.focal_px = kFocalPx;
+  for (double t = 0.0; t <= 12.0; t += 1.0 / 400.0) {
+    const Eigen::Vector3d w(0.05 * std::sin(6.283 * 1.1 * t) + 0.03 * std::sin(6.283 * 4.3 * t + 1.0) +
+                                0.01 * std::sin(6.283 * 9.7 * t),
+                            0.06 * std::sin(6.283 * 0.8 * t + 0.5) + 0.025 * std::sin(6.283 * 6.1 * t) +
+                                0.01 * std::sin(6.283 * 13.1 * t + 0.3),
+                            0.03 * std::sin(6.283 * 0.4 * t));
+    recording.rates.push_back({t, w});
+  }
+  for (double stamp = 1.0; stamp + 1.0 / 30.0 < 11.9; stamp += 1.0 / 30.0) {
+    for (int i = 0; i < 12; ++i) {
+      LensMotionObservation o;
+      o.t_a_s = stamp + 0.02 * (i + 0.5) / 12.0;
+      o.t_b_s = o.t_a_s + 1.0 / 30.0;
+      recording.observations.push_back(o);
+    }
+  }
+  return recording;
+}
+
+// The recording's lens motions as `truth` predicts them.
+StabiliserFitRecording observed(const StabiliserParameters& truth) {
+  StabiliserFitRecording recording = shake();
+  const auto motion = predictLensMotion(truth, recording, 1e-3, 0.0);
+  for (std::size_t k = 0; k < motion.size(); ++k) recording.observations[k].motion_px = motion[k];
+  return recording;
+}
+
+StabiliserParameters chain() {
+  StabiliserParameters p;
+  p.gain << 0.0, 0.95, -1.02, 0.0;
+  p.highpass_corner_hz = 0.5;
+  p.actuator_natural_hz = 40.0;
+  p.actuator_damping = 0.7;
+  p.sensor_lag_s = 0.001;
+  p.stroke_x_deg = 5.0;  // never met by the shake: the chain is linear
+  p.stroke_y_deg = 5.0;
+  return p;
+}
+
+LinearDynamicsBasisSpec basis() {
+  LinearDynamicsBasisSpec spec;
+  spec.pole_hz = 1.0;
+  spec.order = 6;
+  return spec;
+}
+
+// A linear-dynamics model with deterministic coefficients (focal units).
+StabiliserParameters knownLinearDynamics() {
+  StabiliserParameters p = chain();
+  p.stages = {"linear_dynamics", "stroke", "actuator"};
+  p.linear_dynamics.basis = basis();
+  p.linear_dynamics.coefficients.resize(2, 3 * basis().order);
+  for (long j = 0; j < p.linear_dynamics.coefficients.cols(); ++j) {
+    p.linear_dynamics.coefficients(0, j) = 0.15 * std::sin(1.3 * j + 0.2);
+    p.linear_dynamics.coefficients(1, j) = 0.15 * std::cos(0.7 * j + 0.9);
+  }
+  return p;
+}
+
+double rms(const std::vector<Eigen::Vector2d>& v) {
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (const Eigen::Vector2d& x : v)
+    if (x.allFinite()) sum += x.squaredNorm(), ++n;
+  return std::sqrt(sum / static_cast<double>(n));
+}
+
+TEST(LinearDynamicsStage, TheRunnerIsTheBasisFilterTimesItsCoefficients) {
+  // Without an actuator or a stroke that acts, the lens is f C x for the basis state x of the rate
+  // held over each step (a constant rate: no interpolation between samples).
+  StabiliserParameters p = knownLinearDynamics();
+  p.stages = {"linear_dynamics"};
+  LensShiftPredictor predictor(p, kFocalPx);
+  LinearDynamicsBasis reference(basis(), 1e-3);
+  const Eigen::Vector3d rate(0.02, -0.03, 0.01);
+  for (int k = 0; k <= 500; ++k) predictor.addRate({0.001 * k, rate});
+  for (int k = 0; k < 500; ++k) reference.advance(rate);
+  const Eigen::Vector2d expected = kFocalPx * (p.linear_dynamics.coefficients * reference.state());
+  EXPECT_LT((predictor.lensShiftAt(0.5) - expected).norm(), 1e-9 * (1.0 + expected.norm()));
+  EXPECT_GT(expected.norm(), 0.1);
+}
+
+TEST(LinearDynamicsStage, TheClosedFormFitRecoversKnownCoefficientsThroughTheActuator) {
+  const StabiliserParameters truth = knownLinearDynamics();
+  const StabiliserFitRecording recording = observed(truth);
+  StabiliserFitOptions options;
+  const StabiliserParameters fitted =
+      fitLinearDynamics(chain(), {"linear_dynamics", "stroke", "actuator"}, basis(), {recording},
+                        options, 0.0);
+  EXPECT_EQ(fitted.stages, truth.stages);
+  const auto predicted = predictLensMotion(fitted, recording, 1e-3, 1.0);
+  std::vector<Eigen::Vector2d> error, motion;
+  for (std::size_t k = 0; k < predicted.size(); ++k) {
+    if (!predicted[k].allFinite()) continue;
+    error.push_back(predicted[k] - recording.observations[k].motion_px);
+    motion.push_back(recording.observations[k].motion_px);
+  }
+  EXPECT_LT(rms(error), 1e-6 * rms(motion));
+  EXPECT_GT(rms(motion), 0.5);  // pixels: the shake moves the lens
+}
+
+TEST(LinearDynamicsStage, StandsInForACentringChainInsideTheStroke) {
+  // The chain's first-order centring is a linear filter of the rate inside the stroke: the basis
+  // (corner 1 Hz, 6 functions per axis) explains nearly all of it, the actuator held.
+  const StabiliserFitRecording recording = observed(chain());
+  StabiliserFitOptions options;
+  const StabiliserParameters fitted =
+      fitLinearDynamics(chain(), {"linear_dynamics", "stroke", "actuator"}, basis(), {recording}, options);
+  const StabiliserScore score = scoreStabiliser(fitted, {recording}, options);
+  EXPECT_LT(score.rms_px, 0.02 * score.rms_without_model_px) << score.rms_px;
+  EXPECT_EQ(stabiliserComposition(fitted),
+            (std::vector<std::string>{"linear_dynamics", "stroke", "actuator"}));
+  // Another stage around it is refused (it would not be linear in the coefficients).
+  EXPECT_THROW(fitLinearDynamics(chain(), {"linear_dynamics", "learned_residual"}, basis(),
+                                 {recording}, options),
+               std::invalid_argument);
+}
+
+TEST(LinearDynamicsStage, AModelFileOfItLoadsAndPredictsAsSaved) {
+  StabiliserModelFile file;
+  file.name = "linear dynamics";
+  file.parameters = knownLinearDynamics();
+  file.camera = {640, 480, kFocalPx, kFocalPx, 319.5, 239.5, 0.03, 30.0};
+  const std::string path = ::testing::TempDir() + "/deep_ois_linear_dynamics_" +
+                           std::to_string(::getpid()) + ".yaml";
+  file.save(path);
+  const StabiliserModelFile loaded = StabiliserModelFile::load(path);
+  EXPECT_EQ(loaded.parameters.stages, file.parameters.stages);
+  EXPECT_EQ(loaded.parameters.linear_dynamics.basis.order, basis().order);
+  const StabiliserFitRecording recording = shake();
+  const auto a = predictLensMotion(file.parameters, recording, 1e-3, 1.0);
+  const auto b = predictLensMotion(loaded.parameters, recording, 1e-3, 1.0);
+  double largest = 0.0;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    if (a[k].allFinite()) largest = std::max(largest, (a[k] - b[k]).cwiseAbs().maxCoeff());
+  EXPECT_LT(largest, 1e-6);  // the file's 10 significant digits
+  // A stage list naming an unknown stage is refused, naming it.
+  StabiliserParameters bad = knownLinearDynamics();
+  bad.stages.push_back("no_such_stage");
+  EXPECT_NE(bad.validate().find("no_such_stage"), std::string::npos);
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace deep_ois
