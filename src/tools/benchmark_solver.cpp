@@ -1,9 +1,10 @@
-// Benchmarks the two engines of the package's nonlinear least-squares solver
-// (core/common/nonlinear_least_squares.h: Ceres and Eigen's MINPACK port) on the stabiliser fit:
-// per generated design, the same training traces and the same start, fitStabiliser with each
-// engine, then the final Huber cost on the training traces, the lens-motion RMS on held-back
-// evaluation traces, the accepted steps and the process CPU time, and the CPU ratio over all
-// designs (flags: `benchmark_solver --help`, docs/solver.md).
+// Benchmarks the engines of the package's nonlinear least-squares solver
+// (core/common/nonlinear_least_squares.h: its own Levenberg-Marquardt, Ceres and Eigen's MINPACK
+// port) on the stabiliser fit: per generated design, the same training traces and the same start,
+// fitStabiliser with each engine, then the final Huber cost on the training traces, the lens-motion
+// RMS on held-back evaluation traces, the accepted steps and the process CPU time, and each
+// engine's CPU over all designs as a ratio to the default engine's (flags: `benchmark_solver
+// --help`, docs/solver.md).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -80,12 +81,12 @@ double cpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
 }  // namespace
 
 constexpr char kDescription[] =
-    "Benchmarks the solver's two engines (Ceres, Eigen's MINPACK Levenberg-Marquardt) on the "
-    "stabiliser fit: per generated design, fitStabiliser with each engine on the same training "
-    "traces from the same start (no residual bank, no timing check), then the final Huber cost on "
-    "the training traces, the lens-motion RMS on 2 evaluation traces, the accepted steps and the "
-    "CPU seconds; the CPU ratio Ceres / Eigen over all designs. Decide on the training split; the "
-    "held-out split is for reporting apart.";
+    "Benchmarks the solver's three engines (the package's Levenberg-Marquardt, Ceres, Eigen's "
+    "MINPACK) on the stabiliser fit: per generated design, fitStabiliser with each engine on the same "
+    "training traces from the same start (no residual bank, no timing check), then the final Huber "
+    "cost on the training traces, the lens-motion RMS on 2 evaluation traces, the accepted steps and "
+    "the CPU seconds; each engine's CPU over all designs as a ratio to the first engine's. Decide on "
+    "the training split; the held-out split is for reporting apart.";
 
 int main(int argc, char** argv) {
   std::string split = "training";
@@ -110,13 +111,16 @@ int main(int argc, char** argv) {
     deep_ois::StabiliserFitOptions options;
     options.check_timing = false;
     options.residual_time_constants_s.clear();  // the solver's fit alone
-    const deep_ois::SolverEngine engines[] = {deep_ois::SolverEngine::kCeres,
+    const deep_ois::SolverEngine engines[] = {deep_ois::SolverEngine::kLevenbergMarquardt,
+                                              deep_ois::SolverEngine::kCeres,
                                               deep_ois::SolverEngine::kEigenLevenbergMarquardt};
-    const char* names[] = {"ceres", "eigen"};
-    std::printf("%-6s %-12s | %-6s %10s %9s %6s %8s | %-6s %10s %9s %6s %8s\n", "design", "class", "engine",
-                "cost", "eval px", "steps", "cpu s", "engine", "cost", "eval px", "steps", "cpu s");
-    double cpu_total[2] = {0.0, 0.0}, cost_total[2] = {0.0, 0.0};
-    int designs = 0, lower_cost[2] = {0, 0};
+    constexpr int kEngines = 3;
+    const char* columns[kEngines] = {"lm", "ceres", "eigen"};
+    std::printf("%-6s %-20s", "design", "class");
+    for (const char* column : columns) std::printf(" | %-5s %10s %8s %5s %6s", column, "cost", "eval px", "steps", "cpu s");
+    std::printf("\n");
+    double cpu_total[kEngines] = {}, cost_total[kEngines] = {};
+    int designs = 0, lowest_cost[kEngines] = {};
     for (std::uint32_t seed = seed_begin; designs < static_cast<int>(count); ++seed) {
       if (sim::designSplit(seed) != wanted) continue;
       ++designs;
@@ -126,28 +130,29 @@ int main(int argc, char** argv) {
         if (m < 101 + traces) training.push_back(recordingOf(trace, noise_px, m));
         else evaluation.push_back(recordingOf(trace, 0.0, m));
       }
-      std::printf("%-6u %-12s", seed, sim::designClass(sim::generateDesign(seed)));
-      double cost[2];
-      for (int e = 0; e < 2; ++e) {
+      std::printf("%-6u %-20s", seed, sim::designClass(sim::generateDesign(seed)));
+      double cost[kEngines];
+      for (int e = 0; e < kEngines; ++e) {
         options.solver_engine = engines[e];
         const double started = cpuSeconds();
         const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser(training, options);
         const double cpu = cpuSeconds() - started;
         cost[e] = huberCost(fit.parameters, training, options);
         const double eval_px = deep_ois::scoreStabiliser(fit.parameters, evaluation, options).rms_px;
-        std::printf(" | %-6s %10.4f %9.4f %6zu %8.2f", names[e], cost[e], eval_px, fit.rms_history.size(), cpu);
+        std::printf(" | %-5s %10.4f %8.4f %5zu %6.2f", "", cost[e], eval_px, fit.rms_history.size(), cpu);
         cpu_total[e] += cpu;
         cost_total[e] += cost[e];
       }
-      if (cost[0] < cost[1]) ++lower_cost[0];
-      else if (cost[1] < cost[0]) ++lower_cost[1];
+      ++lowest_cost[std::min_element(cost, cost + kEngines) - cost];
       std::printf("\n");
       std::fflush(stdout);
     }
-    std::printf("\n%d designs (%s split): CPU ceres %.1f s, eigen %.1f s, ratio ceres / eigen %.2f; summed final "
-                "cost ceres %.4f, eigen %.4f; lower cost: ceres on %d, eigen on %d\n",
-                designs, split.c_str(), cpu_total[0], cpu_total[1], cpu_total[0] / std::max(1e-9, cpu_total[1]),
-                cost_total[0], cost_total[1], lower_cost[0], lower_cost[1]);
+    std::printf("\n%d designs (%s split):\n", designs, split.c_str());
+    for (int e = 0; e < kEngines; ++e) {
+      std::printf("  %-20s CPU %6.1f s (ratio to %s %.2f), summed final cost %.4f, lowest cost on %d\n",
+                  deep_ois::solverEngineName(engines[e]), cpu_total[e], deep_ois::solverEngineName(engines[0]),
+                  cpu_total[e] / std::max(1e-9, cpu_total[0]), cost_total[e], lowest_cost[e]);
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "benchmark_solver: %s\n", e.what());
     return 1;

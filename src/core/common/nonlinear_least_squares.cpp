@@ -55,6 +55,29 @@ std::string NonlinearLeastSquaresOptions::validate() const {
   else if (!(function_tolerance >= 0.0)) why << "function_tolerance must be >= 0";
   else if (!(parameter_tolerance >= 0.0)) why << "parameter_tolerance must be >= 0";
   else if (!(gradient_tolerance >= 0.0)) why << "gradient_tolerance must be >= 0";
+  else return damping.validate();
+  return why.str();
+}
+
+const char* solverEngineName(SolverEngine engine) {
+  switch (engine) {
+    case SolverEngine::kLevenbergMarquardt:
+      return "levenberg_marquardt";
+    case SolverEngine::kCeres:
+      return "ceres";
+    case SolverEngine::kEigenLevenbergMarquardt:
+      return "eigen";
+  }
+  return "unknown";
+}
+
+std::string DampingSchedule::validate() const {
+  std::ostringstream why;
+  if (!(initial > 0.0 && std::isfinite(initial))) why << "damping.initial must be positive (got " << initial << ")";
+  else if (!(decrease >= 1.0 && std::isfinite(decrease))) why << "damping.decrease must be >= 1 (got " << decrease << ")";
+  else if (!(increase > 1.0 && std::isfinite(increase))) why << "damping.increase must be > 1 (got " << increase << ")";
+  else if (!(minimum >= 0.0 && minimum <= initial)) why << "damping.minimum must be in [0, initial] (got " << minimum << ")";
+  else if (attempts < 1) why << "damping.attempts must be >= 1 (got " << attempts << ")";
   return why.str();
 }
 
@@ -170,13 +193,7 @@ class CorrectedProblem {
     const long n = coordinates_.size();
     jacobian->resize(residual_count_, n);
     if (analytic) {
-      if (raw_jacobian.rows() != residual_count_ ||
-          raw_jacobian.cols() != static_cast<long>(problem_.parameters.size()))
-        throw std::invalid_argument("nonlinear least squares: the Jacobian is " +
-                                    std::to_string(raw_jacobian.rows()) + " x " +
-                                    std::to_string(raw_jacobian.cols()) + ", expected " +
-                                    std::to_string(residual_count_) + " x " +
-                                    std::to_string(problem_.parameters.size()));
+      checkJacobianSize(raw_jacobian);
       for (long k = 0; k < n; ++k)
         jacobian->col(k) = raw_jacobian.col(coordinates_.index(k)) * coordinates_.derivative(k, z(k));
       // Through the correction: d(phi r) = (phi I + 2 phi'(s) r r^T) dr per robust block.
@@ -189,10 +206,83 @@ class CorrectedProblem {
       }
       return jacobian->allFinite();
     }
-    // Forward differences of the corrected residuals, stepping back from an upper bound or from
-    // a point the model cannot be evaluated at; a parameter that cannot move either way gets a
-    // zero column (held for this iteration).
-    for (long k = 0; k < n; ++k) {
+    differences(z, *corrected, true, jacobian);
+    return true;
+  }
+
+  // The residuals at z without the loss and, when `jacobian` is given, their Jacobian over z.
+  // `raw_known`: *raw already holds the residuals at z (only the Jacobian is evaluated).
+  bool evaluateRaw(const Eigen::VectorXd& z, Eigen::VectorXd* raw, Eigen::MatrixXd* jacobian,
+                   bool raw_known = false) {
+    const Eigen::VectorXd values = coordinates_.values(z);
+    Eigen::MatrixXd raw_jacobian;
+    const bool analytic = jacobian != nullptr && static_cast<bool>(problem_.residuals_and_jacobian);
+    if (raw_known && !analytic) {
+      differences(z, *raw, false, jacobian);
+      return true;
+    }
+    ++evaluations_;
+    const bool ok = analytic ? problem_.residuals_and_jacobian(values, raw, &raw_jacobian)
+                             : problem_.residuals(values, raw);
+    if (!ok || !countMatches(*raw) || !raw->allFinite()) return false;
+    last_rms_ = blockRms(*raw);
+    if (jacobian == nullptr) return true;
+    if (!analytic) {
+      differences(z, *raw, false, jacobian);
+      return true;
+    }
+    checkJacobianSize(raw_jacobian);
+    jacobian->resize(residual_count_, coordinates_.size());
+    for (long k = 0; k < coordinates_.size(); ++k)
+      jacobian->col(k) = raw_jacobian.col(coordinates_.index(k)) * coordinates_.derivative(k, z(k));
+    return jacobian->allFinite();
+  }
+
+  // The cost of raw residuals (the conventions' 1/2 sum rho plus 1/2 the priors' squares).
+  double rawCost(const Eigen::VectorXd& raw) const {
+    Eigen::VectorXd corrected;
+    correct(raw, &corrected, nullptr, nullptr);
+    return cost(corrected);
+  }
+  // Each residual's robust weight rho'(|block|^2) (1 outside the loss).
+  Eigen::VectorXd weights(const Eigen::VectorXd& raw) const {
+    Eigen::VectorXd w = Eigen::VectorXd::Ones(raw.size());
+    if (loss_.kind == RobustLoss::Kind::kNone) return w;
+    const int b = problem_.block_size;
+    for (long block = 0; block < robust_blocks_; ++block)
+      w.segment(block * b, b).setConstant(loss_.weight(raw.segment(block * b, b).squaredNorm()));
+    return w;
+  }
+
+  // The corrected residuals' 1/2 |.|^2 is the cost.
+  static double cost(const Eigen::VectorXd& corrected) { return 0.5 * corrected.squaredNorm(); }
+
+  // Over the loss's blocks (the data), not the priors after them.
+  double blockRms(const Eigen::VectorXd& raw) const {
+    const long blocks = robust_blocks_ > 0 ? robust_blocks_ : raw.size() / problem_.block_size;
+    const double sum = raw.head(blocks * problem_.block_size).squaredNorm();
+    return blocks > 0 ? std::sqrt(sum / static_cast<double>(blocks)) : 0.0;
+  }
+
+ private:
+  void checkJacobianSize(const Eigen::MatrixXd& raw_jacobian) const {
+    if (raw_jacobian.rows() != residual_count_ ||
+        raw_jacobian.cols() != static_cast<long>(problem_.parameters.size()))
+      throw std::invalid_argument("nonlinear least squares: the Jacobian is " +
+                                  std::to_string(raw_jacobian.rows()) + " x " +
+                                  std::to_string(raw_jacobian.cols()) + ", expected " +
+                                  std::to_string(residual_count_) + " x " +
+                                  std::to_string(problem_.parameters.size()));
+  }
+
+  // Forward differences of the residuals (corrected by the loss or raw) around `reference`, the
+  // residuals at z, stepping back from an upper bound or from a point the model cannot be
+  // evaluated at; a parameter that cannot move either way gets a zero column (held for this
+  // iteration).
+  void differences(const Eigen::VectorXd& z, const Eigen::VectorXd& reference, bool corrected,
+                   Eigen::MatrixXd* jacobian) {
+    jacobian->resize(residual_count_, coordinates_.size());
+    for (long k = 0; k < coordinates_.size(); ++k) {
       const double step = coordinates_.parameter(k).difference_step;
       const double first = z(k) + step > coordinates_.upper(k) ? -step : step;
       jacobian->col(k).setZero();
@@ -204,18 +294,13 @@ class CorrectedProblem {
         if (!problem_.residuals(coordinates_.values(moved), &moved_raw) ||
             moved_raw.size() != residual_count_ || !moved_raw.allFinite())
           continue;
-        correct(moved_raw, &moved_corrected, nullptr, nullptr);
-        jacobian->col(k) = (moved_corrected - *corrected) / h;
+        if (corrected) correct(moved_raw, &moved_corrected, nullptr, nullptr);
+        jacobian->col(k) = ((corrected ? moved_corrected : moved_raw) - reference) / h;
         break;
       }
     }
-    return true;
   }
 
-  // The corrected residuals' 1/2 |.|^2 is the cost.
-  static double cost(const Eigen::VectorXd& corrected) { return 0.5 * corrected.squaredNorm(); }
-
- private:
   bool countMatches(const Eigen::VectorXd& raw) {
     if (residual_count_ < 0) {
       residual_count_ = raw.size();
@@ -254,19 +339,60 @@ class CorrectedProblem {
     }
   }
 
-  // Over the loss's blocks (the data), not the priors after them.
-  double blockRms(const Eigen::VectorXd& raw) const {
-    const long blocks = robust_blocks_ > 0 ? robust_blocks_ : raw.size() / problem_.block_size;
-    const double sum = raw.head(blocks * problem_.block_size).squaredNorm();
-    return blocks > 0 ? std::sqrt(sum / static_cast<double>(blocks)) : 0.0;
-  }
-
   const NonlinearLeastSquaresProblem& problem_;
   const Coordinates& coordinates_;
   RobustLoss loss_;
   long residual_count_ = -1, robust_blocks_ = 0;
   int evaluations_ = 0;
   double last_rms_ = 0.0;
+};
+
+// ---- The package's Levenberg-Marquardt: the residual problem as a linearised one. --------------
+
+// The loss as iteratively re-weighted least squares: at the current point the Jacobian of the raw
+// residuals J (forward differences, one evaluation per free parameter, unless the problem gives
+// it), each block's weight w = rho'(|r_b|^2), and the normal equations J^T W J, J^T W r (the
+// cost's gradient, with a Gauss-Newton matrix that leaves out the loss's curvature). A step is
+// held in the bounds; its residuals become the current ones when it is accepted.
+class ReweightedResiduals : public LinearisedLeastSquaresProblem {
+ public:
+  ReweightedResiduals(CorrectedProblem& problem, const Coordinates& coordinates, const Eigen::VectorXd& z,
+                      const Eigen::VectorXd& raw, std::vector<double>* rms_history)
+      : problem_(problem), coordinates_(coordinates), z_(z), raw_(raw), rms_history_(rms_history) {}
+
+  bool linearise(double* cost, Eigen::MatrixXd* normal, Eigen::VectorXd* gradient) override {
+    Eigen::MatrixXd J;
+    if (!problem_.evaluateRaw(z_, &raw_, &J, true)) return false;
+    const Eigen::VectorXd w = problem_.weights(raw_);
+    *normal = J.transpose() * w.asDiagonal() * J;
+    *gradient = J.transpose() * w.cwiseProduct(raw_);
+    *cost = problem_.rawCost(raw_);
+    return true;
+  }
+  bool trialCost(const Eigen::VectorXd& step, double* cost) override {
+    if (!problem_.evaluateRaw(clamped(z_ + step), &trial_raw_, nullptr)) return false;
+    *cost = problem_.rawCost(trial_raw_);
+    return true;
+  }
+  bool accept(const Eigen::VectorXd& step) override {
+    z_ = clamped(z_ + step);
+    raw_ = trial_raw_;
+    rms_history_->push_back(problem_.blockRms(raw_));
+    return false;
+  }
+  const Eigen::VectorXd& coordinates() const { return z_; }
+  double cost() const { return problem_.rawCost(raw_); }
+
+ private:
+  Eigen::VectorXd clamped(Eigen::VectorXd z) const {
+    for (long k = 0; k < z.size(); ++k) z(k) = coordinates_.clamped(k, z(k));
+    return z;
+  }
+
+  CorrectedProblem& problem_;
+  const Coordinates& coordinates_;
+  Eigen::VectorXd z_, raw_, trial_raw_;
+  std::vector<double>* rms_history_;
 };
 
 // ---- Ceres: one cost function over the free coordinates, bounds on the parameter block. -------
@@ -488,6 +614,69 @@ void checkProblem(const NonlinearLeastSquaresProblem& problem, const Eigen::Vect
 
 }  // namespace
 
+NonlinearLeastSquaresReport minimiseLevenbergMarquardt(LinearisedLeastSquaresProblem& problem,
+                                                       const NonlinearLeastSquaresOptions& options) {
+  const std::string option_problem = options.validate();
+  if (!option_problem.empty())
+    throw std::invalid_argument("nonlinear least squares: " + option_problem);
+  const double cpu_start = processCpuSeconds();
+  const DampingSchedule& schedule = options.damping;
+  NonlinearLeastSquaresReport report;
+  report.termination = SolverTermination::kIterationLimit;
+  report.message = std::to_string(options.max_iterations) + " accepted steps";
+  double lambda = schedule.initial;
+  double cost = 0.0;
+  Eigen::MatrixXd normal;
+  Eigen::VectorXd gradient;
+  for (bool first = true; report.iterations < options.max_iterations; first = false) {
+    if (!problem.linearise(&cost, &normal, &gradient)) {
+      // Past the start, the accepted point stands: no step can be taken from it.
+      report.termination = first ? SolverTermination::kFailed : SolverTermination::kNoProgress;
+      report.message = first ? "the model cannot be evaluated at the start"
+                             : "the model cannot be linearised at the accepted point";
+      break;
+    }
+    if (first) report.initial_cost = cost;
+    report.final_cost = cost;
+    if (!(gradient.lpNorm<Eigen::Infinity>() > 0.0)) {
+      report.termination = SolverTermination::kConverged;
+      report.message = "the gradient is zero";
+      break;
+    }
+    bool accepted = false, converged = false;
+    double relative = 0.0;
+    for (int attempt = 0; attempt < schedule.attempts && !accepted; ++attempt) {
+      Eigen::MatrixXd damped = normal;
+      damped.diagonal() += lambda * normal.diagonal().cwiseMax(1e-12);
+      const Eigen::VectorXd step = damped.ldlt().solve(-gradient);
+      double trial = 0.0;
+      if (step.allFinite() && problem.trialCost(step, &trial) && trial < cost) {
+        accepted = true;
+        ++report.iterations;
+        converged = problem.accept(step);
+        relative = (cost - trial) / std::max(cost, 1e-300);
+        cost = report.final_cost = trial;
+        lambda = std::max(lambda / schedule.decrease, schedule.minimum);
+      } else {
+        lambda *= schedule.increase;
+      }
+    }
+    if (!accepted) {
+      report.termination = SolverTermination::kNoProgress;
+      report.message = "no step lowers the cost (" + std::to_string(schedule.attempts) + " tried)";
+      break;
+    }
+    if (converged || relative < options.function_tolerance) {
+      report.termination = SolverTermination::kConverged;
+      report.message = converged ? "the problem's own test" : "the relative cost reduction is below function_tolerance";
+      break;
+    }
+  }
+  report.message = std::string("levenberg_marquardt: ") + report.message;
+  report.cpu_s = processCpuSeconds() - cpu_start;
+  return report;
+}
+
 NonlinearLeastSquaresReport solveNonlinearLeastSquares(const NonlinearLeastSquaresProblem& problem,
                                                        const Eigen::VectorXd& start,
                                                        const NonlinearLeastSquaresOptions& options) {
@@ -501,19 +690,28 @@ NonlinearLeastSquaresReport solveNonlinearLeastSquares(const NonlinearLeastSquar
   NonlinearLeastSquaresReport report;
   Eigen::VectorXd z = coordinates.startCoordinates();
   report.values = coordinates.values(z);
-  Eigen::VectorXd r;
-  if (!corrected.evaluate(z, &r, nullptr)) {
+  Eigen::VectorXd raw, r;
+  if (!corrected.evaluateRaw(z, &raw, nullptr)) {
     report.termination = SolverTermination::kFailed;
     report.message = "the model cannot be evaluated at the start";
     report.residual_evaluations = corrected.evaluations();
     report.cpu_s = processCpuSeconds() - cpu_start;
     return report;
   }
-  report.initial_cost = CorrectedProblem::cost(r);
+  report.initial_cost = corrected.rawCost(raw);
   if (coordinates.size() == 0) {
     report.final_cost = report.initial_cost;
     report.termination = SolverTermination::kConverged;
     report.message = "no free parameter";
+  } else if (options.engine == SolverEngine::kLevenbergMarquardt) {
+    ReweightedResiduals linearised(corrected, coordinates, z, raw, &report.rms_history);
+    const NonlinearLeastSquaresReport steps = minimiseLevenbergMarquardt(linearised, options);
+    report.iterations = steps.iterations;
+    report.termination = steps.termination;
+    report.message = steps.message;
+    z = linearised.coordinates();
+    report.values = coordinates.values(z);
+    report.final_cost = linearised.cost();  // the accepted point's own evaluation
   } else {
     if (options.engine == SolverEngine::kCeres)
       solveWithCeres(corrected, coordinates, z, options, &report);

@@ -536,8 +536,10 @@ void refineMotion(const Problem& problem, const std::vector<int>& inliers,
     return true;
   };
   NonlinearLeastSquaresOptions options;
-  options.max_iterations = 30;
+  options.max_iterations = 20;
   options.function_tolerance = 1e-12;
+  // Sampson distances are near their minimum after MSAC: the damping falls fast.
+  options.damping = {1e-2, 10.0, 10.0, 1e-12, 10};
   const NonlinearLeastSquaresReport report =
       solveNonlinearLeastSquares(refinement, Eigen::VectorXd::Zero(3 * N + 2), options);
   if (report.usable() && report.final_cost <= report.initial_cost) *m = motionAt(report.values);

@@ -156,6 +156,9 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
   solver.engine = fit_options.solver_engine;
   solver.max_iterations = options.iterations;
   solver.function_tolerance = 1e-4;
+  // Lighter damping than the chain's, raised more gently: the conditioning is near its prior's
+  // mean, where Gauss-Newton steps are good.
+  solver.damping = {1e-3, 3.0, 4.0, 1e-7, 6};
   const NonlinearLeastSquaresReport report = solveNonlinearLeastSquares(fit, start, solver);
   result.rms_history = report.rms_history;
   const Eigen::VectorXd solved = report.usable() ? report.values : start;

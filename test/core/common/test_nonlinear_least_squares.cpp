@@ -57,6 +57,9 @@ NonlinearLeastSquaresProblem decayProblem(const DecayData& d, bool analytic) {
 
 const Eigen::Vector3d kStart(1.0, 0.5, 0.0);
 
+constexpr SolverEngine kEngines[] = {SolverEngine::kLevenbergMarquardt, SolverEngine::kCeres,
+                                     SolverEngine::kEigenLevenbergMarquardt};
+
 TEST(RobustLoss, FollowsCeresConventions) {
   const RobustLoss huber = RobustLoss::huber(2.0);
   EXPECT_DOUBLE_EQ(huber.rho(1.0), 1.0);               // inside: the square
@@ -68,9 +71,9 @@ TEST(RobustLoss, FollowsCeresConventions) {
   EXPECT_FALSE(RobustLoss::huber(0.0).validate().empty());
 }
 
-TEST(NonlinearLeastSquares, RecoversADecayThroughOutliersWithEitherEngine) {
+TEST(NonlinearLeastSquares, RecoversADecayThroughOutliersWithEveryEngine) {
   const DecayData d = decayData(true);
-  for (SolverEngine engine : {SolverEngine::kCeres, SolverEngine::kEigenLevenbergMarquardt}) {
+  for (SolverEngine engine : kEngines) {
     NonlinearLeastSquaresOptions options;
     options.engine = engine;
     options.loss = RobustLoss::huber(0.05);
@@ -103,7 +106,7 @@ TEST(NonlinearLeastSquares, AnalyticAndDifferenceJacobiansAgreeUnderCauchy) {
 
 TEST(NonlinearLeastSquares, KeepsBoundsAndHeldParameters) {
   const DecayData d = decayData(false);
-  for (SolverEngine engine : {SolverEngine::kCeres, SolverEngine::kEigenLevenbergMarquardt}) {
+  for (SolverEngine engine : kEngines) {
     NonlinearLeastSquaresProblem problem = decayProblem(d, false);
     problem.parameters[1].upper = 1.0;  // below the true 1.3
     problem.parameters[2].held = true;  // c stays at its start
@@ -145,6 +148,64 @@ TEST(NonlinearLeastSquares, SaysWhyItFailedOrRefused) {
   }
   EXPECT_THROW(solveNonlinearLeastSquares(decayProblem(d, false), Eigen::Vector2d(1.0, 1.0), {}),
                std::invalid_argument);
+}
+
+// Rosenbrock's valley, r = (10 (y - x^2), 1 - x), stated by its normal equations; its own test
+// stops the fit once a step is below 1e-9.
+class Rosenbrock : public LinearisedLeastSquaresProblem {
+ public:
+  Eigen::Vector2d point{-1.2, 1.0};
+  int own_test_steps = 0;
+  bool linearise(double* cost, Eigen::MatrixXd* normal, Eigen::VectorXd* gradient) override {
+    const Eigen::Vector2d r = residuals(point);
+    Eigen::Matrix2d J;
+    J << -20.0 * point.x(), 10.0, -1.0, 0.0;
+    *cost = 0.5 * r.squaredNorm();
+    *normal = J.transpose() * J;
+    *gradient = J.transpose() * r;
+    return true;
+  }
+  bool trialCost(const Eigen::VectorXd& step, double* cost) override {
+    *cost = 0.5 * residuals(point + step).squaredNorm();
+    return true;
+  }
+  bool accept(const Eigen::VectorXd& step) override {
+    point += step;
+    if (step.norm() < 1e-9) ++own_test_steps;
+    return step.norm() < 1e-9;
+  }
+
+ private:
+  static Eigen::Vector2d residuals(const Eigen::Vector2d& p) {
+    return Eigen::Vector2d(10.0 * (p.y() - p.x() * p.x()), 1.0 - p.x());
+  }
+};
+
+TEST(LevenbergMarquardt, FollowsALinearisedProblemToItsMinimum) {
+  Rosenbrock valley;
+  NonlinearLeastSquaresOptions options;
+  options.function_tolerance = 0.0;  // the problem's own test decides
+  options.max_iterations = 200;
+  const NonlinearLeastSquaresReport report = minimiseLevenbergMarquardt(valley, options);
+  SCOPED_TRACE(report.summary());
+  EXPECT_NEAR(valley.point.x(), 1.0, 1e-6);
+  EXPECT_NEAR(valley.point.y(), 1.0, 1e-6);
+  EXPECT_EQ(report.termination, SolverTermination::kConverged);
+  EXPECT_EQ(valley.own_test_steps, 1);
+  EXPECT_NEAR(report.initial_cost, 12.1, 1e-12);
+  EXPECT_LT(report.final_cost, 1e-12);
+  // Capped, it says so.
+  Rosenbrock capped;
+  options.max_iterations = 3;
+  EXPECT_EQ(minimiseLevenbergMarquardt(capped, options).termination, SolverTermination::kIterationLimit);
+  // A schedule that cannot damp is refused by name.
+  options.damping.increase = 1.0;
+  try {
+    minimiseLevenbergMarquardt(capped, options);
+    FAIL() << "a damping schedule that never increases was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("damping.increase"), std::string::npos) << e.what();
+  }
 }
 
 TEST(RobustRidgeRegression, MatchesTheClosedFormAndPullsTowardsThePrior) {

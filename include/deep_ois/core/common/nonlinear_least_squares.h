@@ -4,8 +4,8 @@
 // (bounds, a logarithmic coordinate, a forward-difference step, held or free), residuals grouped
 // in blocks on which one robust loss acts, and gets back one report: the values, the cost at the
 // start and the end, the iterations and evaluations spent, and why it stopped. The minimiser
-// underneath is a library's Levenberg-Marquardt (Ceres' trust region by default, Eigen's MINPACK
-// port on request); docs/solver.md compares them and says how to use both.
+// underneath is the package's own damped Gauss-Newton (the default), Ceres' trust region or Eigen's
+// MINPACK port; docs/solver.md compares them and says how to use them.
 //
 // Conventions (fixed once, as Ceres writes them):
 //  - cost = 1/2 sum_b rho(|r_b|^2) over the loss's blocks r_b, plus 1/2 |r|^2 over the residuals
@@ -15,6 +15,9 @@
 //    Cauchy: rho(s) = a^2 log(1 + s / a^2);
 //  - a block's robust weight (what an iteratively re-weighted solve multiplies it by) is rho'(s):
 //    Huber 1 inside a and a / |r| beyond, Cauchy 1 / (1 + s / a^2).
+//
+// A fit that builds its own normal equations states its problem by its linearisation instead
+// (LinearisedLeastSquaresProblem) and runs the same Levenberg-Marquardt.
 //
 // Pure C++ (Eigen, Ceres): no ROS, no OpenCV.
 #pragma once
@@ -78,14 +81,30 @@ struct NonlinearLeastSquaresProblem {
 };
 
 enum class SolverEngine {
-  kCeres,                     // ceres::Solve, trust-region Levenberg-Marquardt (the default)
+  // The package's damped Gauss-Newton (minimiseLevenbergMarquardt below): the robust loss as
+  // iteratively re-weighted least squares, Marquardt's diagonal damping on a fixed schedule. The
+  // default: on the stabiliser fit it converges as far as Ceres at a fraction of its CPU.
+  kLevenbergMarquardt,
+  kCeres,                     // ceres::Solve, trust-region Levenberg-Marquardt
   kEigenLevenbergMarquardt,   // Eigen's unsupported/NonLinearOptimization (MINPACK lmder)
+};
+const char* solverEngineName(SolverEngine engine);  // "levenberg_marquardt", "ceres", "eigen"
+
+// The damping of kLevenbergMarquardt: a step solves (H + lambda diag(max(H_jj, 1e-12))) dx = -g.
+struct DampingSchedule {
+  double initial = 1e-2;   // lambda at the first iteration (relative to the diagonal)
+  double decrease = 3.0;   // lambda /= decrease after an accepted step
+  double increase = 10.0;  // lambda *= increase after a refused one
+  double minimum = 1e-7;   // lambda never falls below this
+  int attempts = 8;        // refused steps in one iteration before the solve stops (no progress)
+  std::string validate() const;
 };
 
 struct NonlinearLeastSquaresOptions {
   RobustLoss loss;
-  SolverEngine engine = SolverEngine::kCeres;
-  int max_iterations = 50;  // accepted steps (Jacobian evaluations) for either engine, >= 1
+  SolverEngine engine = SolverEngine::kLevenbergMarquardt;
+  int max_iterations = 50;  // accepted steps (Jacobian evaluations) for every engine, >= 1
+  DampingSchedule damping;  // kLevenbergMarquardt only
   // Converged when an iteration lowers the cost by less than this fraction of it.
   double function_tolerance = 1e-6;
   // Converged when a step changes the solved coordinates by less than this, relative.
@@ -125,6 +144,32 @@ struct NonlinearLeastSquaresReport {
 // or the options; a model that cannot be evaluated at the start gives a kFailed report.
 NonlinearLeastSquaresReport solveNonlinearLeastSquares(const NonlinearLeastSquaresProblem& problem,
                                                        const Eigen::VectorXd& start,
+                                                       const NonlinearLeastSquaresOptions& options);
+
+// A problem stated by its linearisation, for a fit that builds its own normal equations (e.g. the
+// camera-IMU calibration, which eliminates a lens shift per frame by a Schur complement before
+// the step and re-scales its loss between iterations). The solver keeps the current point's
+// linearisation; the problem keeps the point.
+class LinearisedLeastSquaresProblem {
+ public:
+  virtual ~LinearisedLeastSquaresProblem() = default;
+  // At the current point: the cost and the normal equations of its linearisation, the step
+  // solving (normal + damping) step = -gradient. False: the point cannot be evaluated.
+  virtual bool linearise(double* cost, Eigen::MatrixXd* normal, Eigen::VectorXd* gradient) = 0;
+  // The cost at the current point moved by `step`, in linearise's terms (the point stays). False:
+  // the moved point cannot be evaluated (the step is refused).
+  virtual bool trialCost(const Eigen::VectorXd& step, double* cost) = 0;
+  // Moves the current point by `step`, the last one trialCost saw (it lowered the cost). Returns
+  // true when the problem's own test says the fit has converged.
+  virtual bool accept(const Eigen::VectorXd& step) = 0;
+};
+
+// The package's Levenberg-Marquardt (engine kLevenbergMarquardt of solveNonlinearLeastSquares):
+// per iteration one linearisation, then steps with the damping of `options.damping` until one
+// lowers the cost; stops at `max_iterations` accepted steps, when a step lowers the cost by less
+// than `function_tolerance` of it or the problem's own test says so (kConverged), or when no step
+// within `damping.attempts` lowers it (kNoProgress). The report's `values` stay empty.
+NonlinearLeastSquaresReport minimiseLevenbergMarquardt(LinearisedLeastSquaresProblem& problem,
                                                        const NonlinearLeastSquaresOptions& options);
 
 // Robust weighted ridge regression with several outputs, the package's one ridge convention:

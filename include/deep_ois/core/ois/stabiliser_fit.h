@@ -59,7 +59,7 @@ struct StabiliserFitOptions {
   double residual_ridge = 1e-3;  // ridge weight, relative to each feature's energy (RobustRidgeRegression)
   double huber_px = 0.3;         // Huber threshold on an observation's residual norm, pixels
   int iterations = 30;           // solver iterations per candidate (nonlinear_least_squares.h)
-  SolverEngine solver_engine = SolverEngine::kCeres;  // the minimiser under the solver
+  SolverEngine solver_engine = SolverEngine::kLevenbergMarquardt;  // the minimiser under the solver
   // Pan-detection thresholds tried (rad/s); 0 = pan detection off.
   std::vector<double> pan_thresholds_rad_s = {0.0, 0.3, 0.6, 1.2};
   bool try_circular_stroke = true;
