@@ -276,15 +276,18 @@ class CorrectedProblem {
   }
 
   // Forward differences of the residuals (corrected by the loss or raw) around `reference`, the
-  // residuals at z, stepping back from an upper bound or from a point the model cannot be
-  // evaluated at; a parameter that cannot move either way gets a zero column (held for this
-  // iteration).
+  // residuals at z, stepping back from a point the model cannot be evaluated at and, for the
+  // library engines (`corrected`), from an upper bound; a parameter that cannot move either way
+  // gets a zero column (held for this iteration). The package's engine differences the raw
+  // residuals forward only, the step held in the bounds, as its hand-written loops did: a
+  // parameter on its upper bound then has a zero column and stays there (stepping it back moved
+  // the strokes of the online learner's first fit off their bounds and into a worse minimum).
   void differences(const Eigen::VectorXd& z, const Eigen::VectorXd& reference, bool corrected,
                    Eigen::MatrixXd* jacobian) {
     jacobian->resize(residual_count_, coordinates_.size());
     for (long k = 0; k < coordinates_.size(); ++k) {
       const double step = coordinates_.parameter(k).difference_step;
-      const double first = z(k) + step > coordinates_.upper(k) ? -step : step;
+      const double first = corrected && z(k) + step > coordinates_.upper(k) ? -step : step;
       jacobian->col(k).setZero();
       for (double h : {first, -first}) {
         Eigen::VectorXd moved = z;
@@ -647,7 +650,8 @@ NonlinearLeastSquaresReport minimiseLevenbergMarquardt(LinearisedLeastSquaresPro
     double relative = 0.0;
     for (int attempt = 0; attempt < schedule.attempts && !accepted; ++attempt) {
       Eigen::MatrixXd damped = normal;
-      damped.diagonal() += lambda * normal.diagonal().cwiseMax(1e-12);
+      // The floor keeps a parameter without effect (a zero column) from an undamped solve.
+      damped.diagonal() += lambda * (normal.diagonal().array() + 1e-9).matrix();
       const Eigen::VectorXd step = damped.ldlt().solve(-gradient);
       double trial = 0.0;
       if (step.allFinite() && problem.trialCost(step, &trial) && trial < cost) {

@@ -90,7 +90,7 @@ enum class SolverEngine {
 };
 const char* solverEngineName(SolverEngine engine);  // "levenberg_marquardt", "ceres", "eigen"
 
-// The damping of kLevenbergMarquardt: a step solves (H + lambda diag(max(H_jj, 1e-12))) dx = -g.
+// The damping of kLevenbergMarquardt: a step solves (H + lambda diag(H_jj + 1e-9)) dx = -g.
 struct DampingSchedule {
   double initial = 1e-2;   // lambda at the first iteration (relative to the diagonal)
   double decrease = 3.0;   // lambda /= decrease after an accepted step
