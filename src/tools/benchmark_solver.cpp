@@ -9,7 +9,6 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -17,49 +16,12 @@
 #include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/design_traces.h"
 #include "deep_ois/tools/support/command_line.h"
+#include "deep_ois/tools/support/design_trace_recording.h"
 
 namespace {
 
-using deep_ois::CameraRateSample;
 using deep_ois::StabiliserFitRecording;
 namespace sim = deep_ois::sim;
-
-constexpr double kFocalPx = 257.0, kFrameRateHz = 30.0, kReadoutS = 0.022;
-constexpr int kPatches = 8;
-
-Eigen::Vector2d lensAt(const std::vector<CameraRateSample>& gyro, const std::vector<Eigen::Vector2d>& lens,
-                       double t) {
-  auto it = std::lower_bound(gyro.begin(), gyro.end(), t,
-                             [](const CameraRateSample& s, double v) { return s.stamp_s < v; });
-  if (it == gyro.begin()) return lens.front();
-  if (it == gyro.end()) return lens.back();
-  const std::size_t j = static_cast<std::size_t>(it - gyro.begin());
-  const double alpha = (t - gyro[j - 1].stamp_s) / (gyro[j].stamp_s - gyro[j - 1].stamp_s);
-  return (1.0 - alpha) * lens[j - 1] + alpha * lens[j];
-}
-
-// A trace's lens motions per frame pair and row patch (from 1 s on), plus noise (pixels, per axis).
-StabiliserFitRecording recordingOf(const sim::DesignTrace& trace, double noise_px, std::uint32_t seed) {
-  StabiliserFitRecording r;
-  r.name = "design " + std::to_string(trace.design_seed) + " motion " + std::to_string(trace.motion_seed);
-  r.focal_px = kFocalPx;
-  r.rates = trace.gyro;
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> noise(0.0, noise_px > 0.0 ? noise_px : 1.0);
-  const double end = trace.gyro.back().stamp_s - kReadoutS - 1.0 / kFrameRateHz;
-  for (double t = 1.0; t < end; t += 1.0 / kFrameRateHz) {
-    for (int p = 0; p < kPatches; ++p) {
-      deep_ois::LensMotionObservation o;
-      o.readout_fraction = (p + 0.5) / kPatches;
-      o.t_a_s = t + o.readout_fraction * kReadoutS;
-      o.t_b_s = o.t_a_s + 1.0 / kFrameRateHz;
-      o.motion_px = lensAt(trace.gyro, trace.lens_px, o.t_b_s) - lensAt(trace.gyro, trace.lens_px, o.t_a_s);
-      if (noise_px > 0.0) o.motion_px += Eigen::Vector2d(noise(rng), noise(rng));
-      r.observations.push_back(o);
-    }
-  }
-  return r;
-}
 
 // The solver's cost on `recordings`: 1/2 sum of Huber(|predicted - observed|^2), Ceres' convention.
 double huberCost(const deep_ois::StabiliserParameters& p, const std::vector<StabiliserFitRecording>& recordings,
@@ -107,7 +69,8 @@ int main(int argc, char** argv) {
     const sim::DesignSplit wanted = split == "held_out" ? sim::DesignSplit::kHeldOut : sim::DesignSplit::kTraining;
     sim::DesignTraceOptions trace_options;
     trace_options.duration_s = 5.0;
-    trace_options.focal_px = kFocalPx;
+    const deep_ois::DesignTraceCamera camera;  // the standard split's RE camera
+    trace_options.focal_px = camera.focal_px;
     deep_ois::StabiliserFitOptions options;
     options.check_timing = false;
     options.residual_time_constants_s.clear();  // the solver's fit alone
@@ -127,8 +90,8 @@ int main(int argc, char** argv) {
       std::vector<StabiliserFitRecording> training, evaluation;
       for (std::uint32_t m = 101; m < 101 + traces + 2; ++m) {
         const sim::DesignTrace trace = sim::simulateDesignTrace(seed, m, trace_options);
-        if (m < 101 + traces) training.push_back(recordingOf(trace, noise_px, m));
-        else evaluation.push_back(recordingOf(trace, 0.0, m));
+        if (m < 101 + traces) training.push_back(deep_ois::designTraceRecording(trace, trace.lens_px, camera, noise_px, m));
+        else evaluation.push_back(deep_ois::designTraceRecording(trace, trace.lens_px, camera, 0.0, m));
       }
       std::printf("%-6u %-20s", seed, sim::designClass(sim::generateDesign(seed)));
       double cost[kEngines];
