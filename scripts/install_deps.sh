@@ -36,6 +36,8 @@ packages=(
   python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-tf2-msgs
   python3-diagnostic-msgs python3-rosgraph-msgs python3-rosmsg python3-rospy
   # maths, vision, tests
+  # the nonlinear least-squares solver of core
+  libceres-dev
   libeigen3-dev libopencv-dev libgtest-dev libgmock-dev libyaml-cpp-dev mate-backgrounds
   # the tools: flag parsing, the evaluation JSON, the data-set SHA-256
   libcli11-dev nlohmann-json3-dev libssl-dev

@@ -8,6 +8,7 @@
 #include <iomanip>
 #include <sstream>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/common/so3_and_statistics.h"
 
 namespace deep_ois {
@@ -181,6 +182,62 @@ std::vector<double> cauchyWeights(const std::vector<double>& residual_norms_px,
   return weights;
 }
 
+namespace {
+
+// The refinement as the solver's linearised problem (core/common/nonlinear_least_squares.h): the
+// reprojection problem's normal equations over the calibration parameters, the lens shifts
+// eliminated (Schur complement) and moved with every step by back-substitution; the Cauchy
+// weights re-scaled from the residuals after every accepted step; converged once two steps in a
+// row no longer matter (1 us, 1e-5 rad/s, 1e-6 rad).
+class CalibrationRefinementProblem : public LinearisedLeastSquaresProblem {
+ public:
+  CalibrationRefinementProblem(ReprojectionProblem& problem, const ActiveParameters& active,
+                               const CalibrationOptions& options, double max_readout_s,
+                               CalibrationState& state, std::vector<double>& weights)
+      : problem_(problem), active_(active), options_(options), max_readout_s_(max_readout_s),
+        state_(state), weights_(weights) {}
+
+  bool linearise(double* cost, Eigen::MatrixXd* normal, Eigen::VectorXd* gradient) override {
+    current_ = problem_.evaluate(state_, weights_, true);
+    ParameterMatrix H;
+    ParameterVector g;
+    restrictToActive(current_, active_, H, g);
+    *cost = current_.cost;
+    *normal = H;
+    *gradient = g;
+    return std::isfinite(current_.cost) && H.allFinite() && g.allFinite();
+  }
+  bool trialCost(const Eigen::VectorXd& step, double* cost) override {
+    const ParameterVector parameter_step = step;
+    candidate_ = applyStep(state_, parameter_step, max_readout_s_);
+    applyShiftStep(candidate_, current_, parameter_step);
+    trial_ = problem_.evaluate(candidate_, weights_, false);
+    *cost = trial_.cost;
+    return std::isfinite(trial_.cost);
+  }
+  bool accept(const Eigen::VectorXd& step) override {
+    state_ = candidate_;
+    weights_ = cauchyWeights(trial_.residual_norms_px, options_, nullptr);
+    const bool small = std::abs(step(kOffset)) < 1e-6 && std::abs(step(kReadout)) < 1e-6 &&
+                       step.segment<3>(kBias).norm() < 1e-5 && step.segment<3>(kRotation).norm() < 1e-6;
+    quiet_steps_ = small ? quiet_steps_ + 1 : 0;
+    return quiet_steps_ >= 2;
+  }
+
+ private:
+  ReprojectionProblem& problem_;
+  const ActiveParameters& active_;
+  const CalibrationOptions& options_;
+  double max_readout_s_;
+  CalibrationState& state_;
+  std::vector<double>& weights_;
+  CalibrationEvaluation current_, trial_;
+  CalibrationState candidate_;
+  int quiet_steps_ = 0;
+};
+
+}  // namespace
+
 Refinement refineCalibration(ReprojectionProblem& problem, const ActiveParameters& active,
                              const CalibrationOptions& options, double max_readout_s, CalibrationState& state) {
   Refinement refinement;
@@ -193,48 +250,20 @@ Refinement refineCalibration(ReprojectionProblem& problem, const ActiveParameter
     current = problem.evaluate(state, {}, false);
   }
   refinement.initial_median_residual_px = median(current.residual_norms_px);
-  std::vector<double>& weights = refinement.weights;
-  weights = cauchyWeights(current.residual_norms_px, options, nullptr);
-  double lambda = 1e-3;
-  int quiet_iterations = 0;
-  for (int iteration = 0; iteration < options.max_iterations && n > 0; ++iteration) {
-    refinement.iterations = iteration + 1;
-    current = problem.evaluate(state, weights, true);
-    ParameterMatrix H;
-    ParameterVector g;
-    restrictToActive(current, active, H, g);
-    bool accepted = false;
-    ParameterVector step = ParameterVector::Zero();
-    CalibrationEvaluation trial;
-    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
-      ParameterMatrix damped = H;
-      for (int i = 0; i < kParameterCount; ++i) damped(i, i) += lambda * std::max(H(i, i), 1e-12);
-      step = damped.ldlt().solve(-g);
-      CalibrationState candidate = applyStep(state, step, max_readout_s);
-      applyShiftStep(candidate, current, step);
-      trial = problem.evaluate(candidate, weights, false);
-      if (trial.cost < current.cost) {
-        state = candidate;
-        accepted = true;
-        lambda = std::max(lambda * 0.2, 1e-9);
-      } else {
-        lambda *= 10.0;
-      }
-    }
-    if (!accepted) {
-      refinement.converged = true;  // no step lowers the cost: a minimum (to the damping's resolution)
-      break;
-    }
-    weights = cauchyWeights(trial.residual_norms_px, options, nullptr);
-    // Converged when the step no longer matters: 1 us, 1e-5 rad/s, 1e-6 rad.
-    const bool small = std::abs(step(kOffset)) < 1e-6 && std::abs(step(kReadout)) < 1e-6 &&
-                       step.segment<3>(kBias).norm() < 1e-5 && step.segment<3>(kRotation).norm() < 1e-6;
-    quiet_iterations = small ? quiet_iterations + 1 : 0;
-    if (quiet_iterations >= 2) {
-      refinement.converged = true;
-      break;
-    }
-  }
+  refinement.weights = cauchyWeights(current.residual_norms_px, options, nullptr);
+  if (n == 0) return refinement;
+  CalibrationRefinementProblem linearised(problem, active, options, max_readout_s, state, refinement.weights);
+  NonlinearLeastSquaresOptions solver;
+  solver.max_iterations = options.max_iterations;
+  solver.function_tolerance = 0.0;  // the problem's own test: the steps no longer matter
+  // Light damping that falls fast: the coarse alignment starts the refinement near its minimum.
+  solver.damping = {1e-3, 5.0, 10.0, 1e-9, 12};
+  const NonlinearLeastSquaresReport report = minimiseLevenbergMarquardt(linearised, solver);
+  // No step lowering the cost is a minimum to the damping's resolution: converged too. Each
+  // iteration is a linearisation, the last one's included when no step was accepted from it.
+  refinement.converged = report.termination == SolverTermination::kConverged ||
+                         report.termination == SolverTermination::kNoProgress;
+  refinement.iterations = report.iterations + (report.termination == SolverTermination::kNoProgress ? 1 : 0);
   return refinement;
 }
 

@@ -7,10 +7,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/common/printf_text.h"
 #include "deep_ois/core/common/so3_and_statistics.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
-#include "deep_ois/core/ois/linear_dynamics_basis.h"
 
 namespace deep_ois {
 namespace {
@@ -207,22 +207,18 @@ FusedMotion fuseMotion(const CameraModel& camera, const MotionPrior& prior, cons
   const double pixels_per_unit[kPerPatch] = {focal_px, focal_px, roll_radius_px, 1.0, 1.0};
 
   const int unknowns = kPerPatch * patches;
-  const long track_rows = 2 * static_cast<long>(tracks.size());
-  const long rows = track_rows + unknowns + kPerPatch * (patches - 1);
   Correction correction(patches);
   std::vector<double> residual_px(tracks.size(), 0.0);
-  Eigen::MatrixXd states(rows, unknowns);
-  Eigen::MatrixXd targets(rows, 2);
-  Eigen::VectorXd weights(rows);
   const double track_weight = 1.0 / (options.track_noise_px * options.track_noise_px);
   const double prior_weight = 1.0 / (fused.sigma_px * fused.sigma_px);
   const double smooth_weight = 1.0 / (options.smoothness_px * options.smoothness_px);
+  Eigen::VectorXd row(unknowns), target(1);
   for (int iteration = 0; iteration < options.iterations; ++iteration) {
     // In the second half of the passes, the tracks the fit cannot explain are out.
     const bool reject = iteration >= options.iterations / 2;
-    states.setZero();
-    targets.setZero();
-    weights.setZero();
+    // Cauchy weights from this pass's errors (the first pass: the prior's). A redescending loss: a
+    // moving object's tracks, whose errors stay large, lose their say as the fit finds the rest.
+    RobustRidgeRegression step_fit(unknowns, 1, RobustLoss::cauchy(options.cauchy_px));
     for (std::size_t t = 0; t < tracks.size(); ++t) {
       const Track& track = tracks[t];
       Eigen::Matrix<double, 2, kPerPatch> J;
@@ -230,40 +226,39 @@ FusedMotion fuseMotion(const CameraModel& camera, const MotionPrior& prior, cons
                                                      correction.rotation[track.patch],
                                                      correction.shift_px[track.patch], track.a_px, &J);
       residual_px[t] = r.norm();
-      if (reject && residual_px[t] > options.outlier_px) continue;  // weight 0
-      // Cauchy weights from this pass's errors (the first pass: the prior's). A redescending loss: a
-      // moving object's tracks, whose errors stay large, lose their say as the fit finds the rest.
-      const double scaled = residual_px[t] / options.cauchy_px;
-      const double weight = 1.0 / (1.0 + scaled * scaled);
+      if (reject && residual_px[t] > options.outlier_px) continue;  // out
       for (int axis = 0; axis < 2; ++axis) {
-        const long row = 2 * static_cast<long>(t) + axis;
-        states.block<1, kPerPatch>(row, kPerPatch * track.patch) = J.row(axis);
-        targets(row, 0) = r(axis);
-        weights(row) = weight * track_weight;
+        row.setZero();
+        row.segment<kPerPatch>(kPerPatch * track.patch) = J.row(axis).transpose();
+        target(0) = r(axis);
+        step_fit.add(row, target, track_weight, residual_px[t]);
       }
     }
-    // The prior (no correction) and the smoothness between neighbouring patches, in pixels.
-    long row = track_rows;
+    // The prior (no correction) and the smoothness between neighbouring patches, in pixels:
+    // outside the loss (reference residual 0, weight 1).
     for (int i = 0; i < patches; ++i) {
       const Eigen::Matrix<double, kPerPatch, 1> c = correction.parameters(i);
-      for (int j = 0; j < kPerPatch; ++j, ++row) {
-        states(row, kPerPatch * i + j) = pixels_per_unit[j];
-        targets(row, 0) = -pixels_per_unit[j] * c(j);
-        weights(row) = prior_weight;
+      for (int j = 0; j < kPerPatch; ++j) {
+        row.setZero();
+        row(kPerPatch * i + j) = pixels_per_unit[j];
+        target(0) = -pixels_per_unit[j] * c(j);
+        step_fit.add(row, target, prior_weight, 0.0);
       }
     }
     for (int i = 0; i + 1 < patches; ++i) {
       const Eigen::Matrix<double, kPerPatch, 1> difference = correction.parameters(i) - correction.parameters(i + 1);
-      for (int j = 0; j < kPerPatch; ++j, ++row) {
-        states(row, kPerPatch * i + j) = pixels_per_unit[j];
-        states(row, kPerPatch * (i + 1) + j) = -pixels_per_unit[j];
-        targets(row, 0) = -pixels_per_unit[j] * difference(j);
-        weights(row) = smooth_weight;
+      for (int j = 0; j < kPerPatch; ++j) {
+        row.setZero();
+        row(kPerPatch * i + j) = pixels_per_unit[j];
+        row(kPerPatch * (i + 1) + j) = -pixels_per_unit[j];
+        target(0) = -pixels_per_unit[j] * difference(j);
+        step_fit.add(row, target, smooth_weight, 0.0);
       }
     }
-    // The package's weighted least squares (the prior rows make it full rank, so no ridge); one
-    // target column is used, the other is zero.
-    const Eigen::VectorXd step = fitLinearDynamicsCoefficients(states, targets, weights, 0.0).row(0).transpose();
+    // The package's robust ridge regression, without a ridge: the prior rows make it full rank.
+    Eigen::MatrixXd solution;
+    if (!step_fit.solve(0.0, &solution)) break;  // not finite: the last finite correction stands
+    const Eigen::VectorXd step = solution.col(0);
     for (int i = 0; i < patches; ++i) {
       correction.rotation[i] = expSO3(step.segment<3>(kPerPatch * i)) * correction.rotation[i];
       correction.shift_px[i] += step.segment<2>(kPerPatch * i + 3);

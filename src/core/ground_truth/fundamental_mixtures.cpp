@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/common/portable_random.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/calibration/rotation_alignment.h"
@@ -493,54 +494,55 @@ void motionResiduals(const Problem& problem, const MotionParameters& m,
   }
 }
 
-MotionParameters perturb(const MotionParameters& m, const Eigen::VectorXd& x,
-                         const Eigen::Matrix<double, 3, 2>& tangent) {
-  MotionParameters out = m;
-  for (size_t i = 0; i < m.R.size(); ++i) out.R[i] = expSO3(x.segment<3>(3 * i)) * m.R[i];
-  out.t = (m.t + tangent * x.tail<2>()).normalized();
-  return out;
-}
-
+// The refinement, by the package's solver (core/common/nonlinear_least_squares.h): each patch's
+// rotation as exp(d_i) R_i (d_i a rotation vector from the start, 3 per patch) and the translation
+// direction as the normalised t + T b (T a tangent basis at the start's t, 2 parameters). The
+// analytic Jacobian of motionResiduals (along left perturbations and the tangent at the current
+// point) is carried onto these coordinates by the left Jacobian of SO(3) and the normalisation.
 void refineMotion(const Problem& problem, const std::vector<int>& inliers,
                   const FundamentalMixturesOptions& o, MotionParameters* m) {
   const int N = problem.model_count;
-  const int dof = 3 * N + 2;
   const std::vector<bool> sparse = sparsePatches(problem, inliers, o);
-  double mu = -1.0;
-  Eigen::VectorXd r, r_new;
-  Eigen::MatrixXd J, JtJ(dof, dof), damped(dof, dof);
-  Eigen::VectorXd Jtr(dof), step(dof);
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(dof);
-  motionResiduals(problem, *m, inliers, sparse, o, nullptr, &r, nullptr);
-  for (int iteration = 0; iteration < 20; ++iteration) {
-    // Tangent basis of the unit translation at the current estimate.
-    Eigen::JacobiSVD<Eigen::Matrix3d> basis(m->t * m->t.transpose(), Eigen::ComputeFullU);
-    const Eigen::Matrix<double, 3, 2> tangent = basis.matrixU().rightCols<2>();
-    motionResiduals(problem, *m, inliers, sparse, o, &tangent, &r, &J);
-    JtJ.noalias() = J.transpose() * J;
-    Jtr.noalias() = J.transpose() * r;
-    if (mu < 0.0) mu = 1e-4 * JtJ.diagonal().maxCoeff();
-    bool improved = false;
-    for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
-      damped = JtJ;
-      damped.diagonal() += mu * JtJ.diagonal().cwiseMax(1e-12);
-      step = ldlt.compute(damped).solve(-Jtr);
-      if (!step.allFinite()) return;
-      const MotionParameters candidate = perturb(*m, step, tangent);
-      motionResiduals(problem, candidate, inliers, sparse, o, nullptr, &r_new, nullptr);
-      if (r_new.squaredNorm() < r.squaredNorm()) {
-        const double gain = r.squaredNorm() - r_new.squaredNorm();
-        *m = candidate;
-        r.swap(r_new);
-        mu = std::max(mu / 10.0, 1e-12);
-        improved = true;
-        if (gain < 1e-12 * (1.0 + r.squaredNorm())) return;
-      } else {
-        mu *= 10.0;
-      }
-    }
-    if (!improved) return;
-  }
+  const MotionParameters origin = *m;
+  auto tangentAt = [](const Eigen::Vector3d& t) {
+    Eigen::JacobiSVD<Eigen::Matrix3d> basis(t * t.transpose(), Eigen::ComputeFullU);
+    return Eigen::Matrix<double, 3, 2>(basis.matrixU().rightCols<2>());
+  };
+  const Eigen::Matrix<double, 3, 2> origin_tangent = tangentAt(origin.t);
+  auto motionAt = [&](const Eigen::VectorXd& x) {
+    MotionParameters out = origin;
+    for (int i = 0; i < N; ++i) out.R[i] = expSO3(x.segment<3>(3 * i)) * origin.R[i];
+    out.t = (origin.t + origin_tangent * x.tail<2>()).normalized();
+    return out;
+  };
+  NonlinearLeastSquaresProblem refinement;
+  for (int i = 0; i < N; ++i)
+    for (int k = 0; k < 3; ++k)
+      refinement.parameters.push_back({"patch " + std::to_string(i) + " rotation " + std::to_string(k)});
+  refinement.parameters.push_back({"translation 0"});
+  refinement.parameters.push_back({"translation 1"});
+  refinement.residuals = [&](const Eigen::VectorXd& x, Eigen::VectorXd* r) {
+    motionResiduals(problem, motionAt(x), inliers, sparse, o, nullptr, r, nullptr);
+    return true;
+  };
+  refinement.residuals_and_jacobian = [&](const Eigen::VectorXd& x, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+    const MotionParameters at = motionAt(x);
+    const Eigen::Matrix<double, 3, 2> tangent = tangentAt(at.t);
+    motionResiduals(problem, at, inliers, sparse, o, &tangent, r, J);
+    for (int i = 0; i < N; ++i)
+      J->middleCols<3>(3 * i) = J->middleCols<3>(3 * i) * leftJacobianSO3(x.segment<3>(3 * i));
+    const Eigen::Vector3d u = origin.t + origin_tangent * x.tail<2>();
+    J->rightCols<2>() = J->rightCols<2>() * (tangent.transpose() * origin_tangent / u.norm());
+    return true;
+  };
+  NonlinearLeastSquaresOptions options;
+  options.max_iterations = 20;
+  options.function_tolerance = 1e-12;
+  // Sampson distances are near their minimum after MSAC: the damping falls fast.
+  options.damping = {1e-2, 10.0, 10.0, 1e-12, 10};
+  const NonlinearLeastSquaresReport report =
+      solveNonlinearLeastSquares(refinement, Eigen::VectorXd::Zero(3 * N + 2), options);
+  if (report.usable() && report.final_cost <= report.initial_cost) *m = motionAt(report.values);
 }
 
 struct MixtureFit {

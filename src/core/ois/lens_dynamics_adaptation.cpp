@@ -1,5 +1,7 @@
 #include "deep_ois/core/ois/lens_dynamics_adaptation.h"
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
+
 #include <Eigen/Cholesky>
 
 #include <algorithm>
@@ -40,25 +42,7 @@ Predictions predictAll(const StabiliserParameters& parameters,
   return p;
 }
 
-// Huber weights per observation (both components share their norm's weight).
-Eigen::VectorXd huberWeights(const Eigen::VectorXd& error, const Eigen::VectorXd& weight, double huber_px) {
-  Eigen::VectorXd w(error.size());
-  for (long i = 0; i + 1 < error.size(); i += 2) {
-    const double norm = std::hypot(error(i), error(i + 1));
-    const double h = norm <= huber_px ? 1.0 : huber_px / norm;
-    w(i) = w(i + 1) = h * weight(i);
-  }
-  return w;
-}
-
-double huberCost(const Eigen::VectorXd& error, const Eigen::VectorXd& weight, double huber_px) {
-  double cost = 0.0;
-  for (long i = 0; i + 1 < error.size(); i += 2) {
-    const double norm = std::hypot(error(i), error(i + 1));
-    cost += weight(i) * (norm <= huber_px ? norm * norm : 2.0 * huber_px * norm - huber_px * huber_px);
-  }
-  return cost;
-}
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 double rms(const Eigen::VectorXd& error, const Eigen::VectorXd& weight) {
   const double total = weight.sum() / 2.0;
@@ -102,82 +86,86 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
       out.segment<2>(i) = map * Eigen::Vector2d(motion(i), motion(i + 1));
     return out;
   };
-  auto priorCost = [&](const Eigen::VectorXd& c) {
-    return options.prior_weight_px2 * (c - mean).cwiseQuotient(spread).squaredNorm();
-  };
-
-  Eigen::VectorXd c = mean;
-  Eigen::Matrix2d map = Eigen::Matrix2d::Identity();
-  Predictions base = unmapped(c);
+  Predictions base = unmapped(mean);
   if (base.predicted.size() == 0)
     throw std::invalid_argument(
         "lens dynamics adaptation: no usable lens motion (every observation is before the model's "
         "warm-up or outside the gyro stream)");
   result.observations_used = static_cast<std::size_t>(base.predicted.size() / 2);
-  Eigen::VectorXd error = applyMap(map, base.predicted) - base.observed;
-  double cost = huberCost(error, base.weight, fit_options.huber_px) + priorCost(c);
-  result.rms_start_px = rms(error, base.weight);
-  double lambda = 1e-3;
-  for (int iteration = 0; iteration < options.iterations; ++iteration) {
-    // Jacobian of the motions: conditioning by forward differences, map in closed form.
-    const long n = error.size(), m = c_size + map_size;
-    Eigen::MatrixXd J(n, m);
+  result.rms_start_px = rms(base.predicted - base.observed, base.weight);
+
+  // The solver's problem: the conditioning (pulled towards the designs' distribution by prior
+  // rows sqrt(prior_weight) (c - mean) / spread, outside the loss) and the map's four entries
+  // (row-major); residuals sqrt(weight) (map * motion - observed) per observation, Huber loss.
+  const long n = base.predicted.size(), m = c_size + map_size;
+  const Eigen::VectorXd sqrt_weight = base.weight.cwiseMax(0.0).cwiseSqrt();
+  const double sqrt_prior = std::sqrt(options.prior_weight_px2);
+  auto mapOf = [&](const Eigen::VectorXd& v) {
+    Eigen::Matrix2d map = Eigen::Matrix2d::Identity();
+    if (map_size) map = Eigen::Map<const Eigen::Matrix<double, 2, 2, Eigen::RowMajor>>(v.data() + c_size);
+    return map;
+  };
+  auto residualsAt = [&](const Predictions& p, const Eigen::VectorXd& v, Eigen::VectorXd* r) {
+    r->resize(n + c_size);
+    r->head(n) = sqrt_weight.cwiseProduct(applyMap(mapOf(v), p.predicted) - base.observed);
+    r->tail(c_size) = sqrt_prior * (v.head(c_size) - mean).cwiseQuotient(spread);
+  };
+  NonlinearLeastSquaresProblem fit;
+  for (long k = 0; k < c_size; ++k)
+    fit.parameters.push_back({"conditioning_" + std::to_string(k), -kInfinity, kInfinity, false,
+                                  options.difference_step * spread(k)});
+  for (long k = 0; k < map_size; ++k)
+    fit.parameters.push_back({"output_map_" + std::to_string(k / 2) + std::to_string(k % 2)});
+  fit.block_size = 2;
+  fit.robust_residual_count = n;
+  fit.residuals = [&](const Eigen::VectorXd& v, Eigen::VectorXd* r) {
+    const Predictions p = unmapped(v.head(c_size));
+    if (p.predicted.size() != n) return false;  // the usable observations changed: refused
+    residualsAt(p, v, r);
+    return true;
+  };
+  // Derivatives by forward differences over the conditioning (one pass each), in closed form
+  // over the map (the lens is linear in it).
+  fit.residuals_and_jacobian = [&](const Eigen::VectorXd& v, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+    const Predictions p = unmapped(v.head(c_size));
+    if (p.predicted.size() != n) return false;
+    residualsAt(p, v, r);
+    const Eigen::Matrix2d map = mapOf(v);
+    const Eigen::VectorXd mapped = applyMap(map, p.predicted);
+    J->setZero(n + c_size, m);
     for (long k = 0; k < c_size; ++k) {
-      Eigen::VectorXd shifted = c;
+      Eigen::VectorXd shifted = v.head(c_size);
       const double h = options.difference_step * spread(k);
       shifted(k) += h;
       const Predictions moved = unmapped(shifted);
-      if (moved.predicted.size() != n)
-        throw std::logic_error("lens dynamics adaptation: the usable observations changed");
-      J.col(k) = (applyMap(map, moved.predicted) - applyMap(map, base.predicted)) / h;
+      if (moved.predicted.size() != n) return false;
+      J->col(k).head(n) = sqrt_weight.cwiseProduct(applyMap(map, moved.predicted) - mapped) / h;
+      (*J)(n + k, k) = sqrt_prior / spread(k);
     }
     for (long k = 0; k < map_size; ++k) {
       const int row = static_cast<int>(k / 2), col = static_cast<int>(k % 2);
-      J.col(c_size + k).setZero();
-      for (long i = 0; i + 1 < n; i += 2) J(i + row, c_size + k) = base.predicted(i + col);
+      for (long i = 0; i + 1 < n; i += 2) (*J)(i + row, c_size + k) = sqrt_weight(i + row) * p.predicted(i + col);
     }
-    const Eigen::VectorXd w = huberWeights(error, base.weight, fit_options.huber_px);
-    Eigen::MatrixXd A = J.transpose() * w.asDiagonal() * J;
-    Eigen::VectorXd g = J.transpose() * w.cwiseProduct(error);
-    // The prior on the conditioning: prior_weight * ((c - mean) / spread)^2.
-    for (long k = 0; k < c_size; ++k) {
-      const double s2 = spread(k) * spread(k);
-      A(k, k) += options.prior_weight_px2 / s2;
-      g(k) += options.prior_weight_px2 * (c(k) - mean(k)) / s2;
-    }
-    bool accepted = false;
-    for (int attempt = 0; attempt < 6 && !accepted; ++attempt) {
-      Eigen::MatrixXd damped = A;
-      damped.diagonal() += lambda * (A.diagonal().array() + 1e-12).matrix();
-      const Eigen::VectorXd delta = -damped.ldlt().solve(g);
-      if (!delta.allFinite()) break;
-      const Eigen::VectorXd c_new = c + delta.head(c_size);
-      Eigen::Matrix2d map_new = map;
-      if (map_size) map_new += Eigen::Map<const Eigen::Matrix<double, 2, 2, Eigen::RowMajor>>(delta.data() + c_size);
-      const Predictions trial = unmapped(c_new);
-      if (trial.predicted.size() != n) {
-        lambda *= 4.0;
-        continue;
-      }
-      const Eigen::VectorXd trial_error = applyMap(map_new, trial.predicted) - trial.observed;
-      const double trial_cost = huberCost(trial_error, trial.weight, fit_options.huber_px) + priorCost(c_new);
-      if (trial_cost < cost) {
-        const double relative = (cost - trial_cost) / std::max(cost, 1e-12);
-        c = c_new;
-        map = map_new;
-        base = trial;
-        error = trial_error;
-        cost = trial_cost;
-        lambda = std::max(lambda / 3.0, 1e-7);
-        accepted = true;
-        result.rms_history.push_back(rms(error, base.weight));
-        if (relative < 1e-4) iteration = options.iterations;  // converged
-      } else {
-        lambda *= 4.0;
-      }
-    }
-    if (!accepted) break;
-  }
+    return true;
+  };
+  Eigen::VectorXd start(m);
+  start.head(c_size) = mean;
+  if (map_size) start.tail(map_size) << 1.0, 0.0, 0.0, 1.0;
+  NonlinearLeastSquaresOptions solver;
+  solver.loss = RobustLoss::huber(fit_options.huber_px);
+  solver.engine = fit_options.solver_engine;
+  solver.max_iterations = options.iterations;
+  solver.function_tolerance = 1e-4;
+  // Lighter damping than the chain's, raised more gently: the conditioning is near its prior's
+  // mean, where Gauss-Newton steps are good.
+  solver.damping = {1e-3, 3.0, 4.0, 1e-7, 6};
+  const NonlinearLeastSquaresReport report = solveNonlinearLeastSquares(fit, start, solver);
+  result.rms_history = report.rms_history;
+  const Eigen::VectorXd solved = report.usable() ? report.values : start;
+  const Eigen::VectorXd c = solved.head(c_size);
+  const Eigen::Matrix2d map = mapOf(solved);
+  base = unmapped(c);
+  const Eigen::VectorXd error = applyMap(map, base.predicted) - base.observed;
   parameters.learned_dynamics.conditioning = c;
   parameters.learned_dynamics.output_map = map;
   result.parameters = parameters;
@@ -201,9 +189,9 @@ StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted
   Eigen::MatrixXd w0(2, h);
   w0.leftCols(hidden) = learned.output_map * net.w_output;
   if (skip) w0.rightCols(net.inputSize()) = learned.output_map * net.w_skip;
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(h, h);
-  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(h, 2);
-  std::size_t used = 0;
+  // Huber weights from the current layer's residuals; the package's ridge convention, per state
+  // component relative to its energy, towards the current layer.
+  RobustRidgeRegression regression(h, 2, RobustLoss::huber(options.huber_px));
   for (const StabiliserFitRecording& recording : recordings) {
     const double scale = recording.focal_px * net.output_scale;
     visitCoveredObservations(
@@ -218,25 +206,15 @@ StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted
           const Eigen::Vector2d others =
               predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s) - learned_motion;
           const Eigen::Vector2d target = o.motion_px - others;
-          const double norm = (target - learned_motion).norm();
-          const double w =
-              std::max(0.0, o.weight) * (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
-          A.noalias() += w * delta * delta.transpose();
-          B.noalias() += w * delta * target.transpose();
-          ++used;
+          regression.add(delta, target, o.weight, (target - learned_motion).norm());
         },
         [](LensShiftPredictor& predictor) { predictor.recordLearnedState(); });
   }
-  if (used == 0) throw std::invalid_argument("lens dynamics output refit: no usable lens motion");
-  // Ridge per state component, relative to its energy, towards the current layer.
-  const double floor = 1e-12 * std::max(1e-300, A.diagonal().maxCoeff());
-  Eigen::VectorXd penalty(h);
-  for (long k = 0; k < h; ++k) penalty(k) = ridge * A(k, k) + floor;
-  A.diagonal() += penalty;
-  B += penalty.asDiagonal() * w0.transpose();
-  const Eigen::MatrixXd solution = A.ldlt().solve(B);  // H x 2
+  if (regression.count() == 0) throw std::invalid_argument("lens dynamics output refit: no usable lens motion");
+  const Eigen::MatrixXd prior = w0.transpose();
+  Eigen::MatrixXd solution;  // H x 2
   StabiliserParameters refitted = adapted;
-  if (!solution.allFinite()) return refitted;
+  if (!regression.solve(ridge, &solution, &prior)) return refitted;
   auto network = std::make_shared<LensDynamicsNetwork>(net);
   network->w_output = solution.topRows(hidden).transpose();
   if (skip) network->w_skip = solution.bottomRows(net.inputSize()).transpose();

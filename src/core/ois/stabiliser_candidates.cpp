@@ -11,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
@@ -25,9 +26,9 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
   StabiliserParameters features_only = base;
   features_only.nonlinear_features = feature_set;
   features_only.nonlinear_residual.resize(0, 0);  // features computed, nothing added
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
-  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, 2);
-  std::size_t used = 0;
+  // Huber weights from what the chain leaves (the targets), the package's ridge convention: per
+  // feature, relative to its own energy (the features differ by orders of magnitude).
+  RobustRidgeRegression regression(m, 2, RobustLoss::huber(options.huber_px));
   for (const StabiliserFitRecording& recording : recordings) {
     visitCoveredObservations(
         features_only, recording, options.step_s, options.warm_up_s,
@@ -37,22 +38,14 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
               recording.focal_px * (predictor.featuresAt(o.t_b_s) - predictor.featuresAt(o.t_a_s));
           const Eigen::Vector2d target =
               o.motion_px - (predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s));
-          const double norm = target.norm();
-          const double w = std::max(0.0, o.weight) *
-                           (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
-          A.noalias() += w * delta * delta.transpose();
-          B.noalias() += w * delta * target.transpose();
-          ++used;
+          regression.add(delta, target, o.weight, target.norm());
         },
         [](LensShiftPredictor& predictor) { predictor.recordFeatures(); });
   }
-  if (used == 0) throw std::invalid_argument("nonlinear residual: no usable lens motion");
-  // Ridge per feature, relative to its own energy (the features differ by orders of magnitude).
-  const double floor = 1e-12 * std::max(1e-300, A.diagonal().maxCoeff());
-  for (long k = 0; k < m; ++k) A(k, k) += ridge * A(k, k) + floor;
-  const Eigen::MatrixXd solution = A.ldlt().solve(B);  // m x 2
+  if (regression.count() == 0) throw std::invalid_argument("nonlinear residual: no usable lens motion");
+  Eigen::MatrixXd solution;  // m x 2
   StabiliserParameters fitted = base;
-  if (!solution.allFinite()) return fitted;
+  if (!regression.solve(ridge, &solution)) return fitted;
   fitted.nonlinear_features = feature_set;
   // The predictor multiplies by focal_px itself; the deltas above already carry it.
   fitted.nonlinear_residual = solution.transpose();

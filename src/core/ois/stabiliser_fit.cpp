@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/ois/camera_rate_cursor.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
 
@@ -34,8 +35,10 @@ class FreeParameters {
     }
   }
   int size() const { return static_cast<int>(entries_.size()); }
-  // The forward-difference step of entry j's coordinate.
-  double step(int j) const { return entries_[static_cast<std::size_t>(j)]->fit_step; }
+  // Entry j's parameter: name, bounds, coordinate and difference step.
+  const FittedStabiliserParameter& parameter(int j) const {
+    return *entries_[static_cast<std::size_t>(j)];
+  }
 
   Eigen::VectorXd pack(const StabiliserParameters& p) const {
     Eigen::VectorXd x(size());
@@ -92,17 +95,6 @@ Residuals residualsOf(const StabiliserParameters& parameters,
   return result;
 }
 
-// Huber weights per observation (applied to both of its components), threshold in pixels.
-Eigen::VectorXd huberWeights(const Eigen::VectorXd& residuals, double huber_px) {
-  Eigen::VectorXd weights(residuals.size());
-  for (long k = 0; k + 1 < residuals.size(); k += 2) {
-    const double norm = std::hypot(residuals(k), residuals(k + 1));
-    const double w = norm <= huber_px ? 1.0 : huber_px / norm;
-    weights(k) = weights(k + 1) = w;
-  }
-  return weights;
-}
-
 double weightedRms(const Eigen::VectorXd& residuals, const Eigen::VectorXd& weights) {
   if (residuals.size() == 0) return kNaN;
   return std::sqrt(2.0 * residuals.cwiseAbs2().cwiseProduct(weights).sum() / weights.sum());
@@ -118,60 +110,44 @@ double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
   return cost;
 }
 
-// Levenberg-Marquardt with a forward-difference Jacobian and Huber reweighting per iteration.
+// The refinement: the free parameters' values fitted by the package's solver
+// (core/common/nonlinear_least_squares.h), Huber loss per observation, bounds and logarithmic
+// coordinates as the stages declare them, forward differences for the Jacobian.
 // `rms_history`, when given, gets the RMS residual (pixels) after every accepted step.
 StabiliserParameters levenbergMarquardt(StabiliserParameters start, const FreeParameters& packing,
                                         const std::vector<StabiliserFitRecording>& recordings,
                                         const StabiliserFitOptions& options, int iterations,
                                         double* final_cost, std::vector<double>* rms_history = nullptr) {
-  Eigen::VectorXd x = packing.pack(start);
-  Residuals current = residualsOf(packing.unpack(x, start), recordings, options);
-  double cost = huberCost(current.values, options.huber_px);
-  double lambda = 1e-2;
-  for (int iteration = 0; iteration < iterations; ++iteration) {
-    const long n = current.values.size();
-    Eigen::MatrixXd J(n, packing.size());
-    for (int j = 0; j < packing.size(); ++j) {
-      Eigen::VectorXd moved = x;
-      moved(j) += packing.step(j);
-      const Residuals shifted = residualsOf(packing.unpack(moved, start), recordings, options);
-      if (shifted.values.size() != n) return packing.unpack(x, start);  // coverage changed
-      J.col(j) = (shifted.values - current.values) / packing.step(j);
-    }
-    const Eigen::VectorXd w = huberWeights(current.values, options.huber_px);
-    const Eigen::MatrixXd A = J.transpose() * w.asDiagonal() * J;
-    const Eigen::VectorXd g = J.transpose() * w.cwiseProduct(current.values);
-    bool improved = false;
-    for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
-      Eigen::MatrixXd damped = A;
-      for (int j = 0; j < packing.size(); ++j) damped(j, j) += lambda * (A(j, j) + 1e-9);
-      const Eigen::VectorXd step = damped.ldlt().solve(-g);
-      const Eigen::VectorXd candidate = x + step;
-      const Residuals trial = residualsOf(packing.unpack(candidate, start), recordings, options);
-      if (trial.values.size() != n) {
-        lambda *= 10.0;
-        continue;
-      }
-      const double trial_cost = huberCost(trial.values, options.huber_px);
-      if (trial_cost < cost) {
-        x = packing.pack(packing.unpack(candidate, start));  // keep within the clamps
-        current = residualsOf(packing.unpack(x, start), recordings, options);
-        const double relative = (cost - trial_cost) / std::max(cost, 1e-12);
-        cost = huberCost(current.values, options.huber_px);
-        if (rms_history) {
-          rms_history->push_back(weightedRms(current.values, Eigen::VectorXd::Ones(current.values.size())));
-        }
-        lambda = std::max(lambda / 3.0, 1e-7);
-        improved = true;
-        if (relative < 1e-6) iteration = iterations;  // converged
-      } else {
-        lambda *= 10.0;
-      }
-    }
-    if (!improved) break;
+  NonlinearLeastSquaresProblem problem;
+  Eigen::VectorXd values(packing.size());
+  for (int j = 0; j < packing.size(); ++j) {
+    const FittedStabiliserParameter& p = packing.parameter(j);
+    problem.parameters.push_back({p.name, p.lower, p.upper, p.logarithmic, p.fit_step});
+    values(j) = std::clamp(p.value(start), p.lower, p.upper);
   }
-  if (final_cost) *final_cost = cost;
-  return packing.unpack(x, start);
+  auto unpack = [&](const Eigen::VectorXd& v) {
+    StabiliserParameters p = start;
+    for (int j = 0; j < packing.size(); ++j) packing.parameter(j).set(&p, v(j));
+    return p;
+  };
+  problem.block_size = 2;  // an observation's x and y share its Huber weight
+  problem.residuals = [&](const Eigen::VectorXd& v, Eigen::VectorXd* r) {
+    *r = residualsOf(unpack(v), recordings, options).values;  // a changed coverage is refused
+    return true;
+  };
+  NonlinearLeastSquaresOptions solver;
+  solver.loss = RobustLoss::huber(options.huber_px);
+  solver.engine = options.solver_engine;
+  solver.max_iterations = iterations;
+  solver.function_tolerance = 1e-6;
+  const NonlinearLeastSquaresReport report = solveNonlinearLeastSquares(problem, values, solver);
+  if (rms_history) rms_history->insert(rms_history->end(), report.rms_history.begin(), report.rms_history.end());
+  if (!report.usable()) {
+    if (final_cost) *final_cost = huberCost(residualsOf(start, recordings, options).values, options.huber_px);
+    return start;
+  }
+  if (final_cost) *final_cost = report.final_cost;  // the solver's cost is huberCost's
+  return unpack(report.values);
 }
 
 // The residual bank's features at time t: the leaky integrals of the pan/tilt rate, advanced
@@ -251,19 +227,12 @@ StabiliserParameters withLinearResidual(const StabiliserParameters& physical,
     for (const StabiliserFitRecording& recording : recordings)
       bank.observe(recording, options.warm_up_s, physical, &deltas, &targets, &weights);
     const long m = 2 * static_cast<long>(options.residual_time_constants_s.size());
-    // Huber weights from the physical residuals, then ridge per output axis.
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
-    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, 2);
-    for (std::size_t k = 0; k < deltas.size(); ++k) {
-      const double norm = targets[k].norm();
-      const double w = weights[k] * (norm <= options.huber_px ? 1.0 : options.huber_px / norm);
-      A += w * deltas[k] * deltas[k].transpose();
-      B += w * deltas[k] * targets[k].transpose();
-    }
-    const double energy = A.trace() / std::max<long>(1, m);
-    A += options.residual_ridge * std::max(energy, 1e-12) * Eigen::MatrixXd::Identity(m, m);
-    const Eigen::MatrixXd solution = A.ldlt().solve(B);  // m x 2
-    if (solution.allFinite()) {
+    // Huber weights from the physical residuals (the targets), the package's ridge convention.
+    RobustRidgeRegression regression(m, 2, RobustLoss::huber(options.huber_px));
+    for (std::size_t k = 0; k < deltas.size(); ++k)
+      regression.add(deltas[k], targets[k], weights[k], targets[k].norm());
+    Eigen::MatrixXd solution;  // m x 2
+    if (regression.solve(options.residual_ridge, &solution)) {
       final_parameters.residual_time_constants_s = options.residual_time_constants_s;
       // The predictor multiplies by focal_px itself: the bank here already carries it.
       final_parameters.residual = solution.transpose();

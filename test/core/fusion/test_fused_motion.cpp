@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
@@ -119,6 +120,9 @@ TEST(FusedMotion, RecoversAKnownPerPatchCorrection) {
   ASSERT_TRUE(fused.refined) << fused.reason;
   EXPECT_EQ(fused.reason.rfind("refined on ", 0), 0u) << fused.reason;
   const double fused_error_px = meanDistancePx(camera, fused.homographies, truth);
+  std::printf("known correction: prior %.5f px from the truth, fused %.5f px; %d inliers; track residual "
+              "prior %.5f px, fused %.5f px\n",
+              prior_error_px, fused_error_px, fused.inliers, fused.prior_residual_px, fused.fused_residual_px);
   EXPECT_LT(fused_error_px, 0.05) << "prior " << prior_error_px << " px; " << fused.reason;
   EXPECT_NEAR(fused.mean_correction_px, prior_error_px, 0.05);
   EXPECT_LT(fused.fused_residual_px, fused.prior_residual_px);
@@ -138,6 +142,9 @@ TEST(FusedMotion, IgnoresAMovingObjectCoveringAThirdOfTheFrame) {
         syntheticTracks(camera, truth, 400, 0.15, 11, object, object_motion_px);
     const FusedMotion fused = fuseMotion(camera, prior, matches);
     ASSERT_TRUE(fused.refined) << fused.reason;
+    std::printf("object moving by (%.1f, %.1f) px: fused %.5f px from the truth, %d of %d tracks inliers\n",
+                object_motion_px.x(), object_motion_px.y(), meanDistancePx(camera, fused.homographies, truth),
+                fused.inliers, fused.tracks);
     EXPECT_LT(meanDistancePx(camera, fused.homographies, truth), 0.08)
         << "object moving by " << object_motion_px.transpose() << " px; " << fused.reason;
     EXPECT_LT(fused.inliers, 0.8 * fused.tracks) << "the object's tracks are not inliers";
@@ -162,6 +169,8 @@ TEST(FusedMotion, IgnoresAMovingObjectThatHoldsMostTracks) {
   ASSERT_GT(on_object, 0.55 * matches.size());
   const FusedMotion fused = fuseMotion(camera, prior, matches);
   ASSERT_TRUE(fused.refined) << fused.reason;
+  std::printf("object holding most tracks: fused %.5f px from the truth, sigma %.4f px, %d of %d tracks inliers\n",
+              meanDistancePx(camera, fused.homographies, truth), fused.sigma_px, fused.inliers, fused.tracks);
   EXPECT_LT(fused.sigma_px, 0.8);
   EXPECT_LT(meanDistancePx(camera, fused.homographies, truth), 0.1) << fused.reason;
 }

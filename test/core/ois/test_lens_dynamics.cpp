@@ -4,6 +4,7 @@
 // recovering a known conditioning vector, lens map and output layer.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cmath>
 #include <memory>
 #include <random>
@@ -210,6 +211,10 @@ TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
   adaptation.iterations = 30;
   adaptation.prior_weight_px2 = 1e-6;
   const LensDynamicsAdaptation adapted = adaptLensDynamics(net, recordings, options, adaptation);
+  std::printf("[ figures  ] adaptation with map: rms %.5f -> %.3e px, conditioning (%.4f, %.4f), map(0,0) %.4f, %d passes\n",
+              adapted.rms_start_px, adapted.rms_px, adapted.parameters.learned_dynamics.conditioning(0),
+              adapted.parameters.learned_dynamics.conditioning(1), adapted.parameters.learned_dynamics.output_map(0, 0),
+              adapted.passes);
   EXPECT_GT(adapted.rms_start_px, 0.05) << "the default conditioning must be wrong for this test";
   EXPECT_LT(adapted.rms_px, 0.01 * adapted.rms_start_px);
   EXPECT_NEAR(adapted.parameters.learned_dynamics.conditioning(0), 0.6, 0.05);
@@ -217,6 +222,8 @@ TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
   // Without the map only the conditioning moves: it cannot explain a scaled lens as well.
   adaptation.fit_output_map = false;
   const LensDynamicsAdaptation conditioning_only = adaptLensDynamics(net, recordings, options, adaptation);
+  std::printf("[ figures  ] adaptation without map: rms %.5f -> %.5f px, %d passes\n", conditioning_only.rms_start_px,
+              conditioning_only.rms_px, conditioning_only.passes);
   EXPECT_GT(conditioning_only.rms_px, 2.0 * adapted.rms_px);
 }
 
@@ -232,6 +239,7 @@ TEST(LensDynamics, OutputRefitRecoversALayer) {
   const StabiliserScore before = scoreStabiliser(start, recordings, options);
   const StabiliserParameters refitted = refitLensDynamicsOutput(start, recordings, options, 1e-8);
   const StabiliserScore after = scoreStabiliser(refitted, recordings, options);
+  std::printf("[ figures  ] output refit: rms %.5f -> %.3e px\n", before.rms_px, after.rms_px);
   EXPECT_GT(before.rms_px, 0.05);
   EXPECT_LT(after.rms_px, 0.01 * before.rms_px);
   // The shared network is not changed: the model carries its own copy.

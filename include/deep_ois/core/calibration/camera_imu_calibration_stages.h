@@ -68,7 +68,8 @@ struct Refinement {
   std::vector<double> weights;              // the Cauchy weights of the last accepted step, per track
 };
 
-// Levenberg-Marquardt from `state` (moved to the estimate) over the active parameters; held ones
+// Levenberg-Marquardt from `state` (moved to the estimate) over the active parameters, by the
+// package's solver (minimiseLevenbergMarquardt, core/common/nonlinear_least_squares.h); held ones
 // do not move. The lens shifts (when modelled) start at their best fit to the start state.
 Refinement refineCalibration(ReprojectionProblem& problem, const ActiveParameters& active,
                              const CalibrationOptions& options, double max_readout_s, CalibrationState& state);

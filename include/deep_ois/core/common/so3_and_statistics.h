@@ -26,6 +26,10 @@ Eigen::Matrix3d expSO3(const Eigen::Vector3d& rotation_vector_rad);
 // The inverse of expSO3 for angles below pi; returns the rotation vector in radians.
 Eigen::Vector3d logSO3(const Eigen::Matrix3d& rotation);
 
+// The left Jacobian of SO(3) at rotation vector v: expSO3(v + dv) = expSO3(J dv) expSO3(v) to
+// first order. It turns a derivative along left perturbations into one along the rotation vector.
+Eigen::Matrix3d leftJacobianSO3(const Eigen::Vector3d& rotation_vector_rad);
+
 // The median of `values`, taken by value (partially reordered). For an even count it is the upper
 // of the two middle values (one element of the sample, no averaging: robust scales and residual
 // medians then stay actual residuals). 0 for an empty sample: callers that must tell "no data"

@@ -17,8 +17,8 @@
 // where pixels(c) are the components' image displacements (focal * rotation about x, y; RMS
 // radius * rotation about z; the shift), so a patch without tracks is held by its neighbours and
 // the prior. The correction is linearised around the current estimate and solved by iteratively
-// reweighted least squares with the package's weighted least-squares helper
-// (fitLinearDynamicsCoefficients).
+// reweighted least squares with the package's robust ridge regression (RobustRidgeRegression,
+// core/common/nonlinear_least_squares.h, without a ridge).
 //
 // Moving objects and mismatches are rejected twice: a track whose transfer error under the prior
 // lies far beyond the prior's uncertainty (the given one, or the pair's own robust scale where that

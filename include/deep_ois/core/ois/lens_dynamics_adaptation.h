@@ -5,9 +5,9 @@
 //
 // The data is what the chain's fit uses (core/ois/stabiliser_fit.h): lens motions between the
 // frames of each recording, from the images (gyro-anchored), a lens log or the simulator's truth.
-// The solver: Levenberg-Marquardt with Huber weights (re-weighted each iteration), derivatives
-// by forward differences over the conditioning (one pass over the gyro per component) and in
-// closed form over the map (the lens is linear in it). Pure C++/Eigen: no ROS, no torch.
+// The solver: the package's (core/common/nonlinear_least_squares.h), Huber loss per observation,
+// derivatives by forward differences over the conditioning (one pass over the gyro per component)
+// and in closed form over the map (the lens is linear in it). Pure C++: no ROS, no torch.
 #pragma once
 
 #include <memory>
@@ -21,7 +21,7 @@ namespace deep_ois {
 
 struct LensDynamicsAdaptationOptions {
   bool fit_output_map = false;
-  int iterations = 12;
+  int iterations = 12;  // solver iterations
   // The pull of the conditioning towards the pretraining designs' distribution: the cost adds
   // prior_weight_px2 * sum(((c - mean) / spread)^2) to the sum of Huber costs (pixels^2).
   double prior_weight_px2 = 1.0;

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/common/progress_callback.h"
 #include "deep_ois/core/ois/stabiliser_model.h"
 
@@ -55,9 +56,10 @@ struct StabiliserFitRecording {
 struct StabiliserFitOptions {
   // Leaky-integral time constants of the linear residual bank (empty = no residual).
   std::vector<double> residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
-  double residual_ridge = 1e-3;  // ridge weight, relative to the bank's mean energy
+  double residual_ridge = 1e-3;  // ridge weight, relative to each feature's energy (RobustRidgeRegression)
   double huber_px = 0.3;         // Huber threshold on an observation's residual norm, pixels
-  int iterations = 30;           // Levenberg-Marquardt iterations per candidate
+  int iterations = 30;           // solver iterations per candidate (nonlinear_least_squares.h)
+  SolverEngine solver_engine = SolverEngine::kLevenbergMarquardt;  // the minimiser under the solver
   // Pan-detection thresholds tried (rad/s); 0 = pan detection off.
   std::vector<double> pan_thresholds_rad_s = {0.0, 0.3, 0.6, 1.2};
   bool try_circular_stroke = true;
