@@ -149,7 +149,7 @@ int main(int argc, char** argv) {
         for (const auto& o : r.observations) m.push_back(o.motion_px);
         oracle_motion.push_back(m);
       }
-      auto rmsOf = [&](const deep_ois::StabiliserParameters& p) {
+      auto rmsOf = [&](const deep_ois::StabiliserModel& p) {
         return deep_ois::scoreStabiliser(p, evaluation, fit_options).rms_px;
       };
       const double none = rmsOf(deep_ois::noLensMotion());

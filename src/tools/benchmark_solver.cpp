@@ -24,7 +24,7 @@ using deep_ois::StabiliserFitRecording;
 namespace sim = deep_ois::sim;
 
 // The solver's cost on `recordings`: 1/2 sum of Huber(|predicted - observed|^2), Ceres' convention.
-double huberCost(const deep_ois::StabiliserParameters& p, const std::vector<StabiliserFitRecording>& recordings,
+double huberCost(const deep_ois::StabiliserModel& p, const std::vector<StabiliserFitRecording>& recordings,
                  const deep_ois::StabiliserFitOptions& options) {
   const deep_ois::RobustLoss loss = deep_ois::RobustLoss::huber(options.huber_px);
   double cost = 0.0;

@@ -54,7 +54,7 @@ std::vector<deep_ois::LensMotionObservation> motionsIn(const std::vector<LoggedL
 }
 
 // The model's lens position at each of `times` (increasing), fed the whole gyro stream.
-std::vector<Eigen::Vector2d> positionsAt(const deep_ois::StabiliserParameters& parameters,
+std::vector<Eigen::Vector2d> positionsAt(const deep_ois::StabiliserModel& parameters,
                                          const deep_ois::AndroidOisLog& log,
                                          const std::vector<double>& times) {
   deep_ois::LensShiftPredictor predictor(parameters, log.focal_px, 1e-3, 0.5);
@@ -77,7 +77,7 @@ struct RSquared {
 
 // R^2 of the lens motion (observations) and of the position (a constant offset removed: the
 // model starts centred, the log's zero need not be the lens' rest).
-RSquared scoreFold(const deep_ois::StabiliserParameters& parameters,
+RSquared scoreFold(const deep_ois::StabiliserModel& parameters,
                    const deep_ois::StabiliserFitRecording& scored, const deep_ois::AndroidOisLog& log,
                    double from, double to, double warm_up_s) {
   RSquared r;
@@ -155,7 +155,7 @@ NoiseCeiling noiseCeiling(const std::vector<LoggedLensSample>& lens,
 }
 
 // Predicted (offset as scored) and logged lens on a 5 ms grid over [from, to): CSV and PNG.
-void writeTrajectory(const deep_ois::StabiliserParameters& parameters, const deep_ois::AndroidOisLog& log,
+void writeTrajectory(const deep_ois::StabiliserModel& parameters, const deep_ois::AndroidOisLog& log,
                      double from, double to, const std::string& prefix, const std::string& title) {
   std::vector<double> times;
   for (double t = from; t < to; t += 0.005) times.push_back(t);

@@ -42,6 +42,8 @@
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
 #include "deep_ois/tools/support/stabiliser_training_choice.h"
 #include "deep_ois/tools/support/stabiliser_training_report.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
 
 namespace {
 
@@ -359,8 +361,8 @@ void printReport(const Arguments& args, const deep_ois::StabiliserModelFile& mod
   if (choice.keptNoLensMotion()) {
     // The chain's other fields mean nothing at gain 0 (and the fit's bounds are not this model's).
     std::printf("Parameters: gain 0, the lens does not move (the compensation is the plain gyro).\n\n");
-  } else if (p.learned_dynamics.active()) {
-    const auto& learned = p.learned_dynamics;
+  } else if (const auto* dynamics = p.find<deep_ois::LearnedLensDynamics>(); dynamics && dynamics->active()) {
+    const auto& learned = *dynamics;
     const auto& made = learned.network->provenance;
     std::printf("Parameters: the generic lens dynamics (the chain off): a %d-state network pretrained on %u "
                 "generated designs (seeds %u-%u of %s, %llu iterations), adapted to this camera: "
@@ -374,8 +376,10 @@ void printReport(const Arguments& args, const deep_ois::StabiliserModelFile& mod
                 learned.output_map(1, 0), learned.output_map(1, 1));
   } else {
     std::printf("%s\n", deep_ois::stabiliserParameterTable(p, stage.fit.review).c_str());
+    const auto* residual = p.find<deep_ois::LearnedResidualValues>();
+    const std::string features = residual ? residual->nonlinear_features : "";
     std::printf("Nonlinear residual (learned on the chain's state): %s\n\n",
-                p.nonlinear_features.empty() ? "none" : p.nonlinear_features.c_str());
+                features.empty() ? "none" : features.c_str());
   }
   std::printf("Candidates, lens-motion RMS residual (pixels):\n\n%s\n", deep_ois::candidateTable(choice).c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
@@ -469,7 +473,7 @@ int main(int argc, char** argv) {
       reviewKept(args, stage, choice, training.calibration_suspect || held_out.calibration_suspect);
 
   // 3. Held-out scores and the model file.
-  const deep_ois::StabiliserParameters kept = choice.keptParameters();
+  const deep_ois::StabiliserModel kept = choice.keptParameters();
   const deep_ois::StabiliserScore score =
       deep_ois::scoreStabiliser(kept, held_out.recordings, args.fit_options);
   // The physical model alone (without its residual bank and learned residual), as in the training

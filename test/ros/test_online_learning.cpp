@@ -26,6 +26,9 @@
 #include "deep_ois/core/ois/stabiliser_model.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 #include "live_pipeline_rostest_helpers.h"
 
 namespace deep_ois {
@@ -74,19 +77,19 @@ class SyntheticOisCamera {
   SyntheticOisCamera(bool ois, double readout_s, double time_offset_s)
       : ois_(ois), readout_s_(readout_s), time_offset_s_(time_offset_s) {
     truth_ = trueStabiliser();
-    if (!ois) truth_.gain.setZero();
+    if (!ois) truth_.get<CentringValues>().gain.setZero();
     const double f = 0.8 * live_test::kWidthPx;
     K_ << f, 0, 0.5 * live_test::kWidthPx - 0.5, 0, f, 0.5 * live_test::kHeightPx - 0.5, 0, 0, 1;
     lens_ = std::make_unique<LensShiftPredictor>(truth_, f, 1e-3, 1.0);
   }
   // The simulated module: 80 % of the rotation cancelled, a 1 Hz centring (the generic model
   // cancels all of it and centres at ~0.6 Hz).
-  static StabiliserParameters trueStabiliser() {
-    StabiliserParameters p;
-    p.gain *= 0.8;
-    p.highpass_corner_hz = 1.0;
-    p.stroke_x_deg = p.stroke_y_deg = 2.0;
-    p.residual_time_constants_s.clear();
+  static StabiliserModel trueStabiliser() {
+    StabiliserModel p;
+    p.get<CentringValues>().gain *= 0.8;
+    p.get<CentringValues>().highpass_corner_hz = 1.0;
+    p.get<StrokeValues>().stroke_x_deg = p.get<StrokeValues>().stroke_y_deg = 2.0;
+    p.get<LinearResidualValues>().residual_time_constants_s.clear();
     return p;
   }
   Eigen::Vector3d imuRate(double t) const {
@@ -119,7 +122,7 @@ class SyntheticOisCamera {
  private:
   bool ois_;
   double readout_s_, time_offset_s_;
-  StabiliserParameters truth_;
+  StabiliserModel truth_;
   Eigen::Matrix3d K_;
   std::unique_ptr<LensShiftPredictor> lens_;
   double fed_s_ = -1.5;
@@ -230,7 +233,7 @@ std::string readBytes(const std::string& path) {
 
 // The model file of ~learning_key under ~learning_dir, written before the pipeline starts: the
 // confirmed model "learned before" for this camera.
-std::string placeConfirmedModel(const StabiliserParameters& parameters, const std::string& name) {
+std::string placeConfirmedModel(const StabiliserModel& parameters, const std::string& name) {
   ros::NodeHandle nh;
   std::string dir, key;
   EXPECT_TRUE(nh.getParam("/deep_ois/compensation/learning_dir", dir));
@@ -729,14 +732,14 @@ TEST(OnlineLearning, ThePipelineSwapsToTheCamerasStabiliser) {
   const StabiliserModelFile learned = StabiliserModelFile::load(files.front());
   std::printf("[ measured ] learned model '%s': gain [%.3f %.3f; %.3f %.3f], corner %.2f Hz, held-out %.3f px "
               "(no lens motion %.3f px)\n",
-              learned.name.c_str(), learned.parameters.gain(0, 0), learned.parameters.gain(0, 1),
-              learned.parameters.gain(1, 0), learned.parameters.gain(1, 1), learned.parameters.highpass_corner_hz,
+              learned.name.c_str(), learned.parameters.get<CentringValues>().gain(0, 0), learned.parameters.get<CentringValues>().gain(0, 1),
+              learned.parameters.get<CentringValues>().gain(1, 0), learned.parameters.get<CentringValues>().gain(1, 1), learned.parameters.get<CentringValues>().highpass_corner_hz,
               learned.training.held_out_rms_px, learned.training.held_out_rms_without_model_px);
   if (ois) {
-    const StabiliserParameters truth = SyntheticOisCamera::trueStabiliser();
+    const StabiliserModel truth = SyntheticOisCamera::trueStabiliser();
     EXPECT_FALSE(isNoLensMotion(learned.parameters));
-    EXPECT_NEAR(learned.parameters.gain(0, 1), truth.gain(0, 1), 0.2);
-    EXPECT_NEAR(learned.parameters.gain(1, 0), truth.gain(1, 0), 0.2);
+    EXPECT_NEAR(learned.parameters.get<CentringValues>().gain(0, 1), truth.get<CentringValues>().gain(0, 1), 0.2);
+    EXPECT_NEAR(learned.parameters.get<CentringValues>().gain(1, 0), truth.get<CentringValues>().gain(1, 0), 0.2);
     EXPECT_LT(learned.training.held_out_rms_px, 0.5 * learned.training.held_out_rms_without_model_px);
   } else {
     EXPECT_TRUE(isNoLensMotion(learned.parameters)) << learned.name;

@@ -12,6 +12,8 @@
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
 #include "deep_ois/tools/support/stabiliser_training_choice.h"
 #include "deep_ois/tools/support/stabiliser_training_report.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
 
 namespace deep_ois {
 namespace {
@@ -63,10 +65,10 @@ TEST(StabiliserTrainingReport, TablesSayCountsRatesAndBoundsPlainly) {
             std::string::npos)
       << table;
 
-  StabiliserParameters p;
-  p.pan_detection_rate_rad_s = 0.6;
-  p.pan_release_corner_hz = 5.0;
-  p.sensor_lag_s = 0.0;
+  StabiliserModel p;
+  p.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
+  p.get<PanDetectionValues>().pan_release_corner_hz = 5.0;
+  p.get<ActuatorValues>().sensor_lag_s = 0.0;
   StabiliserFitReview review;
   review.on_bound_parameters = {"sensor_lag_s"};
   const std::string parameters = stabiliserParameterTable(p, review);

@@ -9,7 +9,7 @@
 namespace deep_ois {
 
 AlignmentMethod stabiliserAlignmentMethod(const std::string& name,
-                                          const StabiliserParameters& parameters, unsigned scope) {
+                                          const StabiliserModel& parameters, unsigned scope) {
   struct Stream {
     std::unique_ptr<FramePairProcessor> processor;
     std::uint64_t recording = std::numeric_limits<std::uint64_t>::max();

@@ -1,4 +1,5 @@
 #include "deep_ois/core/ois/lens_dynamics_adaptation.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
 
 #include "deep_ois/core/common/nonlinear_least_squares.h"
 
@@ -18,7 +19,7 @@ struct Predictions {
   Eigen::VectorXd predicted, observed, weight;
 };
 
-Predictions predictAll(const StabiliserParameters& parameters,
+Predictions predictAll(const StabiliserModel& parameters,
                        const std::vector<StabiliserFitRecording>& recordings,
                        const StabiliserFitOptions& options) {
   std::vector<double> predicted, observed, weight;
@@ -51,11 +52,12 @@ double rms(const Eigen::VectorXd& error, const Eigen::VectorXd& weight) {
 
 }  // namespace
 
-StabiliserParameters genericLensDynamicsModel(std::shared_ptr<const LensDynamicsNetwork> network) {
+StabiliserModel genericLensDynamicsModel(std::shared_ptr<const LensDynamicsNetwork> network) {
   if (!network) throw std::invalid_argument("lens dynamics: no network");
-  StabiliserParameters parameters = noLensMotion();
-  parameters.learned_dynamics.network = network;
-  parameters.learned_dynamics.conditioning = network->default_conditioning;
+  StabiliserModel parameters = noLensMotion();
+  LearnedLensDynamics& learned = parameters.get<LearnedLensDynamics>();
+  learned.network = network;
+  learned.conditioning = network->default_conditioning;
   return parameters;
 }
 
@@ -63,7 +65,7 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
                                          const std::vector<StabiliserFitRecording>& recordings,
                                          const StabiliserFitOptions& fit_options,
                                          const LensDynamicsAdaptationOptions& options) {
-  StabiliserParameters parameters = genericLensDynamicsModel(network);
+  StabiliserModel parameters = genericLensDynamicsModel(network);
   const std::string problem = parameters.validate();
   if (!problem.empty()) throw std::invalid_argument("lens dynamics adaptation: " + problem);
   const long c_size = network->conditioning_size;
@@ -74,9 +76,9 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
 
   // The network's lens motions with the map at the identity (the map applies after: linear).
   auto unmapped = [&](const Eigen::VectorXd& conditioning) {
-    StabiliserParameters p = parameters;
-    p.learned_dynamics.conditioning = conditioning;
-    p.learned_dynamics.output_map.setIdentity();
+    StabiliserModel p = parameters;
+    p.get<LearnedLensDynamics>().conditioning = conditioning;
+    p.get<LearnedLensDynamics>().output_map.setIdentity();
     ++result.passes;
     return predictAll(p, recordings, fit_options);
   };
@@ -166,21 +168,21 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
   const Eigen::Matrix2d map = mapOf(solved);
   base = unmapped(c);
   const Eigen::VectorXd error = applyMap(map, base.predicted) - base.observed;
-  parameters.learned_dynamics.conditioning = c;
-  parameters.learned_dynamics.output_map = map;
+  parameters.get<LearnedLensDynamics>().conditioning = c;
+  parameters.get<LearnedLensDynamics>().output_map = map;
   result.parameters = parameters;
   result.rms_px = rms(error, base.weight);
   return result;
 }
 
-StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted,
+StabiliserModel refitLensDynamicsOutput(const StabiliserModel& adapted,
                                              const std::vector<StabiliserFitRecording>& recordings,
                                              const StabiliserFitOptions& options, double ridge) {
   const std::string problem = adapted.validate();
   if (!problem.empty()) throw std::invalid_argument("lens dynamics output refit: " + problem);
-  if (!adapted.learned_dynamics.active())
+  if (!adapted.get<LearnedLensDynamics>().active())
     throw std::invalid_argument("lens dynamics output refit: the model has no learned stage");
-  const LearnedLensDynamics& learned = adapted.learned_dynamics;
+  const LearnedLensDynamics& learned = adapted.get<LearnedLensDynamics>();
   const LensDynamicsNetwork& net = *learned.network;
   const bool skip = net.w_skip.size() != 0;
   const long hidden = net.hidden_size;
@@ -213,14 +215,14 @@ StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted
   if (regression.count() == 0) throw std::invalid_argument("lens dynamics output refit: no usable lens motion");
   const Eigen::MatrixXd prior = w0.transpose();
   Eigen::MatrixXd solution;  // H x 2
-  StabiliserParameters refitted = adapted;
+  StabiliserModel refitted = adapted;
   if (!regression.solve(ridge, &solution, &prior)) return refitted;
   auto network = std::make_shared<LensDynamicsNetwork>(net);
   network->w_output = solution.topRows(hidden).transpose();
   if (skip) network->w_skip = solution.bottomRows(net.inputSize()).transpose();
   network->b_output = learned.output_map * net.b_output;
-  refitted.learned_dynamics.network = network;
-  refitted.learned_dynamics.output_map.setIdentity();
+  refitted.get<LearnedLensDynamics>().network = network;
+  refitted.get<LearnedLensDynamics>().output_map.setIdentity();
   return refitted;
 }
 

@@ -15,17 +15,20 @@
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
 
 namespace deep_ois {
-StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
+StabiliserModel fitNonlinearResidual(const StabiliserModel& base,
                                           const std::vector<StabiliserFitRecording>& recordings,
                                           const StabiliserFitOptions& options,
                                           const std::string& feature_set, double ridge) {
   const long m = nonlinearFeatureCount(feature_set);
   if (m == 0) throw std::invalid_argument("nonlinear residual: unknown feature set '" + feature_set + "'");
-  StabiliserParameters features_only = base;
-  features_only.nonlinear_features = feature_set;
-  features_only.nonlinear_residual.resize(0, 0);  // features computed, nothing added
+  StabiliserModel features_only = base;
+  LearnedResidualValues& features = features_only.get<LearnedResidualValues>();
+  features.nonlinear_features = feature_set;
+  features.nonlinear_residual.resize(0, 0);  // features computed, nothing added
   // Huber weights from what the chain leaves (the targets), the package's ridge convention: per
   // feature, relative to its own energy (the features differ by orders of magnitude).
   RobustRidgeRegression regression(m, 2, RobustLoss::huber(options.huber_px));
@@ -44,11 +47,12 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
   }
   if (regression.count() == 0) throw std::invalid_argument("nonlinear residual: no usable lens motion");
   Eigen::MatrixXd solution;  // m x 2
-  StabiliserParameters fitted = base;
+  StabiliserModel fitted = base;
   if (!regression.solve(ridge, &solution)) return fitted;
-  fitted.nonlinear_features = feature_set;
+  LearnedResidualValues& learned = fitted.get<LearnedResidualValues>();
+  learned.nonlinear_features = feature_set;
   // The predictor multiplies by focal_px itself; the deltas above already carry it.
-  fitted.nonlinear_residual = solution.transpose();
+  learned.nonlinear_residual = solution.transpose();
   return fitted;
 }
 
@@ -120,7 +124,7 @@ bool StabiliserCandidateDescription::structural() const {
 
 bool StabiliserCandidateDescription::linearDynamics() const { return has(stages, "linear_dynamics"); }
 
-int stabiliserComplexity(const StabiliserParameters& parameters) {
+int stabiliserComplexity(const StabiliserModel& parameters) {
   if (isNoLensMotion(parameters)) return 0;
   const std::vector<std::string> composition = stabiliserComposition(parameters);
   int most = 0;
@@ -143,7 +147,7 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
                                                  const StabiliserFitOptions& options,
                                                  const StabiliserCandidateKinds& kinds) {
   std::vector<ModelCandidate> candidates;
-  const bool has_linear = fit.parameters.residual.size() != 0;
+  const bool has_linear = has(stabiliserComposition(fit.parameters), "linear_residual");
   StabiliserFitOptions refit_options = options;
   if (kinds.structural_iterations > 0) refit_options.iterations = kinds.structural_iterations;
   std::vector<StabiliserCandidateDescription> rows = stabiliserCandidateDescriptions();
@@ -173,7 +177,10 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
         const StabiliserFitResult refit =
             refitStabiliserStages(fit.parameters, row.stages, training, refit_options);
         candidates.push_back(
-            {std::string(refit.parameters.residual.size() != 0 ? "physical + linear" : "physical") + ", " +
+            {std::string(has(stabiliserComposition(refit.parameters), "linear_residual")
+                             ? "physical + linear"
+                             : "physical") +
+                 ", " +
                  row.name,
              refit.parameters});
       } else if (!feature_set.empty()) {
@@ -196,7 +203,7 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
     adaptation.iterations = kinds.lens_dynamics_iterations;
     try {
       adaptation.fit_output_map = false;
-      StabiliserParameters adapted =
+      StabiliserModel adapted =
           adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
       candidates.push_back({"generic lens dynamics, adapted", adapted});
       if (kinds.lens_dynamics_map) {

@@ -22,7 +22,7 @@ std::vector<CameraRateSample> cameraRates(const ImuSampleBuffer& imu,
   return rates;
 }
 
-StabiliserCompensator::StabiliserCompensator(const StabiliserParameters& parameters,
+StabiliserCompensator::StabiliserCompensator(const StabiliserModel& parameters,
                                              const Eigen::Matrix3d& K, double warm_up_s)
     : K_(K), warm_up_s_(warm_up_s), predictor_(parameters, K(0, 0)) {
   if (!(warm_up_s >= 0.0)) throw std::invalid_argument("StabiliserCompensator: warm_up_s < 0");

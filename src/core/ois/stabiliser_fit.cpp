@@ -13,6 +13,13 @@
 #include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/ois/camera_rate_cursor.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/actuator_coupling.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/excursion_centring.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 namespace {
@@ -31,36 +38,35 @@ class FreeParameters {
     for (const char* chain : {"centring", "stroke", "actuator"}) stages.push_back(chain);
     for (const StabiliserStage& stage : stabiliserStages()) {
       if (std::find(stages.begin(), stages.end(), stage.name) == stages.end()) continue;
-      for (const FittedStabiliserParameter& parameter : stage.fitted) entries_.push_back(&parameter);
+      for (const FittedStabiliserParameter& parameter : stage.fitted)
+        entries_.push_back({stage.name, &parameter});
     }
   }
   int size() const { return static_cast<int>(entries_.size()); }
   // Entry j's parameter: name, bounds, coordinate and difference step.
   const FittedStabiliserParameter& parameter(int j) const {
-    return *entries_[static_cast<std::size_t>(j)];
+    return *entries_[static_cast<std::size_t>(j)].parameter;
   }
 
-  Eigen::VectorXd pack(const StabiliserParameters& p) const {
-    Eigen::VectorXd x(size());
-    for (int j = 0; j < size(); ++j) {
-      const FittedStabiliserParameter& parameter = *entries_[static_cast<std::size_t>(j)];
-      // Held in the bounds first: a mechanism switched off (0) has no logarithm.
-      const double value = std::clamp(parameter.value(p), parameter.lower, parameter.upper);
-      x(j) = parameter.logarithmic ? std::log(value) : value;
-    }
-    return x;
+  // Entry j's value in p (in its parameter's unit, not the solver's coordinate).
+  double value(int j, const StabiliserModel& p) const {
+    const Entry& entry = entries_[static_cast<std::size_t>(j)];
+    return entry.parameter->value(*p.values(entry.stage));
   }
-  StabiliserParameters unpack(const Eigen::VectorXd& x, StabiliserParameters p) const {
-    for (int j = 0; j < size(); ++j) {
-      const FittedStabiliserParameter& parameter = *entries_[static_cast<std::size_t>(j)];
-      const double value = parameter.logarithmic ? std::exp(x(j)) : x(j);
-      parameter.set(&p, std::clamp(value, parameter.lower, parameter.upper));
-    }
-    return p;
+  // Sets entry j's value in p, held in its bounds.
+  void set(int j, double value, StabiliserModel* p) const {
+    const Entry& entry = entries_[static_cast<std::size_t>(j)];
+    const FittedStabiliserParameter& parameter = *entry.parameter;
+    parameter.set(*p->values(entry.stage), std::clamp(value, parameter.lower, parameter.upper));
   }
 
  private:
-  std::vector<const FittedStabiliserParameter*> entries_;
+  // The fitted parameters of the stages being fitted, with their stage (whose values they are).
+  struct Entry {
+    const char* stage;
+    const FittedStabiliserParameter* parameter;
+  };
+  std::vector<Entry> entries_;
 };
 
 // Every usable observation's weighted residual (predicted - observed motion, 2 per observation).
@@ -70,7 +76,7 @@ struct Residuals {
   std::size_t used = 0, skipped = 0;
 };
 
-Residuals residualsOf(const StabiliserParameters& parameters,
+Residuals residualsOf(const StabiliserModel& parameters,
                       const std::vector<StabiliserFitRecording>& recordings,
                       const StabiliserFitOptions& options) {
   std::vector<double> values;
@@ -114,7 +120,7 @@ double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
 // (core/common/nonlinear_least_squares.h), Huber loss per observation, bounds and logarithmic
 // coordinates as the stages declare them, forward differences for the Jacobian.
 // `rms_history`, when given, gets the RMS residual (pixels) after every accepted step.
-StabiliserParameters levenbergMarquardt(StabiliserParameters start, const FreeParameters& packing,
+StabiliserModel levenbergMarquardt(StabiliserModel start, const FreeParameters& packing,
                                         const std::vector<StabiliserFitRecording>& recordings,
                                         const StabiliserFitOptions& options, int iterations,
                                         double* final_cost, std::vector<double>* rms_history = nullptr) {
@@ -123,11 +129,11 @@ StabiliserParameters levenbergMarquardt(StabiliserParameters start, const FreePa
   for (int j = 0; j < packing.size(); ++j) {
     const FittedStabiliserParameter& p = packing.parameter(j);
     problem.parameters.push_back({p.name, p.lower, p.upper, p.logarithmic, p.fit_step});
-    values(j) = std::clamp(p.value(start), p.lower, p.upper);
+    values(j) = std::clamp(packing.value(j, start), p.lower, p.upper);
   }
   auto unpack = [&](const Eigen::VectorXd& v) {
-    StabiliserParameters p = start;
-    for (int j = 0; j < packing.size(); ++j) packing.parameter(j).set(&p, v(j));
+    StabiliserModel p = start;
+    for (int j = 0; j < packing.size(); ++j) packing.set(j, v(j), &p);
     return p;
   };
   problem.block_size = 2;  // an observation's x and y share its Huber weight
@@ -162,7 +168,7 @@ class ResidualBank {
   }
   // The features at each observation's t_a and t_b for a recording, from its rates.
   void observe(const StabiliserFitRecording& recording, double warm_up_s,
-               const StabiliserParameters& physical, std::vector<Eigen::VectorXd>* feature_deltas,
+               const StabiliserModel& physical, std::vector<Eigen::VectorXd>* feature_deltas,
                std::vector<Eigen::Vector2d>* targets, std::vector<double>* weights) const {
     // Physical predictions first (the bank fits what they leave).
     std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
@@ -213,12 +219,13 @@ class ResidualBank {
 // `physical` with the linear residual bank of options.residual_time_constants_s fitted (ridge
 // least squares, Huber weights) on what it leaves in `recordings`; without a bank when the options
 // name none or the solve fails.
-StabiliserParameters withLinearResidual(const StabiliserParameters& physical,
+StabiliserModel withLinearResidual(const StabiliserModel& physical,
                                         const std::vector<StabiliserFitRecording>& recordings,
                                         const StabiliserFitOptions& options) {
-  StabiliserParameters final_parameters = physical;
-  final_parameters.residual_time_constants_s.clear();
-  final_parameters.residual.resize(0, 0);
+  StabiliserModel final_parameters = physical;
+  LinearResidualValues& bank_values = final_parameters.get<LinearResidualValues>();
+  bank_values.residual_time_constants_s.clear();
+  bank_values.residual.resize(0, 0);
   if (!options.residual_time_constants_s.empty()) {
     const ResidualBank bank(options.residual_time_constants_s, options.step_s);
     std::vector<Eigen::VectorXd> deltas;
@@ -233,9 +240,9 @@ StabiliserParameters withLinearResidual(const StabiliserParameters& physical,
       regression.add(deltas[k], targets[k], weights[k], targets[k].norm());
     Eigen::MatrixXd solution;  // m x 2
     if (regression.solve(options.residual_ridge, &solution)) {
-      final_parameters.residual_time_constants_s = options.residual_time_constants_s;
+      bank_values.residual_time_constants_s = options.residual_time_constants_s;
       // The predictor multiplies by focal_px itself: the bank here already carries it.
-      final_parameters.residual = solution.transpose();
+      bank_values.residual = solution.transpose();
     }
   }
   return final_parameters;
@@ -244,10 +251,10 @@ StabiliserParameters withLinearResidual(const StabiliserParameters& physical,
 // `refined` with its linear residual bank (withLinearResidual) as the fit's result: parameters,
 // observation counts and the RMS with and without the bank. The bank is dropped, and the log says
 // so, when it raises the residual (it was fitted on Huber-weighted data).
-void keepWithLinearResidual(const StabiliserParameters& refined,
+void keepWithLinearResidual(const StabiliserModel& refined,
                             const std::vector<StabiliserFitRecording>& recordings,
                             const StabiliserFitOptions& options, StabiliserFitResult* result) {
-  const StabiliserParameters with_bank = withLinearResidual(refined, recordings, options);
+  const StabiliserModel with_bank = withLinearResidual(refined, recordings, options);
   const Residuals physical = residualsOf(refined, recordings, options);
   const Residuals full = residualsOf(with_bank, recordings, options);
   auto rms = [](const Residuals& r) {
@@ -260,8 +267,9 @@ void keepWithLinearResidual(const StabiliserParameters& refined,
   result->rms_px = rms(full);
   if (result->rms_px > result->rms_physical_px) {
     result->parameters = refined;
-    result->parameters.residual_time_constants_s.clear();
-    result->parameters.residual.resize(0, 0);
+    LinearResidualValues& bank_values = result->parameters.get<LinearResidualValues>();
+    bank_values.residual_time_constants_s.clear();
+    bank_values.residual.resize(0, 0);
     result->rms_px = result->rms_physical_px;
     result->log.push_back("residual bank dropped: it did not lower the residual");
   }
@@ -291,13 +299,14 @@ std::vector<StabiliserFitRecording> movedInTime(
 constexpr double kTimingScanMs = 20.0;
 
 // The timing check of the review: see StabiliserFitReview::best_lens_lag_ms.
-void checkTiming(const StabiliserParameters& physical,
+void checkTiming(const StabiliserModel& physical,
                  const std::vector<StabiliserFitRecording>& recordings,
                  const StabiliserFitOptions& options, StabiliserFitReview* review) {
   // A lens that hardly follows the rotation (OIS off) has no timing to check: its fit is noise.
-  if (Eigen::JacobiSVD<Eigen::Matrix2d>(physical.gain).singularValues()(0) < kLeastGain) return;
-  StabiliserParameters without_lag = physical;
-  without_lag.sensor_lag_s = 0.0;
+  const Eigen::Matrix2d& chain_gain = physical.get<CentringValues>().gain;
+  if (Eigen::JacobiSVD<Eigen::Matrix2d>(chain_gain).singularValues()(0) < kLeastGain) return;
+  StabiliserModel without_lag = physical;
+  without_lag.get<ActuatorValues>().sensor_lag_s = 0.0;
   // Mean Huber cost per observation used (the coverage changes a little with the shift).
   auto cost = [&](double shift_s, double readout_change_s) {
     const Residuals r =
@@ -442,7 +451,7 @@ bool StabiliserFitReview::onBound(const std::string& parameter) const {
          on_bound_parameters.end();
 }
 
-StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotionTarget target) {
+StabiliserFitReview reviewStabiliserFit(const StabiliserModel& p, LensMotionTarget target) {
   StabiliserFitReview review;
   // What can put the lens motions on the wrong scale or time, for their source: the images carry
   // the camera-IMU calibration's errors, a lens log its convention and clock, the simulator's truth
@@ -465,11 +474,11 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotio
             "or readout error; if unsure, run calibrate";
   // Every fitted parameter of the stages (stabiliser_stage.h) the model uses, against the bounds
   // the fit keeps it in.
-  for (const StabiliserStage& stage : stabiliserStages()) {
-    for (const FittedStabiliserParameter& parameter : stage.fitted) {
-      if (parameter.used && !parameter.used(p)) continue;
+  for (const StageInstance& instance : p.stages()) {
+    for (const FittedStabiliserParameter& parameter : instance.stage->fitted) {
+      if (parameter.used && !parameter.used(*instance.values)) continue;
       if (!std::isfinite(parameter.lower) || !std::isfinite(parameter.upper)) continue;
-      const double value = parameter.value(p);
+      const double value = parameter.value(*instance.values);
       const double tolerance = 1e-6 * std::max(1.0, std::abs(parameter.upper));
       const bool lower = value <= parameter.lower + tolerance;
       if (!lower && value < parameter.upper - tolerance) continue;
@@ -486,11 +495,16 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotio
   }
 
   constexpr double kMostStrokeDeg = 3.0;  // modules travel about +-0.5 to +-1.5 deg
-  const Eigen::Vector2d singular = Eigen::JacobiSVD<Eigen::Matrix2d>(p.gain).singularValues();
+  // The plausibility of the centring's gain and the stroke, when the model has them.
+  const CentringValues* centring = p.find<CentringValues>();
+  const StrokeValues* stroke_values = p.find<StrokeValues>();
+  if (!centring || !stroke_values) return review;
+  const Eigen::Matrix2d& g = centring->gain;
+  const Eigen::Vector2d singular = Eigen::JacobiSVD<Eigen::Matrix2d>(g).singularValues();
   std::ostringstream gain;
   gain.precision(3);
-  gain << "gain [" << p.gain(0, 0) << " " << p.gain(0, 1) << "; " << p.gain(1, 0) << " "
-       << p.gain(1, 1) << "] (it cancels " << 100.0 * singular(0) << " % of the rotation)";
+  gain << "gain [" << g(0, 0) << " " << g(0, 1) << "; " << g(1, 0) << " " << g(1, 1)
+       << "] (it cancels " << 100.0 * singular(0) << " % of the rotation)";
   if (singular(0) > kMostGain) {
     review.implausible.push_back(gain.str() +
                                  ": a stabiliser cancels about the rotation (gain near 1), not "
@@ -504,18 +518,18 @@ StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& p, LensMotio
              ? std::string(" or the lens motions are on the wrong scale (lens_shift_scale)")
              : std::string()));
   }
-  const double stroke = std::max(p.stroke_x_deg, p.stroke_y_deg);
+  const double stroke = std::max(stroke_values->stroke_x_deg, stroke_values->stroke_y_deg);
   if (stroke > kMostStrokeDeg) {
     std::ostringstream line;
     line.precision(3);
-    line << "stroke " << p.stroke_x_deg << " x " << p.stroke_y_deg
+    line << "stroke " << stroke_values->stroke_x_deg << " x " << stroke_values->stroke_y_deg
          << " deg: beyond what a module's lens travels (about 0.5-1.5 deg); " << scale_causes;
     review.implausible.push_back(line.str());
   }
   return review;
 }
 
-void visitCoveredObservations(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+void visitCoveredObservations(const StabiliserModel& parameters, const StabiliserFitRecording& recording,
                               double step_s, double warm_up_s,
                               const std::function<void(const LensShiftPredictor&, std::size_t)>& visit,
                               const std::function<void(LensShiftPredictor&)>& prepare) {
@@ -542,7 +556,7 @@ void visitCoveredObservations(const StabiliserParameters& parameters, const Stab
   }
 }
 
-std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
+std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserModel& parameters,
                                                const StabiliserFitRecording& recording,
                                                double step_s, double warm_up_s) {
   std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
@@ -555,7 +569,7 @@ std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& param
   return predicted;
 }
 
-StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
+StabiliserScore scoreStabiliser(const StabiliserModel& parameters,
                                 const std::vector<StabiliserFitRecording>& recordings,
                                 const StabiliserFitOptions& options) {
   double sum = 0.0, sum_without = 0.0, weights = 0.0;
@@ -579,10 +593,10 @@ StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
   return score;
 }
 
-StabiliserParameters noLensMotion() {
-  StabiliserParameters p = StabiliserParameters().physicalChain();
-  p.gain.setZero();
-  p.pan_detection_rate_rad_s = 0.0;
+StabiliserModel noLensMotion() {
+  StabiliserModel p = StabiliserModel().physicalChain();
+  p.get<CentringValues>().gain.setZero();
+  p.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.0;
   return p;
 }
 
@@ -606,9 +620,10 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
 
   // Start: the ideal stabiliser's structure with its sign and scale from a linear fit of the
   // gain at a few centring corners (the only linear part), then refine everything.
-  StabiliserParameters start;
-  start.stroke_x_deg = start.stroke_y_deg = 5.0;  // no saturation until the fit finds it
-  start.actuator_natural_hz = 40.0;
+  StabiliserModel start;
+  // No saturation until the fit finds it.
+  start.get<StrokeValues>().stroke_x_deg = start.get<StrokeValues>().stroke_y_deg = 5.0;
+  start.get<ActuatorValues>().actuator_natural_hz = 40.0;
   const std::vector<double> corners_hz = {0.1, 0.3, 0.6, 1.2, 2.5};
   const std::size_t total_steps = corners_hz.size() + 3 +
                                   options.pan_thresholds_rad_s.size() *
@@ -618,18 +633,18 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     if (progress) progress(++done, total_steps);
   };
   double best_cost = std::numeric_limits<double>::infinity();
-  StabiliserParameters best = start;
+  StabiliserModel best = start;
   for (double corner : corners_hz) {
-    StabiliserParameters candidate = start;
-    candidate.highpass_corner_hz = corner;
+    StabiliserModel candidate = start;
+    candidate.get<CentringValues>().highpass_corner_hz = corner;
     // Linear least squares for the gain: the lens motion is linear in it (no stroke reached).
     Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
     Eigen::Vector4d b = Eigen::Vector4d::Zero();
     std::vector<std::vector<Eigen::Vector2d>> unit_responses(4);
     for (int entry = 0; entry < 4; ++entry) {
-      StabiliserParameters unit = candidate;
-      unit.gain.setZero();
-      unit.gain(entry / 2, entry % 2) = 1.0;
+      StabiliserModel unit = candidate;
+      unit.get<CentringValues>().gain.setZero();
+      unit.get<CentringValues>().gain(entry / 2, entry % 2) = 1.0;
       for (const StabiliserFitRecording& recording : recordings) {
         const auto predicted = predictLensMotion(unit, recording, options.step_s, options.warm_up_s);
         unit_responses[static_cast<std::size_t>(entry)].insert(
@@ -650,7 +665,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
       }
     }
     const Eigen::Vector4d g = A.ldlt().solve(b);
-    if (g.allFinite()) candidate.gain << g(0), g(1), g(2), g(3);
+    if (g.allFinite()) candidate.get<CentringValues>().gain << g(0), g(1), g(2), g(3);
     const Residuals residuals = residualsOf(candidate, recordings, physical_options);
     const double cost = huberCost(residuals.values, options.huber_px);
     std::ostringstream line;
@@ -677,16 +692,18 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     best = levenbergMarquardt(best, FreeParameters(), recordings, physical_options,
                               std::max(1, options.iterations / 3), &cost, &result.rms_history);
     std::ostringstream line;
-    line << "first refinement: corner " << best.highpass_corner_hz << " Hz, cost " << cost;
+    line << "first refinement: corner " << best.get<CentringValues>().highpass_corner_hz
+         << " Hz, cost " << cost;
     log(line.str());
   }
   const std::vector<double> strokes_deg = {0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3, 1.7, 2.3, 3.0, 5.0};
   for (int axis = 0; axis < 2; ++axis) {
     double axis_best = std::numeric_limits<double>::infinity();
-    StabiliserParameters scanned = best;
+    StabiliserModel scanned = best;
     for (double stroke : strokes_deg) {
-      StabiliserParameters candidate = best;
-      (axis == 0 ? candidate.stroke_x_deg : candidate.stroke_y_deg) = stroke;
+      StabiliserModel candidate = best;
+      StrokeValues& limits = candidate.get<StrokeValues>();
+      (axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg) = stroke;
       const double cost =
           huberCost(residualsOf(candidate, recordings, physical_options).values, options.huber_px);
       if (cost < axis_best) {
@@ -697,7 +714,8 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     best = scanned;
     std::ostringstream line;
     line << "stroke scan: " << (axis == 0 ? "x " : "y ")
-         << (axis == 0 ? best.stroke_x_deg : best.stroke_y_deg) << " deg, cost " << axis_best;
+         << (axis == 0 ? best.get<StrokeValues>().stroke_x_deg : best.get<StrokeValues>().stroke_y_deg)
+         << " deg, cost " << axis_best;
     log(line.str());
   }
   tick();
@@ -705,34 +723,38 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   // Refine every physical parameter (box stroke, no pan detection), then try the discrete
   // variants (pan detection thresholds, an elliptic stroke) with a short refinement each and
   // refine the best of them fully.
-  auto describe = [](const StabiliserParameters& c, double cost) {
+  auto describe = [](const StabiliserModel& c, double cost) {
+    const auto& pan = c.get<PanDetectionValues>();
+    const auto& stroke = c.get<StrokeValues>();
+    const auto& actuator = c.get<ActuatorValues>();
+    const Eigen::Matrix2d& g = c.get<CentringValues>().gain;
     std::ostringstream line;
-    line << "pan threshold " << c.pan_detection_rate_rad_s << " rad/s, "
-         << (c.circular_stroke ? "elliptic" : "box") << " stroke: gain [" << c.gain(0, 0) << " "
-         << c.gain(0, 1) << "; " << c.gain(1, 0) << " " << c.gain(1, 1) << "], corner "
-         << c.highpass_corner_hz << " Hz, actuator " << c.actuator_natural_hz << " Hz / "
-         << c.actuator_damping << ", lag " << 1000.0 * c.sensor_lag_s << " ms, stroke "
-         << c.stroke_x_deg << " x " << c.stroke_y_deg << " deg";
-    if (c.pan_detection_rate_rad_s > 0.0) line << ", release " << c.pan_release_corner_hz << " Hz";
+    line << "pan threshold " << pan.pan_detection_rate_rad_s << " rad/s, "
+         << (stroke.circular_stroke ? "elliptic" : "box") << " stroke: gain [" << g(0, 0) << " "
+         << g(0, 1) << "; " << g(1, 0) << " " << g(1, 1) << "], corner "
+         << c.get<CentringValues>().highpass_corner_hz << " Hz, actuator " << actuator.actuator_natural_hz
+         << " Hz / " << actuator.actuator_damping << ", lag " << 1000.0 * actuator.sensor_lag_s
+         << " ms, stroke " << stroke.stroke_x_deg << " x " << stroke.stroke_y_deg << " deg";
+    if (pan.pan_detection_rate_rad_s > 0.0) line << ", release " << pan.pan_release_corner_hz << " Hz";
     line << ", cost " << cost;
     return line.str();
   };
   double refined_cost = 0.0;
-  StabiliserParameters refined = levenbergMarquardt(best, FreeParameters(), recordings,
+  StabiliserModel refined = levenbergMarquardt(best, FreeParameters(), recordings,
                                                     physical_options, options.iterations,
                                                     &refined_cost, &result.rms_history);
   log(describe(refined, refined_cost));
   tick();
   const int short_iterations = std::max(1, options.iterations / 5);
-  StabiliserParameters variant_best = refined;
+  StabiliserModel variant_best = refined;
   double variant_cost = refined_cost;
   for (double threshold : options.pan_thresholds_rad_s) {
     for (bool circular : {false, true}) {
       if (circular && !options.try_circular_stroke) continue;
       if (threshold <= 0.0 && !circular) continue;  // the refined model itself
-      StabiliserParameters candidate = refined;
-      candidate.pan_detection_rate_rad_s = threshold;
-      candidate.circular_stroke = circular;
+      StabiliserModel candidate = refined;
+      candidate.get<PanDetectionValues>().pan_detection_rate_rad_s = threshold;
+      candidate.get<StrokeValues>().circular_stroke = circular;
       const FreeParameters packing = threshold > 0.0
                                          ? FreeParameters({"pan_detection"})
                                          : FreeParameters();
@@ -749,7 +771,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   }
   // A variant must earn its extra mechanism: at least 1 % lower cost than the plain model.
   if (variant_cost < 0.99 * refined_cost) {
-    const FreeParameters packing = variant_best.pan_detection_rate_rad_s > 0.0
+    const FreeParameters packing = variant_best.get<PanDetectionValues>().pan_detection_rate_rad_s > 0.0
                                        ? FreeParameters({"pan_detection"})
                                        : FreeParameters();
     refined = levenbergMarquardt(variant_best, packing, recordings, physical_options,
@@ -785,13 +807,13 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
   return result;
 }
 
-StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
+StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
                                           const std::vector<std::string>& stages,
                                           const std::vector<StabiliserFitRecording>& recordings,
                                           const StabiliserFitOptions& options) {
   const std::string problem = options.validate();
   if (!problem.empty()) throw std::invalid_argument("refitStabiliserStages: " + problem);
-  StabiliserParameters start = fitted.physicalChain();
+  StabiliserModel start = fitted.physicalChain();
   // Each stage a refit starts: as listed (its variant) or left out.
   for (const StabiliserStage& stage : stabiliserStages()) {
     if (!stage.start) continue;
@@ -799,11 +821,12 @@ StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
       return stageOfToken(token) == stage.name;
     });
     const std::string variant = listed == stages.end() ? "" : variantOfToken(*listed);
-    stage.start(&start, listed == stages.end() ? nullptr : variant.c_str());
+    if (StageValues* own = start.values(stage.name))
+      stage.start(*own, listed == stages.end() ? nullptr : variant.c_str());
   }
   std::vector<std::string> free = stages;
   for (const std::string& token : stages) stabiliserStage(stageOfToken(token));  // known names
-  if (start.pan_detection_rate_rad_s > 0.0) free.push_back("pan_detection");
+  if (start.get<PanDetectionValues>().pan_detection_rate_rad_s > 0.0) free.push_back("pan_detection");
   const FreeParameters packing(free);
   StabiliserFitResult result;
   const Residuals initial = residualsOf(start, recordings, options);
@@ -813,10 +836,11 @@ StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
   // again around the fitted one before every parameter is refined.
   double cost = huberCost(initial.values, options.huber_px);
   for (int axis = 0; axis < 2; ++axis) {
-    StabiliserParameters scanned = start;
+    StabiliserModel scanned = start;
     for (double factor : {0.7, 0.85, 1.0, 1.15, 1.3}) {
-      StabiliserParameters candidate = start;
-      double& stroke = axis == 0 ? candidate.stroke_x_deg : candidate.stroke_y_deg;
+      StabiliserModel candidate = start;
+      StrokeValues& limits = candidate.get<StrokeValues>();
+      double& stroke = axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg;
       const FittedStabiliserParameter& bounds =
           fittedStabiliserParameter(axis == 0 ? "stroke_x_deg" : "stroke_y_deg");
       stroke = std::clamp(stroke * factor, bounds.lower, bounds.upper);
@@ -826,17 +850,19 @@ StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
     start = scanned;
   }
   double refined_cost = 0.0;
-  const StabiliserParameters refined = levenbergMarquardt(
+  const StabiliserModel refined = levenbergMarquardt(
       start, packing, recordings, options, options.iterations, &refined_cost, &result.rms_history);
   std::ostringstream line;
-  line << "structure: " << (refined.soft_stroke ? "soft stroke, " : "")
-       << (refined.anti_windup ? "anti-windup" : "winding-up")
-       << " integrator, excursion re-centring " << refined.excursion_centring
-       << ", actuator coupling (" << refined.actuator_coupling.x() << ", "
-       << refined.actuator_coupling.y() << "), corner "
-       << refined.highpass_corner_hz << " Hz, actuator " << refined.actuator_natural_hz << " Hz / "
-       << refined.actuator_damping << ", stroke " << refined.stroke_x_deg << " x "
-       << refined.stroke_y_deg << " deg, cost " << refined_cost;
+  const auto& stroke = refined.get<StrokeValues>();
+  const auto& actuator = refined.get<ActuatorValues>();
+  const Eigen::Vector2d& coupling = refined.get<ActuatorCouplingValues>().actuator_coupling;
+  line << "structure: " << (stroke.soft_stroke ? "soft stroke, " : "")
+       << (stroke.anti_windup ? "anti-windup" : "winding-up") << " integrator, excursion re-centring "
+       << refined.get<ExcursionCentringValues>().excursion_centring << ", actuator coupling ("
+       << coupling.x() << ", " << coupling.y() << "), corner "
+       << refined.get<CentringValues>().highpass_corner_hz << " Hz, actuator "
+       << actuator.actuator_natural_hz << " Hz / " << actuator.actuator_damping << ", stroke "
+       << stroke.stroke_x_deg << " x " << stroke.stroke_y_deg << " deg, cost " << refined_cost;
   result.log.push_back(line.str());
   keepWithLinearResidual(refined, recordings, options, &result);
   result.review = reviewStabiliserFit(result.parameters, options.target);

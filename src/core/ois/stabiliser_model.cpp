@@ -10,41 +10,122 @@
 
 namespace deep_ois {
 
-StabiliserParameters StabiliserParameters::physicalChain() const {
-  StabiliserParameters chain = *this;
+StabiliserModel::StabiliserModel() {
   for (const StabiliserStage& stage : stabiliserStages())
-    if (stage.clear) stage.clear(&chain);
+    if (stage.in_default_chain) stages_.push_back({&stage, stage.make()});
+}
+
+StabiliserModel::StabiliserModel(const std::vector<std::string>& stage_names) {
+  for (const std::string& name : stage_names) stabiliserStage(stageOfToken(name));  // known names
+  for (const StabiliserStage& stage : stabiliserStages())
+    for (const std::string& name : stage_names)
+      if (stageOfToken(name) == stage.name) {
+        stages_.push_back({&stage, stage.make()});
+        break;
+      }
+}
+
+StabiliserModel::StabiliserModel(const StabiliserModel& other) { *this = other; }
+
+StabiliserModel& StabiliserModel::operator=(const StabiliserModel& other) {
+  if (this == &other) return *this;
+  std::vector<StageInstance> copied;
+  copied.reserve(other.stages_.size());
+  for (const StageInstance& instance : other.stages_)
+    copied.push_back({instance.stage, instance.values->clone()});
+  stages_ = std::move(copied);
+  return *this;
+}
+
+std::vector<std::string> StabiliserModel::stageNames() const {
+  std::vector<std::string> names;
+  for (const StageInstance& instance : stages_) names.push_back(instance.stage->name);
+  return names;
+}
+
+bool StabiliserModel::hasDefaultChain() const {
+  for (const StabiliserStage& stage : stabiliserStages())
+    if (stage.in_default_chain && !has(stage.name)) return false;
+  return true;
+}
+
+const StageValues* StabiliserModel::values(const std::string& stage) const {
+  for (const StageInstance& instance : stages_)
+    if (stage == instance.stage->name) return instance.values.get();
+  return nullptr;
+}
+
+StageValues* StabiliserModel::values(const std::string& stage) {
+  return const_cast<StageValues*>(static_cast<const StabiliserModel*>(this)->values(stage));
+}
+
+const StageValues& StabiliserModel::required(const char* stage) const {
+  const StageValues* found = values(stage);
+  if (!found) throw std::logic_error(std::string("the stabiliser model has no stage '") + stage + "'");
+  return *found;
+}
+
+StageValues& StabiliserModel::required(const char* stage) {
+  return const_cast<StageValues&>(static_cast<const StabiliserModel*>(this)->required(stage));
+}
+
+StageValues& StabiliserModel::put(const std::string& stage, std::unique_ptr<StageValues> values) {
+  if (StageValues* present = this->values(stage)) {
+    for (StageInstance& instance : stages_)
+      if (instance.values.get() == present) instance.values = std::move(values);
+    return *this->values(stage);
+  }
+  // In the chain's order: before the first stage the model has that comes after it.
+  const StabiliserStage& described = stabiliserStage(stage);
+  auto at = stages_.begin();
+  for (const StabiliserStage& each : stabiliserStages()) {
+    if (&each == &described) break;
+    if (at != stages_.end() && at->stage == &each) ++at;
+  }
+  return *stages_.insert(at, StageInstance{&described, std::move(values)})->values;
+}
+
+void StabiliserModel::remove(const std::string& stage) {
+  stages_.erase(std::remove_if(stages_.begin(), stages_.end(),
+                               [&](const StageInstance& instance) { return stage == instance.stage->name; }),
+                stages_.end());
+}
+
+StabiliserModel StabiliserModel::only(const std::vector<std::string>& stage_names) const {
+  StabiliserModel kept(stage_names);
+  for (StageInstance& instance : kept.stages_)
+    if (const StageValues* own = values(instance.stage->name)) instance.values = own->clone();
+  return kept;
+}
+
+StabiliserModel StabiliserModel::physicalChain() const {
+  StabiliserModel chain = *this;
+  for (StageInstance& instance : chain.stages_)
+    if (instance.stage->clear) instance.stage->clear(*instance.values);
   return chain;
 }
 
-std::string StabiliserParameters::validate() const {
-  for (const std::string& name : stages) {
-    try {
-      stabiliserStage(name);
-    } catch (const std::invalid_argument& e) {
-      return std::string("stages: ") + e.what();
-    }
-  }
-  // Each stage validates its own parameters (core/ois/stabiliser_stage.h); the first problem, in
-  // the chain's order, is the answer.
-  for (const StabiliserStage& stage : stabiliserStages()) {
-    const std::string problem = stage.validate(*this);
+std::string StabiliserModel::validate() const {
+  // Each stage validates its own values (core/ois/stabiliser_stage.h); the first problem, in the
+  // chain's order, is the answer.
+  for (const StageInstance& instance : stages_) {
+    const std::string problem = instance.stage->validate(*instance.values, *this);
     if (!problem.empty()) return problem;
   }
   return {};
 }
 
-LensShiftPredictor::LensShiftPredictor(const StabiliserParameters& parameters, double focal_px,
+LensShiftPredictor::LensShiftPredictor(const StabiliserModel& model, double focal_px,
                                        double step_s, double history_s)
     : step_s_(step_s) {
-  const std::string problem = parameters.validate();
+  const std::string problem = model.validate();
   if (!problem.empty()) throw std::invalid_argument("stabiliser model: " + problem);
   if (!(focal_px > 0.0) || !std::isfinite(focal_px) || !(step_s > 0.0) || !(history_s > step_s)) {
     throw std::invalid_argument(
         "stabiliser model: focal_px and step_s must be positive and history_s > step_s");
   }
   history_steps_ = static_cast<std::size_t>(std::ceil(history_s / step_s)) + 2;
-  chain_ = StabiliserChain(stabiliserRunners(parameters, {focal_px, step_s}));
+  chain_ = StabiliserChain(stabiliserRunners(model, {focal_px, step_s}));
   reset();
   resets_ = 0;
 }

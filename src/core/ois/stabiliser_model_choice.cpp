@@ -7,14 +7,22 @@
 #include <stdexcept>
 
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
 
 namespace deep_ois {
 
-bool isNoLensMotion(const StabiliserParameters& parameters) {
-  return parameters.gain.isZero(0.0) &&
-         (parameters.residual.size() == 0 || parameters.residual.isZero(0.0)) &&
-         (parameters.nonlinear_residual.size() == 0 || parameters.nonlinear_residual.isZero(0.0)) &&
-         !parameters.learned_dynamics.active();  // the generic lens dynamics runs with the chain off
+bool isNoLensMotion(const StabiliserModel& parameters) {
+  auto zero = [](const Eigen::MatrixXd& m) { return m.size() == 0 || m.isZero(0.0); };
+  const CentringValues* centring = parameters.find<CentringValues>();
+  const LinearResidualValues* linear = parameters.find<LinearResidualValues>();
+  const LearnedResidualValues* learned = parameters.find<LearnedResidualValues>();
+  const LearnedLensDynamics* dynamics = parameters.find<LearnedLensDynamics>();
+  return centring && centring->gain.isZero(0.0) && (!linear || zero(linear->residual)) &&
+         (!learned || zero(learned->nonlinear_residual)) &&
+         !(dynamics && dynamics->active());  // the generic lens dynamics runs with the chain off
 }
 
 void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,
@@ -98,7 +106,7 @@ StabiliserChoice chooseStabiliserModel(const std::vector<ModelCandidate>& candid
 
 namespace deep_ois {
 
-NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted,
+NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserModel& fitted,
                                               const std::vector<StabiliserFitRecording>& training,
                                               const std::vector<StabiliserFitRecording>& held_out,
                                               const StabiliserFitOptions& fit_options,
@@ -107,7 +115,7 @@ NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted
   options.step_s = fit_options.step_s;
   options.warm_up_s = fit_options.warm_up_s;
   NoLensMotionCheck check;
-  StabiliserParameters candidate = fitted;
+  StabiliserModel candidate = fitted;
   std::vector<StabiliserFitRecording> scored = held_out;
   std::string where = "the held-out recordings";
   if (held_out.empty()) {

@@ -78,16 +78,25 @@ std::string StabiliserModelFile::toYaml() const {
       "centring",          "actuator",        "stroke",           "excursion_centring",
       "actuator_coupling", "pan_detection",   "linear_residual",  "learned_residual",
       "learned_lens_dynamics"};
-  for (const char* name : kFirstFormatOrder) stabiliserStage(name).write(out, parameters);
+  // A stage the model has not got writes nothing, except the default chain's, whose keys the
+  // first format required: those write their defaults (a model of other stages, a generated
+  // design, still loads in a reader of that format).
+  auto write = [&](const StabiliserStage& stage) {
+    if (const StageValues* own = parameters.values(stage.name))
+      stage.write(out, *own);
+    else if (stage.in_default_chain)
+      stage.write(out, *stage.make());
+  };
+  for (const char* name : kFirstFormatOrder) write(stabiliserStage(name));
   for (const StabiliserStage& stage : stabiliserStages()) {
     if (std::find_if(std::begin(kFirstFormatOrder), std::end(kFirstFormatOrder),
                      [&](const char* name) { return name == std::string(stage.name); }) ==
         std::end(kFirstFormatOrder))
-      stage.write(out, parameters);
+      write(stage);
   }
   // A model that is not the default chain names its stages (optional: older files have none).
-  if (!parameters.stages.empty())
-    out << YAML::Key << "stages" << YAML::Value << YAML::Flow << parameters.stages;
+  if (!parameters.hasDefaultChain())
+    out << YAML::Key << "stages" << YAML::Value << YAML::Flow << parameters.stageNames();
   out << YAML::EndMap;
   writeCameraDescription(out, camera);
   const StabiliserTrainingRecord& t = training;
@@ -127,9 +136,26 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   file.name = optional<std::string>(root, "name", "");
   if (!root["stabiliser"]) throw StabiliserModelFileError("missing section 'stabiliser'");
   const YAML::Node s = root["stabiliser"];
-  StabiliserParameters& p = file.parameters;
-  for (const StabiliserStage& stage : stabiliserStages()) stage.read(s, &p);
-  p.stages = stabiliser_file_fields::optional<std::vector<std::string>>(s, "stages", {});
+  // Every stage the section has; a file that names its stages keeps only those (without the
+  // list: the default chain and any sampled controller's stage the file has).
+  StabiliserModel& p = file.parameters;
+  p = StabiliserModel(std::vector<std::string>{});
+  for (const StabiliserStage& stage : stabiliserStages()) {
+    std::unique_ptr<StageValues> own = stage.make();
+    if (stage.read(s, *own)) p.put(stage.name, std::move(own));
+  }
+  if (s["stages"]) {
+    const auto named = optional<std::vector<std::string>>(s, "stages", {});
+    for (const std::string& name : named) {
+      try {
+        stabiliserStage(name);
+      } catch (const std::invalid_argument& e) {
+        throw StabiliserModelFileError(std::string("stabiliser: stages: ") + e.what());
+      }
+    }
+    for (const std::string& name : p.stageNames())
+      if (std::find(named.begin(), named.end(), name) == named.end()) p.remove(name);
+  }
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
   try {

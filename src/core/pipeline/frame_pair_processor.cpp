@@ -36,10 +36,10 @@ std::vector<CameraRateSample> pairGyroStream(const ImuSampleBuffer& imu, const R
   return cameraRates(imu, timing.imu_to_camera_rotation, span.from_s, span.until_s);
 }
 
-FramePairProcessor::FramePairProcessor(const StabiliserParameters& model, Timeline timeline)
+FramePairProcessor::FramePairProcessor(const StabiliserModel& model, Timeline timeline)
     : model_(model), timeline_(timeline) {}
 
-void FramePairProcessor::setModel(const StabiliserParameters& model) {
+void FramePairProcessor::setModel(const StabiliserModel& model) {
   model_ = model;
   compensator_.reset();
 }

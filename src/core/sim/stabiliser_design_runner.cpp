@@ -8,38 +8,50 @@
 
 #include "deep_ois/core/common/portable_random.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 
 namespace deep_ois {
 namespace sim {
 
-StabiliserParameters designModel(const StabiliserDesign& design) {
-  // Each stage's values in the order its struct declares them (core/ois/stabiliser_model.h).
+StabiliserModel designModel(const StabiliserDesign& design) {
   const GyroMountStage& mount = design.mount;
   const EstimatorStage& estimator = design.estimator;
   const ModeStage& mode = design.mode;
   const GainStage& gain = design.gain;
   const StrokeStage& stroke = design.stroke;
   const ActuatorStage& actuator = design.actuator;
-  StabiliserParameters p;
-  p.gyro_loop = GyroLoopValues{mount.roll_deg, mount.tilt_deg, mount.pan_deg, design.loop.rate_hz,
-                               design.loop.sampling == GyroSampling::kAveraged};
-  p.motion_mode = MotionModeValues{toString(mode.action), mode.threshold_rad_s, mode.time_constant_s,
-                                   mode.release_factor, mode.hold_time_constant_s, gain.schedule_depth,
-                                   gain.schedule_start_rad_s, gain.schedule_span_rad_s,
-                                   gain.schedule_time_constant_s};
-  p.intended_motion = IntendedMotionValues{toString(estimator.kind), estimator.corner_hz, estimator.damping,
-                                           estimator.rate_corner_hz, estimator.excursion_gain,
-                                           estimator.excursion_power, gain.gain_x, gain.gain_y};
-  p.travel = TravelValues{toString(stroke.kind), stroke.x_positive_deg, stroke.x_negative_deg,
-                          stroke.y_positive_deg, stroke.y_negative_deg, toString(design.anti_windup.kind),
-                          design.anti_windup.back_calculation_rate_per_s,
-                          static_cast<double>(design.output.quantiser_bits)};
-  p.hall_actuator = HallActuatorValues{design.output.delay_s, actuator.order == ActuatorOrder::kFirst ? "first" : "second",
-                                       actuator.bandwidth_hz, actuator.damping, actuator.rate_limit_deg_s,
-                                       actuator.stiction_fraction, actuator.end_stop_margin, design.hall.c2,
-                                       design.hall.c3};
-  p.stages = {"gyro_loop", "motion_mode", "intended_motion", "travel", "hall_actuator"};
-  return p;
+  StabiliserModel model(std::vector<std::string>{});
+  GyroLoopValues& loop = model.set(GyroLoopValues());
+  loop.roll_deg = mount.roll_deg, loop.tilt_deg = mount.tilt_deg, loop.pan_deg = mount.pan_deg;
+  loop.rate_hz = design.loop.rate_hz;
+  loop.averaged = design.loop.sampling == GyroSampling::kAveraged;
+  MotionModeValues& motion = model.set(MotionModeValues());
+  motion.action = toString(mode.action);
+  motion.threshold_rad_s = mode.threshold_rad_s, motion.time_constant_s = mode.time_constant_s;
+  motion.release_factor = mode.release_factor, motion.hold_time_constant_s = mode.hold_time_constant_s;
+  motion.schedule_depth = gain.schedule_depth, motion.schedule_start_rad_s = gain.schedule_start_rad_s;
+  motion.schedule_span_rad_s = gain.schedule_span_rad_s;
+  motion.schedule_time_constant_s = gain.schedule_time_constant_s;
+  IntendedMotionValues& intended = model.set(IntendedMotionValues());
+  intended.kind = toString(estimator.kind);
+  intended.corner_hz = estimator.corner_hz, intended.damping = estimator.damping;
+  intended.rate_corner_hz = estimator.rate_corner_hz;
+  intended.excursion_gain = estimator.excursion_gain, intended.excursion_power = estimator.excursion_power;
+  intended.gain_x = gain.gain_x, intended.gain_y = gain.gain_y;
+  TravelValues& travel = model.set(TravelValues());
+  travel.shape = toString(stroke.kind);
+  travel.x_positive_deg = stroke.x_positive_deg, travel.x_negative_deg = stroke.x_negative_deg;
+  travel.y_positive_deg = stroke.y_positive_deg, travel.y_negative_deg = stroke.y_negative_deg;
+  travel.anti_windup = toString(design.anti_windup.kind);
+  travel.back_calculation_rate_per_s = design.anti_windup.back_calculation_rate_per_s;
+  travel.quantiser_bits = static_cast<double>(design.output.quantiser_bits);
+  HallActuatorValues& hall = model.set(HallActuatorValues());
+  hall.delay_s = design.output.delay_s;
+  hall.order = actuator.order == ActuatorOrder::kFirst ? "first" : "second";
+  hall.bandwidth_hz = actuator.bandwidth_hz, hall.damping = actuator.damping;
+  hall.rate_limit_deg_s = actuator.rate_limit_deg_s, hall.stiction_fraction = actuator.stiction_fraction;
+  hall.end_stop_margin = actuator.end_stop_margin, hall.hall_c2 = design.hall.c2, hall.hall_c3 = design.hall.c3;
+  return model;
 }
 
 LensShiftGrid runDesign(const StabiliserDesign& design, double focal_px, double start_s, int steps,

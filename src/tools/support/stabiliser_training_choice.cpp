@@ -19,7 +19,7 @@ std::string StabiliserTrainingChoice::keptName() const {
   return keptNoLensMotion() ? std::string("no lens motion") : selection.candidates.at(candidate).name;
 }
 
-StabiliserParameters StabiliserTrainingChoice::keptParameters() const {
+StabiliserModel StabiliserTrainingChoice::keptParameters() const {
   return keptNoLensMotion() ? noLensMotion() : selection.candidates.at(candidate).parameters;
 }
 

@@ -4,6 +4,12 @@
 #include <cmath>
 
 #include "deep_ois/core/common/printf_text.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/excursion_centring.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 
@@ -42,38 +48,46 @@ std::string readoutMismatch(const StabiliserRecordingData& data, double config_r
          printfText("%g", recorded) + " in the gyro config";
 }
 
-std::string stabiliserParameterTable(const StabiliserParameters& p,
+std::string stabiliserParameterTable(const StabiliserModel& model,
                                      const StabiliserFitReview& review) {
   auto bound = [&](const char* parameter) {
     return review.onBound(parameter) ? std::string(" (on the fit's bound)") : std::string();
   };
+  // The chain's stages (a model the fit made has them all).
+  const CentringValues& centring = model.get<CentringValues>();
+  const ActuatorValues& actuator = model.get<ActuatorValues>();
+  const StrokeValues& stroke = model.get<StrokeValues>();
+  const PanDetectionValues& pan = model.get<PanDetectionValues>();
+  const ExcursionCentringValues* excursion = model.find<ExcursionCentringValues>();
+  const LinearResidualValues* bank = model.find<LinearResidualValues>();
+  const Eigen::Matrix2d& gain = centring.gain;
   std::string out = "| parameter | value |\n|---|---|\n";
-  out += printfText("| gain | [%.3f %.3f; %.3f %.3f] |\n", p.gain(0, 0), p.gain(0, 1), p.gain(1, 0),
-                    p.gain(1, 1));
-  out += "| centring corner | " + printfText("%.3f", p.highpass_corner_hz) + " Hz" +
+  out += printfText("| gain | [%.3f %.3f; %.3f %.3f] |\n", gain(0, 0), gain(0, 1), gain(1, 0), gain(1, 1));
+  out += "| centring corner | " + printfText("%.3f", centring.highpass_corner_hz) + " Hz" +
          bound("highpass_corner_hz") + " |\n";
-  out += "| actuator | " + printfText("%.1f", p.actuator_natural_hz) + " Hz" +
-         bound("actuator_natural_hz") + ", damping " + printfText("%.2f", p.actuator_damping) +
+  out += "| actuator | " + printfText("%.1f", actuator.actuator_natural_hz) + " Hz" +
+         bound("actuator_natural_hz") + ", damping " + printfText("%.2f", actuator.actuator_damping) +
          bound("actuator_damping") + " |\n";
-  out += "| sensor lag | " + printfText("%.2f", 1000.0 * p.sensor_lag_s) + " ms" +
+  out += "| sensor lag | " + printfText("%.2f", 1000.0 * actuator.sensor_lag_s) + " ms" +
          bound("sensor_lag_s") + " |\n";
-  out += "| stroke | " + printfText("%.3f", p.stroke_x_deg) + bound("stroke_x_deg") + " x " +
-         printfText("%.3f", p.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
-         (p.circular_stroke ? "ellipse" : "box") + (p.soft_stroke ? ", soft: stroke x tanh(u / stroke)" : "") +
-         ") |\n";
+  out += "| stroke | " + printfText("%.3f", stroke.stroke_x_deg) + bound("stroke_x_deg") + " x " +
+         printfText("%.3f", stroke.stroke_y_deg) + bound("stroke_y_deg") + " deg (" +
+         (stroke.circular_stroke ? "ellipse" : "box") +
+         (stroke.soft_stroke ? ", soft: stroke x tanh(u / stroke)" : "") + ") |\n";
   out += std::string("| integrator at the stroke | ") +
-         (p.anti_windup ? "held (anti-windup)" : "winds up") + " |\n";
-  if (p.excursion_centring > 0.0)
-    out += "| excursion-dependent re-centring | corner x (1 + " + printfText("%.2f", p.excursion_centring) +
-           " e^2) |\n";
+         (stroke.anti_windup ? "held (anti-windup)" : "winds up") + " |\n";
+  if (excursion && excursion->excursion_centring > 0.0)
+    out += "| excursion-dependent re-centring | corner x (1 + " +
+           printfText("%.2f", excursion->excursion_centring) + " e^2) |\n";
   out += "| pan detection | " +
-         (p.pan_detection_rate_rad_s > 0.0
-              ? printfText("%.2f", p.pan_detection_rate_rad_s) + " rad/s, release " +
-                    printfText("%.2f", p.pan_release_corner_hz) + " Hz" + bound("pan_release_corner_hz")
+         (pan.pan_detection_rate_rad_s > 0.0
+              ? printfText("%.2f", pan.pan_detection_rate_rad_s) + " rad/s, release " +
+                    printfText("%.2f", pan.pan_release_corner_hz) + " Hz" + bound("pan_release_corner_hz")
               : std::string("off")) +
          " |\n";
   out += "| residual bank | " +
-         countOf(p.residual_time_constants_s.size(), "time constant", "time constants") + " |\n";
+         countOf(bank ? bank->residual_time_constants_s.size() : 0, "time constant", "time constants") +
+         " |\n";
   return out;
 }
 

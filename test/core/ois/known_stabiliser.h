@@ -3,18 +3,21 @@
 #pragma once
 
 #include "deep_ois/core/ois/stabiliser_model.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 
-inline StabiliserParameters knownStabiliser() {
-  StabiliserParameters p;
-  p.gain << 0.0, 0.9, -1.05, 0.0;
-  p.highpass_corner_hz = 0.8;
-  p.actuator_natural_hz = 30.0;
-  p.actuator_damping = 0.6;
-  p.sensor_lag_s = 0.002;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 1.2;
+inline StabiliserModel knownStabiliser() {
+  StabiliserModel p;
+  p.get<CentringValues>().gain << 0.0, 0.9, -1.05, 0.0;
+  p.get<CentringValues>().highpass_corner_hz = 0.8;
+  p.get<ActuatorValues>().actuator_natural_hz = 30.0;
+  p.get<ActuatorValues>().actuator_damping = 0.6;
+  p.get<ActuatorValues>().sensor_lag_s = 0.002;
+  p.get<StrokeValues>().stroke_x_deg = 0.8;
+  p.get<StrokeValues>().stroke_y_deg = 1.2;
   return p;
 }
 

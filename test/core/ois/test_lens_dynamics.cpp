@@ -13,6 +13,7 @@
 #include "deep_ois/core/ois/lens_dynamics_network.h"
 #include "deep_ois/core/ois/stabiliser_model.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
 
 namespace deep_ois {
 namespace {
@@ -54,10 +55,10 @@ std::shared_ptr<const LensDynamicsNetwork> smallNetwork(unsigned seed = 3) {
   return net;
 }
 
-StabiliserParameters withNetwork(std::shared_ptr<const LensDynamicsNetwork> net,
+StabiliserModel withNetwork(std::shared_ptr<const LensDynamicsNetwork> net,
                                  const Eigen::VectorXd& conditioning) {
-  StabiliserParameters p = genericLensDynamicsModel(net);
-  p.learned_dynamics.conditioning = conditioning;
+  StabiliserModel p = genericLensDynamicsModel(net);
+  p.get<LearnedLensDynamics>().conditioning = conditioning;
   return p;
 }
 
@@ -91,7 +92,7 @@ std::vector<Eigen::Vector2d> lensAtStamps(LensShiftPredictor& predictor, const s
 
 TEST(LensDynamics, CarriesItsStateFrameByFrame) {
   const auto net = smallNetwork();
-  const StabiliserParameters p = withNetwork(net, net->default_conditioning);
+  const StabiliserModel p = withNetwork(net, net->default_conditioning);
   const auto rates = shake(100.0, 3.0, 1);
   LensShiftPredictor whole(p, kFocalPx);
   const auto all = lensAtStamps(whole, rates);
@@ -118,7 +119,7 @@ TEST(LensDynamics, CarriesItsStateFrameByFrame) {
 
 TEST(LensDynamics, ResetsOnAGapAndOnAJumpBack) {
   const auto net = smallNetwork();
-  const StabiliserParameters p = withNetwork(net, net->default_conditioning);
+  const StabiliserModel p = withNetwork(net, net->default_conditioning);
   const auto first = shake(10.0, 1.0, 2);
   const auto after_gap = shake(11.5, 1.0, 3);  // 0.5 s without gyro: longer than max_gap_s
   const auto back = shake(5.0, 1.0, 4);        // time goes back (a bag looping)
@@ -146,14 +147,14 @@ TEST(LensDynamics, NetworkAndModelFilesRoundTrip) {
   StabiliserModelFile file;
   file.name = "test camera";
   file.parameters = withNetwork(net, Eigen::Vector2d(0.3, 0.2));
-  file.parameters.learned_dynamics.output_map << 0.9, 0.1, -0.05, 1.1;
+  file.parameters.get<LearnedLensDynamics>().output_map << 0.9, 0.1, -0.05, 1.1;
   file.camera.width = 360;
   file.camera.height = 270;
   file.camera.fx = file.camera.fy = kFocalPx;
   file.camera.cx = 180;
   file.camera.cy = 135;
   const StabiliserModelFile loaded = StabiliserModelFile::fromYaml(file.toYaml());
-  ASSERT_TRUE(loaded.parameters.learned_dynamics.active());
+  ASSERT_TRUE(loaded.parameters.get<LearnedLensDynamics>().active());
   const auto rates = shake(0.0, 2.0, 5);
   LensShiftPredictor a(file.parameters, kFocalPx), b(loaded.parameters, kFocalPx);
   const auto lens_a = lensAtStamps(a, rates), lens_b = lensAtStamps(b, rates);
@@ -166,7 +167,7 @@ TEST(LensDynamics, NetworkAndModelFilesRoundTrip) {
 
 TEST(LensDynamics, BadFilesAndParametersNameTheField) {
   const auto net = smallNetwork();
-  StabiliserParameters p = withNetwork(net, Eigen::Vector3d(0, 0, 0));
+  StabiliserModel p = withNetwork(net, Eigen::Vector3d(0, 0, 0));
   EXPECT_NE(p.validate().find("learned_dynamics.conditioning"), std::string::npos) << p.validate();
   std::string text = net->toYaml();
   text.replace(text.find("hidden_size: 4"), 14, "hidden_size: 5");
@@ -182,7 +183,7 @@ TEST(LensDynamics, BadFilesAndParametersNameTheField) {
 }
 
 // Lens motions of frame pairs (30 fps, 4 patches over a 20 ms readout) from a model.
-StabiliserFitRecording recordingFrom(const StabiliserParameters& truth, unsigned seed) {
+StabiliserFitRecording recordingFrom(const StabiliserModel& truth, unsigned seed) {
   StabiliserFitRecording r;
   r.name = "synthetic " + std::to_string(seed);
   r.focal_px = kFocalPx;
@@ -202,8 +203,8 @@ StabiliserFitRecording recordingFrom(const StabiliserParameters& truth, unsigned
 
 TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
   const auto net = smallNetwork();
-  StabiliserParameters truth = withNetwork(net, Eigen::Vector2d(0.6, -0.5));
-  truth.learned_dynamics.output_map << 1.2, 0.1, 0.0, 0.9;
+  StabiliserModel truth = withNetwork(net, Eigen::Vector2d(0.6, -0.5));
+  truth.get<LearnedLensDynamics>().output_map << 1.2, 0.1, 0.0, 0.9;
   const std::vector<StabiliserFitRecording> recordings = {recordingFrom(truth, 11), recordingFrom(truth, 12)};
   StabiliserFitOptions options;
   LensDynamicsAdaptationOptions adaptation;
@@ -217,8 +218,8 @@ TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
               adapted.passes);
   EXPECT_GT(adapted.rms_start_px, 0.05) << "the default conditioning must be wrong for this test";
   EXPECT_LT(adapted.rms_px, 0.01 * adapted.rms_start_px);
-  EXPECT_NEAR(adapted.parameters.learned_dynamics.conditioning(0), 0.6, 0.05);
-  EXPECT_NEAR(adapted.parameters.learned_dynamics.output_map(0, 0), 1.2, 0.05);
+  EXPECT_NEAR(adapted.parameters.get<LearnedLensDynamics>().conditioning(0), 0.6, 0.05);
+  EXPECT_NEAR(adapted.parameters.get<LearnedLensDynamics>().output_map(0, 0), 1.2, 0.05);
   // Without the map only the conditioning moves: it cannot explain a scaled lens as well.
   adaptation.fit_output_map = false;
   const LensDynamicsAdaptation conditioning_only = adaptLensDynamics(net, recordings, options, adaptation);
@@ -232,12 +233,12 @@ TEST(LensDynamics, OutputRefitRecoversALayer) {
   auto changed = std::make_shared<LensDynamicsNetwork>(*net);
   changed->w_output *= 1.3;
   changed->w_output(0, 1) += 0.4;
-  const StabiliserParameters truth = withNetwork(changed, net->default_conditioning);
+  const StabiliserModel truth = withNetwork(changed, net->default_conditioning);
   const std::vector<StabiliserFitRecording> recordings = {recordingFrom(truth, 21), recordingFrom(truth, 22)};
   StabiliserFitOptions options;
-  const StabiliserParameters start = withNetwork(net, net->default_conditioning);
+  const StabiliserModel start = withNetwork(net, net->default_conditioning);
   const StabiliserScore before = scoreStabiliser(start, recordings, options);
-  const StabiliserParameters refitted = refitLensDynamicsOutput(start, recordings, options, 1e-8);
+  const StabiliserModel refitted = refitLensDynamicsOutput(start, recordings, options, 1e-8);
   const StabiliserScore after = scoreStabiliser(refitted, recordings, options);
   std::printf("[ figures  ] output refit: rms %.5f -> %.3e px\n", before.rms_px, after.rms_px);
   EXPECT_GT(before.rms_px, 0.05);

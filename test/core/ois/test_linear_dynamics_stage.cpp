@@ -14,6 +14,10 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 namespace {
@@ -45,22 +49,22 @@ StabiliserFitRecording shake() {
 }
 
 // The recording's lens motions as `truth` predicts them.
-StabiliserFitRecording observed(const StabiliserParameters& truth) {
+StabiliserFitRecording observed(const StabiliserModel& truth) {
   StabiliserFitRecording recording = shake();
   const auto motion = predictLensMotion(truth, recording, 1e-3, 0.0);
   for (std::size_t k = 0; k < motion.size(); ++k) recording.observations[k].motion_px = motion[k];
   return recording;
 }
 
-StabiliserParameters chain() {
-  StabiliserParameters p;
-  p.gain << 0.0, 0.95, -1.02, 0.0;
-  p.highpass_corner_hz = 0.5;
-  p.actuator_natural_hz = 40.0;
-  p.actuator_damping = 0.7;
-  p.sensor_lag_s = 0.001;
-  p.stroke_x_deg = 5.0;  // never met by the shake: the chain is linear
-  p.stroke_y_deg = 5.0;
+StabiliserModel chain() {
+  StabiliserModel p;
+  p.get<CentringValues>().gain << 0.0, 0.95, -1.02, 0.0;
+  p.get<CentringValues>().highpass_corner_hz = 0.5;
+  p.get<ActuatorValues>().actuator_natural_hz = 40.0;
+  p.get<ActuatorValues>().actuator_damping = 0.7;
+  p.get<ActuatorValues>().sensor_lag_s = 0.001;
+  p.get<StrokeValues>().stroke_x_deg = 5.0;  // never met by the shake: the chain is linear
+  p.get<StrokeValues>().stroke_y_deg = 5.0;
   return p;
 }
 
@@ -72,14 +76,14 @@ LinearDynamicsBasisSpec basis() {
 }
 
 // A linear-dynamics model with deterministic coefficients (focal units).
-StabiliserParameters knownLinearDynamics() {
-  StabiliserParameters p = chain();
-  p.stages = {"linear_dynamics", "stroke", "actuator"};
-  p.linear_dynamics.basis = basis();
-  p.linear_dynamics.coefficients.resize(2, 3 * basis().order);
-  for (long j = 0; j < p.linear_dynamics.coefficients.cols(); ++j) {
-    p.linear_dynamics.coefficients(0, j) = 0.15 * std::sin(1.3 * j + 0.2);
-    p.linear_dynamics.coefficients(1, j) = 0.15 * std::cos(0.7 * j + 0.9);
+StabiliserModel knownLinearDynamics() {
+  StabiliserModel p = chain().only({"linear_dynamics", "stroke", "actuator"});
+  LinearDynamicsValues& linear = p.get<LinearDynamicsValues>();
+  linear.basis = basis();
+  linear.coefficients.resize(2, 3 * basis().order);
+  for (long j = 0; j < linear.coefficients.cols(); ++j) {
+    linear.coefficients(0, j) = 0.15 * std::sin(1.3 * j + 0.2);
+    linear.coefficients(1, j) = 0.15 * std::cos(0.7 * j + 0.9);
   }
   return p;
 }
@@ -95,26 +99,25 @@ double rms(const std::vector<Eigen::Vector2d>& v) {
 TEST(LinearDynamicsStage, TheRunnerIsTheBasisFilterTimesItsCoefficients) {
   // Without an actuator or a stroke that acts, the lens is f C x for the basis state x of the rate
   // held over each step (a constant rate: no interpolation between samples).
-  StabiliserParameters p = knownLinearDynamics();
-  p.stages = {"linear_dynamics"};
+  StabiliserModel p = knownLinearDynamics().only({"linear_dynamics"});
   LensShiftPredictor predictor(p, kFocalPx);
   LinearDynamicsBasis reference(basis(), 1e-3);
   const Eigen::Vector3d rate(0.02, -0.03, 0.01);
   for (int k = 0; k <= 500; ++k) predictor.addRate({0.001 * k, rate});
   for (int k = 0; k < 500; ++k) reference.advance(rate);
-  const Eigen::Vector2d expected = kFocalPx * (p.linear_dynamics.coefficients * reference.state());
+  const Eigen::Vector2d expected = kFocalPx * (p.get<LinearDynamicsValues>().coefficients * reference.state());
   EXPECT_LT((predictor.lensShiftAt(0.5) - expected).norm(), 1e-9 * (1.0 + expected.norm()));
   EXPECT_GT(expected.norm(), 0.1);
 }
 
 TEST(LinearDynamicsStage, TheClosedFormFitRecoversKnownCoefficientsThroughTheActuator) {
-  const StabiliserParameters truth = knownLinearDynamics();
+  const StabiliserModel truth = knownLinearDynamics();
   const StabiliserFitRecording recording = observed(truth);
   StabiliserFitOptions options;
-  const StabiliserParameters fitted =
+  const StabiliserModel fitted =
       fitLinearDynamics(chain(), {"linear_dynamics", "stroke", "actuator"}, basis(), {recording},
                         options, 0.0);
-  EXPECT_EQ(fitted.stages, truth.stages);
+  EXPECT_EQ(fitted.stageNames(), truth.stageNames());
   const auto predicted = predictLensMotion(fitted, recording, 1e-3, 1.0);
   std::vector<Eigen::Vector2d> error, motion;
   for (std::size_t k = 0; k < predicted.size(); ++k) {
@@ -131,7 +134,7 @@ TEST(LinearDynamicsStage, StandsInForACentringChainInsideTheStroke) {
   // (corner 1 Hz, 6 functions per axis) explains nearly all of it, the actuator held.
   const StabiliserFitRecording recording = observed(chain());
   StabiliserFitOptions options;
-  const StabiliserParameters fitted =
+  const StabiliserModel fitted =
       fitLinearDynamics(chain(), {"linear_dynamics", "stroke", "actuator"}, basis(), {recording}, options);
   const StabiliserScore score = scoreStabiliser(fitted, {recording}, options);
   EXPECT_LT(score.rms_px, 0.02 * score.rms_without_model_px) << score.rms_px;
@@ -152,8 +155,8 @@ TEST(LinearDynamicsStage, AModelFileOfItLoadsAndPredictsAsSaved) {
                            std::to_string(::getpid()) + ".yaml";
   file.save(path);
   const StabiliserModelFile loaded = StabiliserModelFile::load(path);
-  EXPECT_EQ(loaded.parameters.stages, file.parameters.stages);
-  EXPECT_EQ(loaded.parameters.linear_dynamics.basis.order, basis().order);
+  EXPECT_EQ(loaded.parameters.stageNames(), file.parameters.stageNames());
+  EXPECT_EQ(loaded.parameters.get<LinearDynamicsValues>().basis.order, basis().order);
   const StabiliserFitRecording recording = shake();
   const auto a = predictLensMotion(file.parameters, recording, 1e-3, 1.0);
   const auto b = predictLensMotion(loaded.parameters, recording, 1e-3, 1.0);
@@ -162,9 +165,20 @@ TEST(LinearDynamicsStage, AModelFileOfItLoadsAndPredictsAsSaved) {
     if (a[k].allFinite()) largest = std::max(largest, (a[k] - b[k]).cwiseAbs().maxCoeff());
   EXPECT_LT(largest, 1e-6);  // the file's 10 significant digits
   // A stage list naming an unknown stage is refused, naming it.
-  StabiliserParameters bad = knownLinearDynamics();
-  bad.stages.push_back("no_such_stage");
-  EXPECT_NE(bad.validate().find("no_such_stage"), std::string::npos);
+  try {
+    knownLinearDynamics().only({"linear_dynamics", "no_such_stage"});
+    ADD_FAILURE() << "an unknown stage was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such_stage"), std::string::npos);
+  }
+  std::string text = file.toYaml();
+  text.replace(text.find("stages: ["), 9, "stages: [no_such_stage, ");
+  try {
+    StabiliserModelFile::fromYaml(text);
+    ADD_FAILURE() << "a file naming an unknown stage was accepted";
+  } catch (const StabiliserModelFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such_stage"), std::string::npos);
+  }
   std::remove(path.c_str());
 }
 

@@ -14,20 +14,25 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 namespace {
 
 constexpr double kFocalPx = 300.0;
 
-StabiliserParameters chain() {
-  StabiliserParameters p;
-  p.gain << 0.0, 0.95, -1.0, 0.0;
-  p.highpass_corner_hz = 0.7;
-  p.actuator_natural_hz = 30.0;
-  p.actuator_damping = 0.6;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 1.0;
+StabiliserModel chain() {
+  StabiliserModel p;
+  p.get<CentringValues>().gain << 0.0, 0.95, -1.0, 0.0;
+  p.get<CentringValues>().highpass_corner_hz = 0.7;
+  p.get<ActuatorValues>().actuator_natural_hz = 30.0;
+  p.get<ActuatorValues>().actuator_damping = 0.6;
+  p.get<StrokeValues>().stroke_x_deg = 0.8;
+  p.get<StrokeValues>().stroke_y_deg = 1.0;
   return p;
 }
 
@@ -101,12 +106,12 @@ TEST(StabiliserChoiceRule, KeepsTheSimplestWithinTheMarginThenNoLensMotionThenTh
 // kept by either. Before the rule was shared, the online learner took the lowest RMS whatever its
 // complexity (only its incumbent needed a 5 % margin).
 TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMargin) {
-  const StabiliserParameters simple = chain();
+  const StabiliserModel simple = chain();
   // The same chain with a learned residual whose lens motion is 0.005 px RMS: the truth below, so
   // about 0.5 % better than the chain on 0.05 px of noise.
-  StabiliserParameters learned = simple;
-  learned.nonlinear_features = "rate_bank_v1";
-  learned.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.01);
+  StabiliserModel learned = simple;
+  learned.get<LearnedResidualValues>().nonlinear_features = "rate_bank_v1";
+  learned.get<LearnedResidualValues>().nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.01);
   StabiliserFitRecording held_out = shakeRecording(5.0);
   const auto chain_motion = predictLensMotion(simple, held_out, 1e-3, 0.0);
   const auto learned_motion = predictLensMotion(learned, held_out, 1e-3, 0.0);
@@ -114,15 +119,15 @@ TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMarg
   for (std::size_t k = 0; k < chain_motion.size(); ++k)
     sum += (learned_motion[k] - chain_motion[k]).squaredNorm();
   const double scale = 0.005 / std::sqrt(sum / static_cast<double>(chain_motion.size()));
-  learned.nonlinear_residual *= scale;
+  learned.get<LearnedResidualValues>().nonlinear_residual *= scale;
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.05 / std::sqrt(2.0));
   const auto truth = predictLensMotion(learned, held_out, 1e-3, 0.0);
   for (std::size_t k = 0; k < truth.size(); ++k)
     held_out.observations[k].motion_px = truth[k] + Eigen::Vector2d(noise(rng), noise(rng));
 
-  StabiliserParameters wrong = simple;  // the model in use: a gain far off
-  wrong.gain *= 0.5;
+  StabiliserModel wrong = simple;  // the model in use: a gain far off
+  wrong.get<CentringValues>().gain *= 0.5;
   const StabiliserChoice choice = chooseStabiliserModel(
       {{"in use", wrong}, {"fit: physical", simple}, {"fit: physical + learned rate filter", learned}}, 0,
       {held_out});
@@ -151,8 +156,8 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
   options.iterations = 2;
   StabiliserFitResult fit;
   fit.parameters = chain();
-  fit.parameters.residual_time_constants_s = {0.02, 0.3};
-  fit.parameters.residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
+  fit.parameters.get<LinearResidualValues>().residual_time_constants_s = {0.02, 0.3};
+  fit.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
   const std::vector<ModelCandidate> candidates = stabiliserCandidates(fit, {recording}, options);
   ASSERT_EQ(candidates.size(), table.size());
   EXPECT_EQ(candidates[0].name, "physical");
@@ -168,9 +173,11 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
     auto listed = [&](const char* token) {
       return std::find(table[k].stages.begin(), table[k].stages.end(), token) != table[k].stages.end();
     };
-    EXPECT_EQ(candidates[k].parameters.anti_windup, listed("stroke:anti_windup"));
-    EXPECT_EQ(candidates[k].parameters.soft_stroke, listed("stroke:soft"));
-    EXPECT_EQ(candidates[k].parameters.nonlinear_features, feature_set);
+    EXPECT_EQ(candidates[k].parameters.get<StrokeValues>().anti_windup, listed("stroke:anti_windup"));
+    EXPECT_EQ(candidates[k].parameters.get<StrokeValues>().soft_stroke, listed("stroke:soft"));
+    // (The linear-dynamics rows have no learned residual stage at all.)
+    const auto* learned = candidates[k].parameters.find<LearnedResidualValues>();
+    EXPECT_EQ(learned ? learned->nonlinear_features : std::string(), feature_set);
     // Ranked as its row; a refit whose coupling stayed at 0 is the simpler chain it equals.
     if (listed("actuator_coupling")) {
       EXPECT_LE(stabiliserComplexity(candidates[k].parameters), table[k].complexity);

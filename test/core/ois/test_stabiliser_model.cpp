@@ -26,6 +26,14 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/actuator_coupling.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/excursion_centring.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 #include "known_stabiliser.h"
 
 namespace deep_ois {
@@ -114,11 +122,11 @@ TEST(LensShiftPredictor, AGapInTheGyroRestartsFromACentredLens) {
 TEST(LensShiftPredictor, ACentringFreeStabiliserCancelsAConstantTurnExactly) {
   // No centring, a stiff actuator, a stroke out of reach: after a turn of theta about y the lens
   // sits at f tan(theta) in x (the cancelling shift of the package's convention).
-  StabiliserParameters p;
-  p.highpass_corner_hz = 0.0;
-  p.actuator_natural_hz = 400.0;
-  p.actuator_damping = 1.0;
-  p.stroke_x_deg = p.stroke_y_deg = 10.0;
+  StabiliserModel p;
+  p.get<CentringValues>().highpass_corner_hz = 0.0;
+  p.get<ActuatorValues>().actuator_natural_hz = 400.0;
+  p.get<ActuatorValues>().actuator_damping = 1.0;
+  p.get<StrokeValues>().stroke_x_deg = p.get<StrokeValues>().stroke_y_deg = 10.0;
   LensShiftPredictor predictor(p, kFocalPx);
   const double rate = 0.2;  // rad/s about y for 0.5 s: 0.1 rad
   for (double t = 0.0; t <= 0.5 + 1e-9; t += 0.0025) predictor.addRate({t, Eigen::Vector3d(0.0, rate, 0.0)});
@@ -131,7 +139,7 @@ TEST(LensShiftPredictor, ACentringFreeStabiliserCancelsAConstantTurnExactly) {
 }
 
 // Observations a stabiliser of `truth` gives on 30 fps frames with 6 row patches, plus noise.
-StabiliserFitRecording observe(const StabiliserParameters& truth, unsigned seed, double noise_px) {
+StabiliserFitRecording observe(const StabiliserModel& truth, unsigned seed, double noise_px) {
   StabiliserFitRecording recording;
   recording.name = "synthetic " + std::to_string(seed);
   recording.focal_px = kFocalPx;
@@ -153,7 +161,7 @@ StabiliserFitRecording observe(const StabiliserParameters& truth, unsigned seed,
 }
 
 TEST(StabiliserFit, RecoversAKnownStabiliserFromNoisyLensMotion) {
-  const StabiliserParameters truth = knownStabiliser();
+  const StabiliserModel truth = knownStabiliser();
   const std::vector<StabiliserFitRecording> training = {observe(truth, 11, 0.05),
                                                         observe(truth, 12, 0.05)};
   StabiliserFitOptions options;
@@ -165,9 +173,9 @@ TEST(StabiliserFit, RecoversAKnownStabiliserFromNoisyLensMotion) {
               fit.rms_without_model_px, fit.rms_physical_px, fit.rms_px);
   EXPECT_GT(fit.rms_without_model_px, 0.5);
   EXPECT_LT(fit.rms_px, 0.1);  // the noise (0.05 px per axis) and little more
-  EXPECT_NEAR(fit.parameters.gain(0, 1), 0.9, 0.05);
-  EXPECT_NEAR(fit.parameters.gain(1, 0), -1.05, 0.05);
-  EXPECT_NEAR(fit.parameters.highpass_corner_hz, 0.8, 0.15);
+  EXPECT_NEAR(fit.parameters.get<CentringValues>().gain(0, 1), 0.9, 0.05);
+  EXPECT_NEAR(fit.parameters.get<CentringValues>().gain(1, 0), -1.05, 0.05);
+  EXPECT_NEAR(fit.parameters.get<CentringValues>().highpass_corner_hz, 0.8, 0.15);
   // A held-out recording of the same stabiliser is predicted as well as the training ones.
   const StabiliserFitRecording held_out = observe(truth, 13, 0.0);
   const auto predicted = predictLensMotion(fit.parameters, held_out, 1e-3, 1.0);
@@ -185,11 +193,11 @@ TEST(StabiliserFit, RecoversAKnownStabiliserFromNoisyLensMotion) {
 // Issue 23 #4: a lens log in active-array pixels read with lens_shift_scale 1 trained silently to
 // a gain of 6.6 and a 9.8 deg stroke, with the sensor lag and the actuator damping on their bounds.
 TEST(StabiliserFit, ReviewNamesImplausibleValuesAndParametersOnABound) {
-  StabiliserParameters p = knownStabiliser();
-  p.gain << 0.0, 6.6, -6.4, 0.0;
-  p.stroke_x_deg = 9.8;
-  p.sensor_lag_s = 0.0;
-  p.actuator_damping = 0.05;
+  StabiliserModel p = knownStabiliser();
+  p.get<CentringValues>().gain << 0.0, 6.6, -6.4, 0.0;
+  p.get<StrokeValues>().stroke_x_deg = 9.8;
+  p.get<ActuatorValues>().sensor_lag_s = 0.0;
+  p.get<ActuatorValues>().actuator_damping = 0.05;
   const StabiliserFitReview review = reviewStabiliserFit(p, LensMotionTarget::kLensLog);
   ASSERT_EQ(review.implausible.size(), 2u);
   EXPECT_NE(review.implausible[0].find("gain"), std::string::npos) << review.implausible[0];
@@ -209,10 +217,10 @@ TEST(StabiliserFit, ReviewNamesImplausibleValuesAndParametersOnABound) {
 // from the images have no lens log, so no lens_shift_scale; the simulator's truth has neither a
 // log nor a calibration to run.
 TEST(StabiliserFit, ReviewBlamesOnlyWhatTheTargetCanGetWrong) {
-  StabiliserParameters p = knownStabiliser();
-  p.gain << 0.0, 6.6, -6.4, 0.0;
-  p.stroke_x_deg = 9.8;
-  p.sensor_lag_s = 0.0;
+  StabiliserModel p = knownStabiliser();
+  p.get<CentringValues>().gain << 0.0, 6.6, -6.4, 0.0;
+  p.get<StrokeValues>().stroke_x_deg = 9.8;
+  p.get<ActuatorValues>().sensor_lag_s = 0.0;
   const StabiliserFitReview images = reviewStabiliserFit(p);  // the default target: the images
   ASSERT_EQ(images.implausible.size(), 2u);
   for (const std::string& line : images.implausible) {
@@ -228,8 +236,8 @@ TEST(StabiliserFit, ReviewBlamesOnlyWhatTheTargetCanGetWrong) {
   EXPECT_NE(log.on_bound.front().find("lens_shift_time_offset"), std::string::npos) << log.on_bound.front();
   EXPECT_EQ(images.on_bound.front().find("lens_shift_time_offset"), std::string::npos) << images.on_bound.front();
   // A lens that hardly moves: OIS off, for every target; only a log can be on the wrong scale.
-  p.gain << 0.0, 0.01, -0.01, 0.0;
-  p.stroke_x_deg = 1.0;
+  p.get<CentringValues>().gain << 0.0, 0.01, -0.01, 0.0;
+  p.get<StrokeValues>().stroke_x_deg = 1.0;
   const StabiliserFitReview still = reviewStabiliserFit(p);
   ASSERT_FALSE(still.implausible.empty());
   EXPECT_NE(still.implausible.front().find("OIS was likely off"), std::string::npos) << still.implausible.front();
@@ -268,7 +276,7 @@ TEST(StabiliserFit, LensMotionsOnTheWrongScaleAreFlagged) {
 // fitted lens).
 // `early_s`: the config places the frames this much before their true capture (a time offset
 // error).
-StabiliserFitRecording observeWithReadout(const StabiliserParameters& truth, unsigned seed,
+StabiliserFitRecording observeWithReadout(const StabiliserModel& truth, unsigned seed,
                                           double true_readout_s, double config_readout_s,
                                           double early_s = 0.0) {
   StabiliserFitRecording recording;
@@ -303,7 +311,7 @@ StabiliserFitResult fitWithReadout(double true_readout_s, double config_readout_
   options.try_circular_stroke = false;
   options.iterations = 10;
   options.readout_time_s = config_readout_s;
-  const StabiliserParameters truth = knownStabiliser();  // 2 ms sensor lag
+  const StabiliserModel truth = knownStabiliser();  // 2 ms sensor lag
   return fitStabiliser({observeWithReadout(truth, 31, true_readout_s, config_readout_s, early_s),
                         observeWithReadout(truth, 32, true_readout_s, config_readout_s, early_s)},
                        options);
@@ -363,7 +371,7 @@ TEST(LensLogTimeFit, MovesALateLensLogOntoTheGyroAndSaysTheOffsetToSet) {
   options.iterations = 10;
   options.readout_time_s = 0.012;
   options.target = LensMotionTarget::kLensLog;
-  const StabiliserParameters truth = knownStabiliser();  // 2 ms sensor lag
+  const StabiliserModel truth = knownStabiliser();  // 2 ms sensor lag
   // The log's stamps 6 ms late: the lens seems to lag its gyro by 8 ms.
   const std::vector<StabiliserFitRecording> logged = {observeWithReadout(truth, 31, 0.012, 0.012, -0.006),
                                                       observeWithReadout(truth, 32, 0.012, 0.012, -0.006)};
@@ -389,8 +397,8 @@ TEST(StabiliserFit, AFitThatDoesNotBeatNoLensMotionOnHeldOutRecordingsIsRefused)
   options.pan_thresholds_rad_s = {0.0};
   options.try_circular_stroke = false;
   options.iterations = 10;
-  StabiliserParameters off = knownStabiliser();
-  off.gain.setZero();  // the lens never moves: only the noise of the measurement is left
+  StabiliserModel off = knownStabiliser();
+  off.get<CentringValues>().gain.setZero();  // the lens never moves: only the noise of the measurement is left
   const StabiliserFitResult ois_off = fitStabiliser({observe(off, 41, 0.1)}, options);
   const NoLensMotionCheck off_check =
       checkFitAgainstNoLensMotion(ois_off.parameters, {observe(off, 41, 0.1)}, {observe(off, 42, 0.1)}, options);
@@ -417,7 +425,7 @@ TEST(StabiliserFit, RefusesDataWithoutAUsableObservation) {
 }
 
 // The model read back from its file predicts what the one in memory does.
-void expectSamePredictions(const StabiliserParameters& in_memory, const StabiliserParameters& read_back) {
+void expectSamePredictions(const StabiliserModel& in_memory, const StabiliserModel& read_back) {
   LensShiftPredictor a(in_memory, kFocalPx), b(read_back, kFocalPx);
   for (const auto& r : shake(0.0, 2.0, 7)) a.addRate(r), b.addRate(r);
   EXPECT_LT((a.lensShiftAt(1.9) - b.lensShiftAt(1.9)).norm(), 1e-6);
@@ -437,22 +445,22 @@ TEST(StabiliserModelFile, RoundTripsEveryFieldAndNamesABadOne) {
   StabiliserModelFile file;
   file.name = "test camera";
   file.parameters = knownStabiliser();
-  file.parameters.pan_detection_rate_rad_s = 0.6;
-  file.parameters.circular_stroke = true;
-  file.parameters.residual_time_constants_s = {0.01, 0.1};
-  file.parameters.residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
+  file.parameters.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
+  file.parameters.get<StrokeValues>().circular_stroke = true;
+  file.parameters.get<LinearResidualValues>().residual_time_constants_s = {0.01, 0.1};
+  file.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   file.training.target = "gyro-anchored lens shift (images)";
   file.training.data_files = {"a.bag", "b.bag"};
   file.training.observations = 1234;
   const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
   EXPECT_EQ(back.name, file.name);
-  EXPECT_TRUE(back.parameters.gain.isApprox(file.parameters.gain));
-  EXPECT_DOUBLE_EQ(back.parameters.highpass_corner_hz, 0.8);
-  EXPECT_DOUBLE_EQ(back.parameters.sensor_lag_s, 0.002);
-  EXPECT_TRUE(back.parameters.circular_stroke);
-  EXPECT_DOUBLE_EQ(back.parameters.pan_detection_rate_rad_s, 0.6);
-  EXPECT_TRUE(back.parameters.residual.isApprox(file.parameters.residual));
+  EXPECT_TRUE(back.parameters.get<CentringValues>().gain.isApprox(file.parameters.get<CentringValues>().gain));
+  EXPECT_DOUBLE_EQ(back.parameters.get<CentringValues>().highpass_corner_hz, 0.8);
+  EXPECT_DOUBLE_EQ(back.parameters.get<ActuatorValues>().sensor_lag_s, 0.002);
+  EXPECT_TRUE(back.parameters.get<StrokeValues>().circular_stroke);
+  EXPECT_DOUBLE_EQ(back.parameters.get<PanDetectionValues>().pan_detection_rate_rad_s, 0.6);
+  EXPECT_TRUE(back.parameters.get<LinearResidualValues>().residual.isApprox(file.parameters.get<LinearResidualValues>().residual));
   EXPECT_EQ(back.camera.summary(), file.camera.summary());
   EXPECT_EQ(back.training.data_files, file.training.data_files);
   EXPECT_EQ(back.training.observations, 1234u);
@@ -585,20 +593,20 @@ TEST(StabiliserCompensator, ComposesThePredictedLensShiftsWithTheGyroRotations) 
 // The known chain plus a soft saturation of x's command and y pulled back by the leaky integral of
 // its excursion-weighted command (the shape of an excursion-dependent re-centring); `seed` adds
 // small terms on every feature.
-StabiliserParameters withNonlinearResidual(unsigned seed) {
-  StabiliserParameters p = knownStabiliser();
-  p.nonlinear_features = "excursion_v1";
+StabiliserModel withNonlinearResidual(unsigned seed) {
+  StabiliserModel p = knownStabiliser();
+  p.get<LearnedResidualValues>().nonlinear_features = "excursion_v1";
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> coefficient(-1e-5, 1e-5);
-  p.nonlinear_residual = Eigen::MatrixXd::NullaryExpr(2, nonlinearFeatureCount("excursion_v1"),
+  p.get<LearnedResidualValues>().nonlinear_residual = Eigen::MatrixXd::NullaryExpr(2, nonlinearFeatureCount("excursion_v1"),
                                                       [&]() { return coefficient(rng); });
-  p.nonlinear_residual(0, 1) = 0.1;    // x: + 0.1 stroke tanh(excursion)
-  p.nonlinear_residual(1, 18) = -0.01;  // y: - 0.01 x the 0.15 s leaky pull of y
+  p.get<LearnedResidualValues>().nonlinear_residual(0, 1) = 0.1;    // x: + 0.1 stroke tanh(excursion)
+  p.get<LearnedResidualValues>().nonlinear_residual(1, 18) = -0.01;  // y: - 0.01 x the 0.15 s leaky pull of y
   return p;
 }
 
 TEST(NonlinearResidual, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
-  const StabiliserParameters p = withNonlinearResidual(3);
+  const StabiliserModel p = withNonlinearResidual(3);
   ASSERT_EQ(p.validate(), "");
   const auto rates = shake(10.0, 3.0, 1);
   LensShiftPredictor whole(p, kFocalPx), framewise(p, kFocalPx), physical(knownStabiliser(), kFocalPx);
@@ -644,13 +652,13 @@ TEST(NonlinearResidual, RoundTripsItsFileAndNamesABadOne) {
   StabiliserModelFile file;
   file.name = "nonlinear";
   file.parameters = withNonlinearResidual(4);
-  file.parameters.residual_time_constants_s = {0.01, 0.1};
-  file.parameters.residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
+  file.parameters.get<LinearResidualValues>().residual_time_constants_s = {0.01, 0.1};
+  file.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   file.training.data_files = {"a.bag"};
   const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
-  EXPECT_EQ(back.parameters.nonlinear_features, "excursion_v1");
-  EXPECT_TRUE(back.parameters.nonlinear_residual.isApprox(file.parameters.nonlinear_residual, 1e-9));
+  EXPECT_EQ(back.parameters.get<LearnedResidualValues>().nonlinear_features, "excursion_v1");
+  EXPECT_TRUE(back.parameters.get<LearnedResidualValues>().nonlinear_residual.isApprox(file.parameters.get<LearnedResidualValues>().nonlinear_residual, 1e-9));
   EXPECT_EQ(back.camera.summary(), file.camera.summary());
   EXPECT_EQ(back.training.data_files, file.training.data_files);
   // Same predictions from the file as from memory.
@@ -669,7 +677,7 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
   options.pan_thresholds_rad_s = {0.0};
   options.try_circular_stroke = false;
   options.iterations = 15;
-  const StabiliserParameters truth = withNonlinearResidual(5);
+  const StabiliserModel truth = withNonlinearResidual(5);
   const std::vector<StabiliserFitRecording> training = {observe(truth, 21, 0.02), observe(truth, 22, 0.02)};
   const std::vector<StabiliserFitRecording> held_out = {observe(truth, 23, 0.0)};
   StabiliserFitResult fit;  // the physical chain as a converged fit would give it
@@ -703,14 +711,14 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
 // The chain with its integrator held at the end stop: a stabiliser driven onto its stroke and
 // back. The anti-windup lens leaves the stroke as soon as the rate turns; a winding-up one stays
 // until the angle it integrated beyond the stroke has come back.
-StabiliserParameters saturatingStabiliser(bool anti_windup) {
-  StabiliserParameters p;
-  p.highpass_corner_hz = 0.2;
-  p.actuator_natural_hz = 200.0;
-  p.actuator_damping = 0.9;
-  p.stroke_x_deg = p.stroke_y_deg = 0.5;
-  p.circular_stroke = true;
-  p.anti_windup = anti_windup;
+StabiliserModel saturatingStabiliser(bool anti_windup) {
+  StabiliserModel p;
+  p.get<CentringValues>().highpass_corner_hz = 0.2;
+  p.get<ActuatorValues>().actuator_natural_hz = 200.0;
+  p.get<ActuatorValues>().actuator_damping = 0.9;
+  p.get<StrokeValues>().stroke_x_deg = p.get<StrokeValues>().stroke_y_deg = 0.5;
+  p.get<StrokeValues>().circular_stroke = true;
+  p.get<StrokeValues>().anti_windup = anti_windup;
   return p;
 }
 
@@ -742,8 +750,8 @@ TEST(AntiWindup, TheLensLeavesItsStrokeAsSoonAsTheTurnReverses) {
 // A structural mechanism's state, fed frame by frame, equals the whole stream's; it acts on a
 // stream that reaches the stroke (differs from `without_mechanism`); a gap restarts it from a
 // centred lens and a jump back starts it over, exactly as a fresh model.
-void expectStateCarriedAndReset(const StabiliserParameters& p,
-                                const StabiliserParameters& without_mechanism) {
+void expectStateCarriedAndReset(const StabiliserModel& p,
+                                const StabiliserModel& without_mechanism) {
   ASSERT_EQ(p.validate(), "");
   const auto rates = shake(10.0, 3.0, 1);  // reaches the 0.5 deg stroke
   LensShiftPredictor whole(p, kFocalPx), framewise(p, kFocalPx), plain(without_mechanism, kFocalPx);
@@ -777,8 +785,8 @@ void expectStateCarriedAndReset(const StabiliserParameters& p,
 }
 
 TEST(AntiWindup, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
-  StabiliserParameters p = saturatingStabiliser(true);
-  p.excursion_centring = 2.0;
+  StabiliserModel p = saturatingStabiliser(true);
+  p.get<ExcursionCentringValues>().excursion_centring = 2.0;
   expectStateCarriedAndReset(p, saturatingStabiliser(false));
 }
 
@@ -786,11 +794,11 @@ TEST(AntiWindup, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
   StabiliserModelFile file;
   file.name = "anti-windup";
   file.parameters = saturatingStabiliser(true);
-  file.parameters.excursion_centring = 1.5;
+  file.parameters.get<ExcursionCentringValues>().excursion_centring = 1.5;
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
-  EXPECT_TRUE(back.parameters.anti_windup);
-  EXPECT_DOUBLE_EQ(back.parameters.excursion_centring, 1.5);
+  EXPECT_TRUE(back.parameters.get<StrokeValues>().anti_windup);
+  EXPECT_DOUBLE_EQ(back.parameters.get<ExcursionCentringValues>().excursion_centring, 1.5);
   expectSamePredictions(file.parameters, back.parameters);
   // A file without the fields (every model before them) is a winding-up fixed-corner chain.
   StabiliserModelFile plain = file;
@@ -799,8 +807,8 @@ TEST(AntiWindup, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
   EXPECT_EQ(yaml.find("anti_windup"), std::string::npos);
   EXPECT_EQ(yaml.find("excursion_centring"), std::string::npos);
   const StabiliserModelFile old = StabiliserModelFile::fromYaml(yaml);
-  EXPECT_FALSE(old.parameters.anti_windup);
-  EXPECT_EQ(old.parameters.excursion_centring, 0.0);
+  EXPECT_FALSE(old.parameters.get<StrokeValues>().anti_windup);
+  EXPECT_EQ(old.parameters.get<ExcursionCentringValues>().excursion_centring, 0.0);
   // A negative excursion_centring is named.
   std::string bad = file.toYaml();
   bad.replace(bad.find("excursion_centring: 1.5"), 23, "excursion_centring: -1");
@@ -816,7 +824,7 @@ struct RefitRun {
   const StabiliserCandidate& kept() const { return selection.candidates[selection.kept]; }
   double chainHeldOutRmsPx() const { return selection.candidates[0].held_out.rms_px; }
 };
-RefitRun fitAndSelect(const StabiliserParameters& truth, unsigned first_seed) {
+RefitRun fitAndSelect(const StabiliserModel& truth, unsigned first_seed) {
   StabiliserFitOptions options;
   options.pan_thresholds_rad_s = {0.0};
   options.iterations = 15;
@@ -837,34 +845,34 @@ RefitRun fitAndSelect(const StabiliserParameters& truth, unsigned first_seed) {
 // refitted with that structure is what the held-out rule keeps, and it is much better than the
 // winding-up chain fitted to the same data.
 TEST(AntiWindup, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
-  StabiliserParameters truth = knownStabiliser();
-  truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
-  truth.circular_stroke = true;
-  truth.anti_windup = true;
+  StabiliserModel truth = knownStabiliser();
+  truth.get<StrokeValues>().stroke_x_deg = truth.get<StrokeValues>().stroke_y_deg = 0.5;
+  truth.get<StrokeValues>().circular_stroke = true;
+  truth.get<StrokeValues>().anti_windup = true;
   const RefitRun run = fitAndSelect(truth, 41);
-  EXPECT_FALSE(run.fit.parameters.anti_windup);
-  EXPECT_TRUE(run.kept().parameters.anti_windup) << run.kept().name;
+  EXPECT_FALSE(run.fit.parameters.get<StrokeValues>().anti_windup);
+  EXPECT_TRUE(run.kept().parameters.get<StrokeValues>().anti_windup) << run.kept().name;
   EXPECT_LT(run.kept().held_out.rms_px, 0.5 * run.chainHeldOutRmsPx());
-  EXPECT_NEAR(run.kept().parameters.stroke_x_deg, 0.5, 0.05);
+  EXPECT_NEAR(run.kept().parameters.get<StrokeValues>().stroke_x_deg, 0.5, 0.05);
 }
 
 // A mount turned against the image with coupled lens axes: the gain maps the camera's angles into
 // the actuator's axes, the box stroke holds there, and the image shift is the coupled output.
-StabiliserParameters coupledStabiliser() {
-  StabiliserParameters p = saturatingStabiliser(false);
-  p.circular_stroke = false;
+StabiliserModel coupledStabiliser() {
+  StabiliserModel p = saturatingStabiliser(false);
+  p.get<StrokeValues>().circular_stroke = false;
   const double turn = 12.0 * 3.14159265358979 / 180.0;
-  p.gain = Eigen::Matrix2d(Eigen::Rotation2Dd(turn)) * p.gain;
-  p.actuator_coupling = Eigen::Vector2d(0.1, -0.08);
+  p.get<CentringValues>().gain = Eigen::Matrix2d(Eigen::Rotation2Dd(turn)) * p.get<CentringValues>().gain;
+  p.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, -0.08);
   return p;
 }
 
 TEST(ActuatorCoupling, TheLensShiftIsTheCoupledOutputOfTheActuatorsBox) {
   // A turn about y far past the stroke, gain ideal: the actuator sits at (stroke, 0) and the image
   // shift is (stroke, c_yx stroke), outside the image-axes box the chain alone could reach.
-  StabiliserParameters p = saturatingStabiliser(false);
-  p.circular_stroke = false;
-  p.actuator_coupling = Eigen::Vector2d(0.1, -0.08);
+  StabiliserModel p = saturatingStabiliser(false);
+  p.get<StrokeValues>().circular_stroke = false;
+  p.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, -0.08);
   LensShiftPredictor predictor(p, kFocalPx);
   for (const auto& r : turnAndBack()) predictor.addRate(r);
   const double stroke_px = kFocalPx * std::tan(0.5 * 3.14159265358979 / 180.0);
@@ -873,9 +881,9 @@ TEST(ActuatorCoupling, TheLensShiftIsTheCoupledOutputOfTheActuatorsBox) {
 }
 
 TEST(ActuatorCoupling, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
-  const StabiliserParameters p = coupledStabiliser();
-  StabiliserParameters uncoupled = p;
-  uncoupled.actuator_coupling.setZero();
+  const StabiliserModel p = coupledStabiliser();
+  StabiliserModel uncoupled = p;
+  uncoupled.get<ActuatorCouplingValues>().actuator_coupling.setZero();
   expectStateCarriedAndReset(p, uncoupled);
 }
 
@@ -885,15 +893,15 @@ TEST(ActuatorCoupling, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
   file.parameters = coupledStabiliser();
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
-  EXPECT_DOUBLE_EQ(back.parameters.actuator_coupling.x(), 0.1);
-  EXPECT_DOUBLE_EQ(back.parameters.actuator_coupling.y(), -0.08);
+  EXPECT_DOUBLE_EQ(back.parameters.get<ActuatorCouplingValues>().actuator_coupling.x(), 0.1);
+  EXPECT_DOUBLE_EQ(back.parameters.get<ActuatorCouplingValues>().actuator_coupling.y(), -0.08);
   expectSamePredictions(file.parameters, back.parameters);
   // A file without the field (every model before it) is an uncoupled chain.
   StabiliserModelFile plain = file;
-  plain.parameters.actuator_coupling.setZero();
+  plain.parameters.get<ActuatorCouplingValues>().actuator_coupling.setZero();
   const std::string yaml = plain.toYaml();
   EXPECT_EQ(yaml.find("actuator_coupling"), std::string::npos);
-  EXPECT_TRUE(StabiliserModelFile::fromYaml(yaml).parameters.actuator_coupling.isZero(0.0));
+  EXPECT_TRUE(StabiliserModelFile::fromYaml(yaml).parameters.get<ActuatorCouplingValues>().actuator_coupling.isZero(0.0));
   // A coupling beyond +-0.5 and a wrong count are named.
   for (const char* replacement : {"actuator_coupling: [0.9, 0]", "actuator_coupling: [0.1]"}) {
     std::string bad = file.toYaml();
@@ -913,22 +921,22 @@ TEST(ActuatorCoupling, RoundTripsItsFileAndAnOlderFileLoadsWithoutIt) {
 // with the stroke in the actuator's axes and the coupling after it is kept by the held-out rule,
 // with about the true coupling.
 TEST(ActuatorCoupling, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
-  StabiliserParameters truth = knownStabiliser();  // its 0.8 x 1.2 deg box stroke
-  truth.gain = Eigen::Matrix2d(Eigen::Rotation2Dd(12.0 * 3.14159265358979 / 180.0)) * truth.gain;
-  truth.actuator_coupling = Eigen::Vector2d(0.1, 0.1);
+  StabiliserModel truth = knownStabiliser();  // its 0.8 x 1.2 deg box stroke
+  truth.get<CentringValues>().gain = Eigen::Matrix2d(Eigen::Rotation2Dd(12.0 * 3.14159265358979 / 180.0)) * truth.get<CentringValues>().gain;
+  truth.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, 0.1);
   const RefitRun run = fitAndSelect(truth, 51);
-  EXPECT_TRUE(run.fit.parameters.actuator_coupling.isZero(0.0));
-  EXPECT_NEAR(run.kept().parameters.actuator_coupling.x(), 0.1, 0.03) << run.kept().name;
-  EXPECT_NEAR(run.kept().parameters.actuator_coupling.y(), 0.1, 0.03) << run.kept().name;
+  EXPECT_TRUE(run.fit.parameters.get<ActuatorCouplingValues>().actuator_coupling.isZero(0.0));
+  EXPECT_NEAR(run.kept().parameters.get<ActuatorCouplingValues>().actuator_coupling.x(), 0.1, 0.03) << run.kept().name;
+  EXPECT_NEAR(run.kept().parameters.get<ActuatorCouplingValues>().actuator_coupling.y(), 0.1, 0.03) << run.kept().name;
   EXPECT_LT(run.kept().held_out.rms_px, 0.5 * run.chainHeldOutRmsPx());
 }
 
 // A soft stroke: the command passes as stroke * tanh(command / stroke), so the lens nears the stroke
 // but never stops on it, and halfway to it the lens is already held back (tanh(0.5) = 0.46).
 TEST(SoftStroke, CompressesTheCommandTowardsTheStrokeWithoutReachingIt) {
-  StabiliserParameters hard = saturatingStabiliser(false), soft = hard;
-  hard.circular_stroke = soft.circular_stroke = false;
-  soft.soft_stroke = true;
+  StabiliserModel hard = saturatingStabiliser(false), soft = hard;
+  hard.get<StrokeValues>().circular_stroke = soft.get<StrokeValues>().circular_stroke = false;
+  soft.get<StrokeValues>().soft_stroke = true;
   ASSERT_EQ(soft.validate(), "");
   LensShiftPredictor hard_lens(hard, kFocalPx), soft_lens(soft, kFocalPx);
   for (const auto& r : turnAndBack()) hard_lens.addRate(r), soft_lens.addRate(r);
@@ -948,15 +956,15 @@ TEST(SoftStroke, RoundTripsItsFileAndIsRefusedWithAntiWindup) {
   StabiliserModelFile file;
   file.name = "soft stroke";
   file.parameters = saturatingStabiliser(false);
-  file.parameters.soft_stroke = true;
+  file.parameters.get<StrokeValues>().soft_stroke = true;
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
-  EXPECT_TRUE(back.parameters.soft_stroke);
+  EXPECT_TRUE(back.parameters.get<StrokeValues>().soft_stroke);
   expectSamePredictions(file.parameters, back.parameters);
   StabiliserModelFile hard = file;
-  hard.parameters.soft_stroke = false;
+  hard.parameters.get<StrokeValues>().soft_stroke = false;
   EXPECT_EQ(hard.toYaml().find("soft_stroke"), std::string::npos);  // older files load unchanged
-  EXPECT_FALSE(StabiliserModelFile::fromYaml(hard.toYaml()).parameters.soft_stroke);
+  EXPECT_FALSE(StabiliserModelFile::fromYaml(hard.toYaml()).parameters.get<StrokeValues>().soft_stroke);
   std::string both = file.toYaml();
   both.replace(both.find("soft_stroke: true"), 17, "soft_stroke: true\n  anti_windup: true");
   expectRefusedNaming(both, "soft_stroke, anti_windup", "a soft stroke with anti-windup was accepted");
@@ -965,27 +973,27 @@ TEST(SoftStroke, RoundTripsItsFileAndIsRefusedWithAntiWindup) {
 // A stabiliser with a soft stroke driven well into it: the chain refitted with a soft stroke is
 // what the held-out rule keeps, much better than the end-stop chain fitted to the same data.
 TEST(SoftStroke, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
-  StabiliserParameters truth = knownStabiliser();
-  truth.stroke_x_deg = truth.stroke_y_deg = 0.5;
-  truth.soft_stroke = true;
+  StabiliserModel truth = knownStabiliser();
+  truth.get<StrokeValues>().stroke_x_deg = truth.get<StrokeValues>().stroke_y_deg = 0.5;
+  truth.get<StrokeValues>().soft_stroke = true;
   const RefitRun run = fitAndSelect(truth, 61);
-  EXPECT_FALSE(run.fit.parameters.soft_stroke);
-  EXPECT_TRUE(run.kept().parameters.soft_stroke) << run.kept().name;
+  EXPECT_FALSE(run.fit.parameters.get<StrokeValues>().soft_stroke);
+  EXPECT_TRUE(run.kept().parameters.get<StrokeValues>().soft_stroke) << run.kept().name;
   EXPECT_LT(run.kept().held_out.rms_px, 0.5 * run.chainHeldOutRmsPx());
-  EXPECT_NEAR(run.kept().parameters.stroke_x_deg, 0.5, 0.05);
+  EXPECT_NEAR(run.kept().parameters.get<StrokeValues>().stroke_x_deg, 0.5, 0.05);
 }
 
 // The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
 // included. The largest feature set, fed 30 s of 400 Hz gyro as 900 frames.
 TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
-  StabiliserParameters p = knownStabiliser();
-  p.residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
-  p.residual = Eigen::MatrixXd::Constant(2, 10, 0.01);
-  p.nonlinear_features = "excursion_rate_v1";
-  p.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount(p.nonlinear_features), 1e-3);
-  p.anti_windup = true;  // and the structural variants (an exp and an atan per step at most)
-  p.excursion_centring = 1.0;
-  p.actuator_coupling = Eigen::Vector2d(0.1, 0.1);
+  StabiliserModel p = knownStabiliser();
+  p.get<LinearResidualValues>().residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
+  p.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 10, 0.01);
+  p.get<LearnedResidualValues>().nonlinear_features = "excursion_rate_v1";
+  p.get<LearnedResidualValues>().nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount(p.get<LearnedResidualValues>().nonlinear_features), 1e-3);
+  p.get<StrokeValues>().anti_windup = true;  // and the structural variants (an exp and an atan per step at most)
+  p.get<ExcursionCentringValues>().excursion_centring = 1.0;
+  p.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, 0.1);
   const auto rates = shake(0.0, 30.0, 9);
   LensShiftPredictor predictor(p, kFocalPx);
   const auto start = std::chrono::steady_clock::now();

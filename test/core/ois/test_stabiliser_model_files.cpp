@@ -23,6 +23,15 @@
 
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/actuator_coupling.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/excursion_centring.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 namespace {
@@ -63,7 +72,7 @@ std::vector<CameraRateSample> pinnedStream() {
 
 // The lens shift (pixels) every 20 ms from the stream's start on, each asked as soon as the
 // predictor has the samples 5 ms past it (as the nodelet asks); NaN where it does not cover it.
-std::vector<Eigen::Vector2d> predictPinned(const StabiliserParameters& parameters, double focal_px) {
+std::vector<Eigen::Vector2d> predictPinned(const StabiliserModel& parameters, double focal_px) {
   LensShiftPredictor predictor(parameters, focal_px);
   const std::vector<CameraRateSample> rates = pinnedStream();
   std::vector<Eigen::Vector2d> shifts;
@@ -124,7 +133,7 @@ double largestDifference(const std::vector<Eigen::Vector2d>& a, const std::vecto
 // Loads `path`, compares its prediction with the golden `name`, and checks that the stream
 // exercises what the file names: `without` (the mechanism taken out) must predict otherwise.
 void expectPinned(const std::string& path, const std::string& name,
-                  const std::function<void(StabiliserParameters*)>& without) {
+                  const std::function<void(StabiliserModel*)>& without) {
   SCOPED_TRACE(path);
   const StabiliserModelFile file = StabiliserModelFile::load(path);
   const std::vector<Eigen::Vector2d> predicted = predictPinned(file.parameters, focalOf(file));
@@ -143,7 +152,7 @@ void expectPinned(const std::string& path, const std::string& name,
   EXPECT_LT(uncovered, 20u);
   if (!without) return;
   EXPECT_GT(largest_px, 0.5);
-  StabiliserParameters changed = file.parameters;
+  StabiliserModel changed = file.parameters;
   without(&changed);
   EXPECT_GT(largestDifference(predictPinned(changed, focalOf(file)), golden), 1e-3)
       << "the pinned stream does not exercise what " << path << " names";
@@ -154,19 +163,19 @@ void expectPinned(const std::string& path, const std::string& name,
 // exercise check.
 struct Fixture {
   std::string name;
-  std::function<void(StabiliserParameters*)> make;     // from the plain chain below
-  std::function<void(StabiliserParameters*)> without;  // its mechanism out
+  std::function<void(StabiliserModel*)> make;     // from the plain chain below
+  std::function<void(StabiliserModel*)> without;  // its mechanism out
 };
 
-StabiliserParameters plainChain() {
-  StabiliserParameters p;
-  p.gain << 0.02, 0.93, -1.01, -0.03;
-  p.highpass_corner_hz = 0.7;
-  p.actuator_natural_hz = 33.0;
-  p.actuator_damping = 0.62;
-  p.sensor_lag_s = 0.0015;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 0.9;
+StabiliserModel plainChain() {
+  StabiliserModel p;
+  p.get<CentringValues>().gain << 0.02, 0.93, -1.01, -0.03;
+  p.get<CentringValues>().highpass_corner_hz = 0.7;
+  p.get<ActuatorValues>().actuator_natural_hz = 33.0;
+  p.get<ActuatorValues>().actuator_damping = 0.62;
+  p.get<ActuatorValues>().sensor_lag_s = 0.0015;
+  p.get<StrokeValues>().stroke_x_deg = 0.8;
+  p.get<StrokeValues>().stroke_y_deg = 0.9;
   return p;
 }
 
@@ -180,87 +189,87 @@ Eigen::MatrixXd coefficients(long columns, double scale) {
   return c;
 }
 
-void addLinearResidual(StabiliserParameters* p) {
-  p->residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
-  p->residual = coefficients(10, 0.03);
+void addLinearResidual(StabiliserModel* p) {
+  p->get<LinearResidualValues>().residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
+  p->get<LinearResidualValues>().residual = coefficients(10, 0.03);
 }
 
-void addNonlinear(StabiliserParameters* p, const std::string& set) {
+void addNonlinear(StabiliserModel* p, const std::string& set) {
   addLinearResidual(p);
-  p->nonlinear_features = set;
-  p->nonlinear_residual = coefficients(nonlinearFeatureCount(set), 0.05);
+  p->get<LearnedResidualValues>().nonlinear_features = set;
+  p->get<LearnedResidualValues>().nonlinear_residual = coefficients(nonlinearFeatureCount(set), 0.05);
 }
 
-void dropNonlinear(StabiliserParameters* p) {
-  p->nonlinear_features.clear();
-  p->nonlinear_residual.resize(0, 0);
+void dropNonlinear(StabiliserModel* p) {
+  p->get<LearnedResidualValues>().nonlinear_features.clear();
+  p->get<LearnedResidualValues>().nonlinear_residual.resize(0, 0);
 }
 
 std::vector<Fixture> fixtures() {
   return {
-      {"physical_box_stroke", [](StabiliserParameters*) {},
-       [](StabiliserParameters* p) { p->stroke_x_deg = p->stroke_y_deg = 10.0; }},
-      {"physical_elliptic_stroke", [](StabiliserParameters* p) { p->circular_stroke = true; },
-       [](StabiliserParameters* p) { p->circular_stroke = false; }},
+      {"physical_box_stroke", [](StabiliserModel*) {},
+       [](StabiliserModel* p) { p->get<StrokeValues>().stroke_x_deg = p->get<StrokeValues>().stroke_y_deg = 10.0; }},
+      {"physical_elliptic_stroke", [](StabiliserModel* p) { p->get<StrokeValues>().circular_stroke = true; },
+       [](StabiliserModel* p) { p->get<StrokeValues>().circular_stroke = false; }},
       {"physical_pan_detection",
-       [](StabiliserParameters* p) {
-         p->pan_detection_rate_rad_s = 0.6;
-         p->pan_release_corner_hz = 4.0;
+       [](StabiliserModel* p) {
+         p->get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
+         p->get<PanDetectionValues>().pan_release_corner_hz = 4.0;
        },
-       [](StabiliserParameters* p) { p->pan_detection_rate_rad_s = 0.0; }},
+       [](StabiliserModel* p) { p->get<PanDetectionValues>().pan_detection_rate_rad_s = 0.0; }},
       {"linear_residual", addLinearResidual,
-       [](StabiliserParameters* p) { p->residual.setZero(); }},
-      {"anti_windup", [](StabiliserParameters* p) { p->anti_windup = true; },
-       [](StabiliserParameters* p) { p->anti_windup = false; }},
-      {"excursion_centring", [](StabiliserParameters* p) { p->excursion_centring = 1.5; },
-       [](StabiliserParameters* p) { p->excursion_centring = 0.0; }},
+       [](StabiliserModel* p) { p->get<LinearResidualValues>().residual.setZero(); }},
+      {"anti_windup", [](StabiliserModel* p) { p->get<StrokeValues>().anti_windup = true; },
+       [](StabiliserModel* p) { p->get<StrokeValues>().anti_windup = false; }},
+      {"excursion_centring", [](StabiliserModel* p) { p->get<ExcursionCentringValues>().excursion_centring = 1.5; },
+       [](StabiliserModel* p) { p->get<ExcursionCentringValues>().excursion_centring = 0.0; }},
       {"anti_windup_excursion_centring",
-       [](StabiliserParameters* p) {
-         p->anti_windup = true;
-         p->excursion_centring = 2.0;
+       [](StabiliserModel* p) {
+         p->get<StrokeValues>().anti_windup = true;
+         p->get<ExcursionCentringValues>().excursion_centring = 2.0;
        },
-       [](StabiliserParameters* p) { p->excursion_centring = 0.0; }},
+       [](StabiliserModel* p) { p->get<ExcursionCentringValues>().excursion_centring = 0.0; }},
       {"actuator_coupling",
-       [](StabiliserParameters* p) {
-         p->gain = Eigen::Matrix2d(Eigen::Rotation2Dd(0.2)) * p->gain;
-         p->actuator_coupling = Eigen::Vector2d(0.1, -0.08);
+       [](StabiliserModel* p) {
+         p->get<CentringValues>().gain = Eigen::Matrix2d(Eigen::Rotation2Dd(0.2)) * p->get<CentringValues>().gain;
+         p->get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, -0.08);
        },
-       [](StabiliserParameters* p) { p->actuator_coupling.setZero(); }},
-      {"soft_stroke", [](StabiliserParameters* p) { p->soft_stroke = true; },
-       [](StabiliserParameters* p) { p->soft_stroke = false; }},
+       [](StabiliserModel* p) { p->get<ActuatorCouplingValues>().actuator_coupling.setZero(); }},
+      {"soft_stroke", [](StabiliserModel* p) { p->get<StrokeValues>().soft_stroke = true; },
+       [](StabiliserModel* p) { p->get<StrokeValues>().soft_stroke = false; }},
       {"soft_stroke_excursion_centring",
-       [](StabiliserParameters* p) {
-         p->soft_stroke = true;
-         p->excursion_centring = 1.2;
+       [](StabiliserModel* p) {
+         p->get<StrokeValues>().soft_stroke = true;
+         p->get<ExcursionCentringValues>().excursion_centring = 1.2;
        },
-       [](StabiliserParameters* p) { p->excursion_centring = 0.0; }},
+       [](StabiliserModel* p) { p->get<ExcursionCentringValues>().excursion_centring = 0.0; }},
       // The mechanisms' interactions: a soft elliptic stroke (the radial tanh), pan detection
       // overriding the excursion-dependent corner while it pans, coupling after the actuator.
       {"soft_elliptic_pan_excursion_coupling",
-       [](StabiliserParameters* p) {
-         p->circular_stroke = true;
-         p->soft_stroke = true;
-         p->excursion_centring = 1.4;
-         p->pan_detection_rate_rad_s = 0.6;
-         p->pan_release_corner_hz = 4.0;
-         p->actuator_coupling = Eigen::Vector2d(-0.06, 0.09);
+       [](StabiliserModel* p) {
+         p->get<StrokeValues>().circular_stroke = true;
+         p->get<StrokeValues>().soft_stroke = true;
+         p->get<ExcursionCentringValues>().excursion_centring = 1.4;
+         p->get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
+         p->get<PanDetectionValues>().pan_release_corner_hz = 4.0;
+         p->get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(-0.06, 0.09);
        },
-       [](StabiliserParameters* p) { p->pan_detection_rate_rad_s = 0.0; }},
+       [](StabiliserModel* p) { p->get<PanDetectionValues>().pan_detection_rate_rad_s = 0.0; }},
       {"anti_windup_elliptic_coupling",
-       [](StabiliserParameters* p) {
-         p->circular_stroke = true;
-         p->anti_windup = true;
-         p->actuator_coupling = Eigen::Vector2d(0.07, 0.05);
+       [](StabiliserModel* p) {
+         p->get<StrokeValues>().circular_stroke = true;
+         p->get<StrokeValues>().anti_windup = true;
+         p->get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.07, 0.05);
        },
-       [](StabiliserParameters* p) { p->anti_windup = false; }},
-      {"learned_rate_bank_v1", [](StabiliserParameters* p) { addNonlinear(p, "rate_bank_v1"); },
+       [](StabiliserModel* p) { p->get<StrokeValues>().anti_windup = false; }},
+      {"learned_rate_bank_v1", [](StabiliserModel* p) { addNonlinear(p, "rate_bank_v1"); },
        dropNonlinear},
-      {"learned_excursion_v1", [](StabiliserParameters* p) { addNonlinear(p, "excursion_v1"); },
+      {"learned_excursion_v1", [](StabiliserModel* p) { addNonlinear(p, "excursion_v1"); },
        dropNonlinear},
       {"learned_excursion_rate_v1",
-       [](StabiliserParameters* p) {
-         p->circular_stroke = true;
-         p->anti_windup = true;
+       [](StabiliserModel* p) {
+         p->get<StrokeValues>().circular_stroke = true;
+         p->get<StrokeValues>().anti_windup = true;
          addNonlinear(p, "excursion_rate_v1");
        },
        dropNonlinear},
@@ -302,7 +311,7 @@ TEST(StabiliserModelFiles, NoLensMotionPredictsNoShift) {
 
 // The files the repository ships or its rostests load.
 TEST(StabiliserModelFiles, TheRepositorysModelsPredictAsWhenTheyWereWritten) {
-  auto slower_centring = [](StabiliserParameters* p) { p->highpass_corner_hz *= 1.01; };
+  auto slower_centring = [](StabiliserModel* p) { p->get<CentringValues>().highpass_corner_hz *= 1.01; };
   expectPinned(kSource + "/models/stabiliser_generic.yaml", "repository_models_stabiliser_generic",
                slower_centring);
   for (const char* name : {"stabiliser_model_learned", "stabiliser_model_structure",
@@ -313,7 +322,7 @@ TEST(StabiliserModelFiles, TheRepositorysModelsPredictAsWhenTheyWereWritten) {
   // The learned lens dynamics (a recurrent network embedded in the file, the chain off).
   expectPinned(kSource + "/test/ros/stabiliser_model_generic_dynamics.yaml",
                "repository_test_ros_stabiliser_model_generic_dynamics",
-               [](StabiliserParameters* p) { p->learned_dynamics.output_map *= 1.01; });
+               [](StabiliserModel* p) { p->get<LearnedLensDynamics>().output_map *= 1.01; });
 }
 
 // A model loaded and saved again is the same file, byte for byte: the writer emits every field

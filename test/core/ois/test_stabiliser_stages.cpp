@@ -13,69 +13,109 @@
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/actuator_coupling.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/excursion_centring.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 namespace {
 
 // Every mechanism in use, every value inside the fit's bounds.
-StabiliserParameters everyMechanism() {
-  StabiliserParameters p;
-  p.gain << 0.02, 0.93, -1.01, -0.03;
-  p.highpass_corner_hz = 0.7;
-  p.actuator_natural_hz = 33.0;
-  p.actuator_damping = 0.62;
-  p.sensor_lag_s = 0.0015;
-  p.stroke_x_deg = 0.8;
-  p.stroke_y_deg = 0.9;
-  p.circular_stroke = true;
-  p.anti_windup = true;
-  p.excursion_centring = 1.5;
-  p.actuator_coupling = Eigen::Vector2d(0.1, -0.08);
-  p.pan_detection_rate_rad_s = 0.6;
-  p.pan_release_corner_hz = 4.0;
-  p.residual_time_constants_s = {0.01, 0.1};
-  p.residual = Eigen::MatrixXd::Constant(2, 4, 0.01);
-  p.nonlinear_features = "rate_bank_v1";
-  p.nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.02);
-  p.linear_dynamics.basis.pole_hz = 2.0;
-  p.linear_dynamics.basis.order = 2;
-  p.linear_dynamics.coefficients = Eigen::MatrixXd::Constant(2, 6, 0.01);
+StabiliserModel everyMechanism() {
+  StabiliserModel p;
+  p.get<CentringValues>().gain << 0.02, 0.93, -1.01, -0.03;
+  p.get<CentringValues>().highpass_corner_hz = 0.7;
+  ActuatorValues& actuator = p.get<ActuatorValues>();
+  actuator.actuator_natural_hz = 33.0;
+  actuator.actuator_damping = 0.62;
+  actuator.sensor_lag_s = 0.0015;
+  StrokeValues& stroke = p.get<StrokeValues>();
+  stroke.stroke_x_deg = 0.8;
+  stroke.stroke_y_deg = 0.9;
+  stroke.circular_stroke = true;
+  stroke.anti_windup = true;
+  p.get<ExcursionCentringValues>().excursion_centring = 1.5;
+  p.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, -0.08);
+  p.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
+  p.get<PanDetectionValues>().pan_release_corner_hz = 4.0;
+  p.get<LinearResidualValues>().residual_time_constants_s = {0.01, 0.1};
+  p.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.01);
+  p.get<LearnedResidualValues>().nonlinear_features = "rate_bank_v1";
+  p.get<LearnedResidualValues>().nonlinear_residual =
+      Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.02);
+  LinearDynamicsValues& linear = p.get<LinearDynamicsValues>();
+  linear.basis.pole_hz = 2.0;
+  linear.basis.order = 2;
+  linear.coefficients = Eigen::MatrixXd::Constant(2, 6, 0.01);
   // A sampled controller's stages (a generated design's).
-  p.gyro_loop.emplace().roll_deg = 3.0;
-  p.motion_mode.emplace().action = "hold";
-  p.intended_motion.emplace().kind = "kalman_cv";
-  p.travel.emplace().anti_windup = "clamp";
-  p.hall_actuator.emplace().hall_c3 = 0.05;
+  p.set(GyroLoopValues()).roll_deg = 3.0;
+  p.set(MotionModeValues()).action = "hold";
+  p.set(IntendedMotionValues()).kind = "kalman_cv";
+  p.set(TravelValues()).anti_windup = "clamp";
+  p.set(HallActuatorValues()).hall_c3 = 0.05;
   return p;
 }
 
+TEST(StabiliserStages, AModelIsAnOrderedListOfStagesWithTheirValues) {
+  const StabiliserModel chain;
+  EXPECT_TRUE(chain.hasDefaultChain());
+  EXPECT_FALSE(chain.has("gyro_loop"));
+  EXPECT_EQ(stabiliserComposition(chain), (std::vector<std::string>{"centring", "stroke", "actuator"}));
+  // Added in the chain's order, whatever the order they are set in; a copy owns its own values.
+  StabiliserModel design(std::vector<std::string>{});
+  design.set(TravelValues()).shape = "ellipse";
+  design.set(GyroLoopValues());
+  design.set(IntendedMotionValues());
+  EXPECT_EQ(design.stageNames(),
+            (std::vector<std::string>{"gyro_loop", "intended_motion", "travel"}));
+  EXPECT_FALSE(design.hasDefaultChain());
+  StabiliserModel copy = design;
+  copy.get<TravelValues>().shape = "box";
+  EXPECT_EQ(design.get<TravelValues>().shape, "ellipse");
+  EXPECT_EQ(design.find<StrokeValues>(), nullptr);
+  EXPECT_THROW(design.get<StrokeValues>(), std::logic_error);
+  // only(): the named stages, with their values where the model has them.
+  const StabiliserModel kept = everyMechanism().only({"linear_dynamics", "stroke:soft", "actuator"});
+  EXPECT_EQ(kept.stageNames(), (std::vector<std::string>{"linear_dynamics", "stroke", "actuator"}));
+  EXPECT_EQ(kept.get<StrokeValues>().stroke_x_deg, 0.8);
+  EXPECT_THROW(StabiliserModel(std::vector<std::string>{"no_such_stage"}), std::invalid_argument);
+}
+
 TEST(StabiliserStages, FittedParametersReadAndWriteTheirOwnField) {
-  const StabiliserParameters p = everyMechanism();
+  const StabiliserModel p = everyMechanism();
   std::set<std::string> names;
-  for (const StabiliserStage& stage : stabiliserStages()) {
-    for (const FittedStabiliserParameter& parameter : stage.fitted) {
-      SCOPED_TRACE(std::string(stage.name) + ": " + parameter.name);
+  for (const StageInstance& instance : p.stages()) {
+    for (const FittedStabiliserParameter& parameter : instance.stage->fitted) {
+      SCOPED_TRACE(std::string(instance.stage->name) + ": " + parameter.name);
       names.insert(parameter.name);
       EXPECT_LT(parameter.lower, parameter.upper);
       EXPECT_GT(parameter.fit_step, 0.0);
       if (parameter.logarithmic) {
         EXPECT_GT(parameter.lower, 0.0);
       }
-      const double value = parameter.value(p);
+      const double value = parameter.value(*instance.values);
       EXPECT_GE(value, parameter.lower);
       EXPECT_LE(value, parameter.upper);
       // Setting it changes this parameter and no other.
-      StabiliserParameters moved = p;
+      StabiliserModel moved = p;
       const double other = 0.5 * (value + (std::isfinite(parameter.upper) ? parameter.upper : value + 2.0));
-      parameter.set(&moved, other);
-      EXPECT_DOUBLE_EQ(parameter.value(moved), other);
-      for (const StabiliserStage& each : stabiliserStages())
-        for (const FittedStabiliserParameter& rest : each.fitted)
+      parameter.set(*moved.values(instance.stage->name), other);
+      EXPECT_DOUBLE_EQ(fittedValue(parameter, moved), other);
+      for (const StageInstance& each : p.stages())
+        for (const FittedStabiliserParameter& rest : each.stage->fitted)
           if (&rest != &parameter) {
-            EXPECT_EQ(rest.value(moved), rest.value(p)) << rest.what;
+            EXPECT_EQ(fittedValue(rest, moved), fittedValue(rest, p)) << rest.what;
           }
       if (parameter.used) {
-        EXPECT_TRUE(parameter.used(p));
+        EXPECT_TRUE(parameter.used(*instance.values));
       }
     }
   }
@@ -85,24 +125,24 @@ TEST(StabiliserStages, FittedParametersReadAndWriteTheirOwnField) {
                            "actuator_coupling", "pan_release_corner_hz"})
     EXPECT_EQ(names.count(name), 1u) << name;
   EXPECT_THROW(fittedStabiliserParameter("no_such_parameter"), std::invalid_argument);
-  EXPECT_DOUBLE_EQ(fittedStabiliserParameter("sensor_lag_s").value(p), 1.5);  // milliseconds
+  EXPECT_DOUBLE_EQ(fittedValue(fittedStabiliserParameter("sensor_lag_s"), p), 1.5);  // milliseconds
 }
 
 // The stage's keys as it writes them for p, and what it writes again after reading them.
-std::set<std::string> writtenKeys(const StabiliserStage& stage, const StabiliserParameters& p) {
+std::set<std::string> writtenKeys(const StabiliserStage& stage, const StabiliserModel& p) {
   YAML::Emitter out;
   out << YAML::BeginMap;
-  stage.write(out, p);
+  stage.write(out, *p.values(stage.name));
   out << YAML::EndMap;
   const YAML::Node written = YAML::Load(out.c_str());
   std::set<std::string> keys;
   for (const auto& entry : written) keys.insert(entry.first.as<std::string>());
-  // Read into a default model, the stage's part of the model is p's again.
-  StabiliserParameters loaded;
-  stage.read(written, &loaded);
+  // Read into the stage's default values, they are p's again.
+  std::unique_ptr<StageValues> loaded = stage.make();
+  EXPECT_TRUE(stage.read(written, *loaded));
   YAML::Emitter again;
   again << YAML::BeginMap;
-  stage.write(again, loaded);
+  stage.write(again, *loaded);
   again << YAML::EndMap;
   EXPECT_EQ(std::string(again.c_str()), std::string(out.c_str()));
   return keys;
@@ -110,15 +150,15 @@ std::set<std::string> writtenKeys(const StabiliserStage& stage, const Stabiliser
 
 TEST(StabiliserStages, EachStageWritesTheKeysItDeclaresAndReadsThemBack) {
   // Anti-windup and the soft stroke exclude each other: one model of each.
-  StabiliserParameters soft = everyMechanism();
-  soft.anti_windup = false;
-  soft.soft_stroke = true;
+  StabiliserModel soft = everyMechanism();
+  soft.get<StrokeValues>().anti_windup = false;
+  soft.get<StrokeValues>().soft_stroke = true;
   std::set<std::string> all_keys;
   for (const StabiliserStage& stage : stabiliserStages()) {
     SCOPED_TRACE(stage.name);
     if (std::string(stage.name) == "learned_lens_dynamics") continue;  // needs a network
     std::set<std::string> keys;
-    for (const StabiliserParameters& p : {everyMechanism(), soft}) {
+    for (const StabiliserModel& p : {everyMechanism(), soft}) {
       ASSERT_EQ(p.validate(), "");
       const std::set<std::string> written = writtenKeys(stage, p);
       keys.insert(written.begin(), written.end());
@@ -131,63 +171,68 @@ TEST(StabiliserStages, EachStageWritesTheKeysItDeclaresAndReadsThemBack) {
 TEST(StabiliserStages, ValidationNamesTheStagesField) {
   struct Case {
     const char* stage;
-    void (*spoil)(StabiliserParameters*);
+    void (*spoil)(StabiliserModel*);
     const char* field;
   };
   const Case cases[] = {
-      {"centring", [](StabiliserParameters* p) { p->highpass_corner_hz = -1.0; }, "highpass_corner_hz"},
-      {"actuator", [](StabiliserParameters* p) { p->sensor_lag_s = 0.2; }, "sensor_lag_s"},
-      {"stroke", [](StabiliserParameters* p) { p->soft_stroke = true; }, "soft_stroke, anti_windup"},
-      {"excursion_centring", [](StabiliserParameters* p) { p->excursion_centring = -1.0; },
+      {"centring", [](StabiliserModel* p) { p->get<CentringValues>().highpass_corner_hz = -1.0; },
+       "highpass_corner_hz"},
+      {"actuator", [](StabiliserModel* p) { p->get<ActuatorValues>().sensor_lag_s = 0.2; }, "sensor_lag_s"},
+      {"stroke", [](StabiliserModel* p) { p->get<StrokeValues>().soft_stroke = true; },
+       "soft_stroke, anti_windup"},
+      {"excursion_centring",
+       [](StabiliserModel* p) { p->get<ExcursionCentringValues>().excursion_centring = -1.0; },
        "excursion_centring"},
-      {"actuator_coupling", [](StabiliserParameters* p) { p->actuator_coupling.x() = 0.7; },
+      {"actuator_coupling",
+       [](StabiliserModel* p) { p->get<ActuatorCouplingValues>().actuator_coupling.x() = 0.7; },
        "actuator_coupling"},
-      {"pan_detection", [](StabiliserParameters* p) { p->pan_release_corner_hz = 0.0; },
+      {"pan_detection", [](StabiliserModel* p) { p->get<PanDetectionValues>().pan_release_corner_hz = 0.0; },
        "pan_release_corner_hz"},
-      {"linear_residual", [](StabiliserParameters* p) { p->residual_time_constants_s[0] = 0.0; },
+      {"linear_residual",
+       [](StabiliserModel* p) { p->get<LinearResidualValues>().residual_time_constants_s[0] = 0.0; },
        "residual_time_constants_s"},
-      {"learned_residual", [](StabiliserParameters* p) { p->nonlinear_features = "nope"; },
+      {"learned_residual", [](StabiliserModel* p) { p->get<LearnedResidualValues>().nonlinear_features = "nope"; },
        "nonlinear_features"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.stage);
-    StabiliserParameters p = everyMechanism();
+    StabiliserModel p = everyMechanism();
     c.spoil(&p);
     const std::string why = p.validate();
     EXPECT_EQ(why.rfind(c.field, 0), 0u) << why;
-    for (const StabiliserStage& stage : stabiliserStages()) {
-      const std::string own = stage.validate(p);
-      if (std::string(stage.name) == c.stage) {
+    for (const StageInstance& instance : p.stages()) {
+      const std::string own = instance.stage->validate(*instance.values, p);
+      if (std::string(instance.stage->name) == c.stage) {
         EXPECT_EQ(own, why);
       } else {
-        EXPECT_EQ(own, "") << stage.name;
+        EXPECT_EQ(own, "") << instance.stage->name;
       }
     }
   }
 }
 
 TEST(StabiliserStages, TheReviewNamesAParameterOnItsStagesBound) {
-  StabiliserParameters p = everyMechanism();
-  p.pan_release_corner_hz = fittedStabiliserParameter("pan_release_corner_hz").upper;
-  p.actuator_coupling.y() = fittedStabiliserParameter("actuator_coupling").lower;
+  StabiliserModel p = everyMechanism();
+  p.get<PanDetectionValues>().pan_release_corner_hz = fittedStabiliserParameter("pan_release_corner_hz").upper;
+  p.get<ActuatorCouplingValues>().actuator_coupling.y() = fittedStabiliserParameter("actuator_coupling").lower;
   const StabiliserFitReview review = reviewStabiliserFit(p);
   EXPECT_TRUE(review.onBound("pan_release_corner_hz"));
   EXPECT_TRUE(review.onBound("actuator_coupling"));
   EXPECT_FALSE(review.onBound("excursion_centring"));
   // Pan detection off: its release corner is not the model's, whatever its value.
-  p.pan_detection_rate_rad_s = 0.0;
+  p.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.0;
   EXPECT_FALSE(reviewStabiliserFit(p).onBound("pan_release_corner_hz"));
 }
 
 TEST(StabiliserStages, ThePhysicalChainClearsTheResidualAndLearnedStages) {
-  const StabiliserParameters chain = everyMechanism().physicalChain();
-  EXPECT_TRUE(chain.residual_time_constants_s.empty());
-  EXPECT_EQ(chain.residual.size(), 0);
-  EXPECT_TRUE(chain.nonlinear_features.empty());
-  EXPECT_EQ(chain.nonlinear_residual.size(), 0);
-  EXPECT_FALSE(chain.learned_dynamics.active());
-  EXPECT_TRUE(chain.anti_windup);  // the chain's own mechanisms stay
-  EXPECT_EQ(chain.excursion_centring, 1.5);
+  const StabiliserModel chain = everyMechanism().physicalChain();
+  EXPECT_TRUE(chain.get<LinearResidualValues>().residual_time_constants_s.empty());
+  EXPECT_EQ(chain.get<LinearResidualValues>().residual.size(), 0);
+  EXPECT_TRUE(chain.get<LearnedResidualValues>().nonlinear_features.empty());
+  EXPECT_EQ(chain.get<LearnedResidualValues>().nonlinear_residual.size(), 0);
+  EXPECT_FALSE(chain.get<LearnedLensDynamics>().active());
+  EXPECT_TRUE(chain.get<StrokeValues>().anti_windup);  // the chain's own mechanisms stay
+  EXPECT_EQ(chain.get<ExcursionCentringValues>().excursion_centring, 1.5);
   for (const StabiliserStage& stage : stabiliserStages())
     EXPECT_EQ(stage.physical, stage.clear == nullptr) << stage.name;
 }

@@ -24,6 +24,9 @@
 #include "deep_ois/core/online/online_stabiliser_learner.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
 namespace {
@@ -61,7 +64,7 @@ Eigen::Matrix3d turnBetween(double t_a, double t_b, double amplitude) {
 }
 
 // `seconds` of pairs from a camera whose stabiliser is `truth` (lens never moves when gain is 0).
-std::vector<OnlineFramePair> makePairs(const StabiliserParameters& truth, double seconds, double amplitude,
+std::vector<OnlineFramePair> makePairs(const StabiliserModel& truth, double seconds, double amplitude,
                                        unsigned seed, double start_s = 0.0) {
   const CameraModel camera = testCamera();
   const RollingShutterConfig rs = timing();
@@ -110,17 +113,17 @@ std::vector<OnlineFramePair> makePairs(const StabiliserParameters& truth, double
   return pairs;
 }
 
-StabiliserParameters ideal() {
-  StabiliserParameters p;
-  p.residual_time_constants_s.clear();
+StabiliserModel ideal() {
+  StabiliserModel p;
+  p.get<LinearResidualValues>().residual_time_constants_s.clear();
   return p;
 }
 
 // A generic-like prior that is wrong for the test camera: half the gain, a fast centring.
-StabiliserParameters wrongPrior() {
-  StabiliserParameters p = ideal();
-  p.gain *= 0.5;
-  p.highpass_corner_hz = 3.0;
+StabiliserModel wrongPrior() {
+  StabiliserModel p = ideal();
+  p.get<CentringValues>().gain *= 0.5;
+  p.get<CentringValues>().highpass_corner_hz = 3.0;
   return p;
 }
 
@@ -166,8 +169,8 @@ TEST(OnlineStabiliserLearner, SwapsToAFitThatIsBetterOnTheHeldOutWindow) {
   EXPECT_EQ(status.swaps, 1u) << status.last_choice;
   EXPECT_EQ(model->version, 1u);
   EXPECT_EQ(model->name.rfind("fit on", 0), 0u) << model->name << ": " << model->reason;
-  EXPECT_NEAR(model->parameters.gain(0, 1), 1.0, 0.1);
-  EXPECT_NEAR(model->parameters.gain(1, 0), -1.0, 0.1);
+  EXPECT_NEAR(model->parameters.get<CentringValues>().gain(0, 1), 1.0, 0.1);
+  EXPECT_NEAR(model->parameters.get<CentringValues>().gain(1, 0), -1.0, 0.1);
   EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
   EXPECT_EQ(status.windows_still, 0u);
 }
@@ -178,10 +181,10 @@ TEST(OnlineStabiliserLearner, SwapsToAFitThatIsBetterOnTheHeldOutWindow) {
 TEST(OnlineStabiliserLearner, LaterFitsOfferTheStructuralVariants) {
   OnlineLearningOptions options = testOptions();
   options.refit_every_s = 6.0;  // fits at 12 s and 18 s of windows
-  StabiliserParameters truth = ideal();
-  truth.anti_windup = true;
-  truth.stroke_x_deg = truth.stroke_y_deg = 0.8;
-  truth.highpass_corner_hz = 0.3;
+  StabiliserModel truth = ideal();
+  truth.get<StrokeValues>().anti_windup = true;
+  truth.get<StrokeValues>().stroke_x_deg = truth.get<StrokeValues>().stroke_y_deg = 0.8;
+  truth.get<CentringValues>().highpass_corner_hz = 0.3;
   OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
   // In two parts, as a live camera's pairs come after the first fit: its swap is on trial until
   // the per-pair check has seen pairs after it, and no fit runs meanwhile.
@@ -203,7 +206,7 @@ TEST(OnlineStabiliserLearner, LaterFitsOfferTheStructuralVariants) {
   EXPECT_EQ(status.fits, 2u) << status.last_problem;
   EXPECT_EQ(status.swaps, 2u) << status.last_choice;  // the chain first, then its better structure
   EXPECT_NE(status.last_choice.find("anti-windup integrator"), std::string::npos) << status.last_choice;
-  EXPECT_TRUE(model->parameters.anti_windup) << model->name << ": " << status.last_choice;
+  EXPECT_TRUE(model->parameters.get<StrokeValues>().anti_windup) << model->name << ": " << status.last_choice;
   EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
 }
 
@@ -258,8 +261,8 @@ TEST(OnlineStabiliserLearner, ASwapThePerPairCheckFindsWorseIsUndoneAndNeverWrit
     const std::string trial = learner.model()->name;
     EXPECT_FALSE(std::filesystem::exists(options.model_path)) << "written before its confirmation";
     EXPECT_NE(learner.status().confirmation.find("on trial"), std::string::npos) << learner.status().confirmation;
-    StabiliserParameters off = ideal();
-    off.gain.setZero();
+    StabiliserModel off = ideal();
+    off.get<CentringValues>().gain.setZero();
     feed(learner, makePairs(ois_switched_off ? off : ideal(), 3.0, 1.0, 32, 14.0));
     const OnlineLearningStatus status = learner.status();
     const auto model = learner.model();
@@ -278,7 +281,7 @@ TEST(OnlineStabiliserLearner, ASwapThePerPairCheckFindsWorseIsUndoneAndNeverWrit
       EXPECT_EQ(model->name, trial);
       ASSERT_TRUE(std::filesystem::exists(options.model_path));
       const StabiliserModelFile written = StabiliserModelFile::load(options.model_path);
-      EXPECT_NEAR(written.parameters.gain(0, 1), model->parameters.gain(0, 1), 1e-9);
+      EXPECT_NEAR(written.parameters.get<CentringValues>().gain(0, 1), model->parameters.get<CentringValues>().gain(0, 1), 1e-9);
       EXPECT_EQ(status.saves, 1u);
     }
   }
@@ -334,8 +337,8 @@ TEST(OnlineStabiliserLearner, KeepsAModelThatIsAlreadyRight) {
 TEST(OnlineStabiliserLearner, OisOffCameraEndsAtNoLensMotion) {
   OnlineLearningOptions options = testOptions();
   options.refit_every_s = 11.0;
-  StabiliserParameters off = ideal();
-  off.gain.setZero();
+  StabiliserModel off = ideal();
+  off.get<CentringValues>().gain.setZero();
   OnlineStabiliserLearner learner(options, {{"generic", ideal()}}, 0);
   feed(learner, makePairs(off, 13.0, 1.0, 3));
   const auto model = learner.model();
@@ -434,8 +437,8 @@ TEST(OnlineStabiliserLearner, RefusesBadOptions) {
 
 TEST(CompensationCheck, ModelThatExplainsTheLensBeatsThePlainGyroAndOutliersAreRejected) {
   const CameraModel camera = testCamera();
-  StabiliserParameters off = ideal();
-  off.gain.setZero();
+  StabiliserModel off = ideal();
+  off.get<CentringValues>().gain.setZero();
   std::vector<OnlineFramePair> pairs = makePairs(off, 1.5, 1.0, 6);
   OnlineFramePair& pair = pairs.back();
   // A lens that does not move: the plain gyro is the true motion; a model off by a constant 3 px
@@ -496,8 +499,8 @@ TEST(StabiliserModelChoice, NoLensMotionWinsWhenTheFitIsNotClearlyBetter) {
   std::normal_distribution<double> noise(0.0, 0.1);
   for (double t = 1.5; t < 3.5; t += kFramePeriod)
     recording.observations.push_back({t, t + kFramePeriod, Eigen::Vector2d(noise(rng), noise(rng)), 1.0});
-  StabiliserParameters tiny = noLensMotion();
-  tiny.gain(0, 1) = 0.002;
+  StabiliserModel tiny = noLensMotion();
+  tiny.get<CentringValues>().gain(0, 1) = 0.002;
   const StabiliserChoice choice = chooseStabiliserModel(
       {{"generic", ideal()}, {"fit", tiny}, {"no lens motion", noLensMotion()}}, 0, {recording});
   EXPECT_EQ(choice.chosen, 2u) << choice.reason;
@@ -515,10 +518,10 @@ TEST(StabiliserModelFile, AKillDuringTheWriteLeavesTheOldFile) {
   old_model.save(path);
   StabiliserModelFile new_model = old_model;
   new_model.name = "new";
-  new_model.parameters.highpass_corner_hz = 1.5;
+  new_model.parameters.get<CentringValues>().highpass_corner_hz = 1.5;
   // A large file takes long enough to write that the kills land mid-write.
-  new_model.parameters.residual_time_constants_s.assign(2000, 0.1);
-  new_model.parameters.residual = Eigen::MatrixXd::Constant(2, 4000, 0.001);
+  new_model.parameters.get<LinearResidualValues>().residual_time_constants_s.assign(2000, 0.1);
+  new_model.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4000, 0.001);
   std::mt19937 rng(8);
   std::uniform_int_distribution<int> delay_us(0, 20000);
   int old_seen = 0, new_seen = 0;

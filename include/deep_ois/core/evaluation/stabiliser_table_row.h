@@ -13,7 +13,7 @@ namespace deep_ois {
 // A method over OIS camera pairs; a pair the model cannot cover (no gyro stream in the context, a
 // gap) is a failure with the reason, scored as identity and counted by the evaluator.
 AlignmentMethod stabiliserAlignmentMethod(const std::string& name,
-                                          const StabiliserParameters& parameters,
+                                          const StabiliserModel& parameters,
                                           unsigned scope = kOisCameraPairs);
 
 }  // namespace deep_ois

@@ -30,7 +30,7 @@ struct LensDynamicsAdaptationOptions {
 };
 
 struct LensDynamicsAdaptation {
-  StabiliserParameters parameters;  // noLensMotion()'s chain with the adapted learned stage
+  StabiliserModel parameters;  // noLensMotion()'s chain with the adapted learned stage
   std::size_t observations_used = 0;
   double rms_start_px = 0.0;  // lens-motion RMS with the network's default conditioning
   double rms_px = 0.0;        // after the adaptation
@@ -50,13 +50,13 @@ LensDynamicsAdaptation adaptLensDynamics(std::shared_ptr<const LensDynamicsNetwo
 // adapted layer; Huber weights as fit_options.huber_px) on the lens motion the rest of the model
 // leaves. The network's recurrent weights stay; the refitted layer is stored in the model's copy of
 // the network (output_map folded in). Throws std::invalid_argument as adaptLensDynamics.
-StabiliserParameters refitLensDynamicsOutput(const StabiliserParameters& adapted,
+StabiliserModel refitLensDynamicsOutput(const StabiliserModel& adapted,
                                              const std::vector<StabiliserFitRecording>& recordings,
                                              const StabiliserFitOptions& fit_options,
                                              double ridge = 1e-2);
 
 // The stabiliser model of the network with its default conditioning (what a camera starts from
 // before any adaptation): noLensMotion()'s chain off, the learned stage on.
-StabiliserParameters genericLensDynamicsModel(std::shared_ptr<const LensDynamicsNetwork> network);
+StabiliserModel genericLensDynamicsModel(std::shared_ptr<const LensDynamicsNetwork> network);
 
 }  // namespace deep_ois

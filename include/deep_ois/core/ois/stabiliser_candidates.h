@@ -12,7 +12,7 @@
 //    stroke in the actuator's own axes with a cross-coupling after the actuator (a turned or
 //    coupled mount); a soft stroke (stroke x tanh(u / stroke)) instead of an end stop, alone and
 //    with the excursion-dependent re-centring;
-//  - then, each by ridge regression on what that leaves (StabiliserParameters::nonlinear_features):
+//  - then, each by ridge regression on what that leaves (LearnedResidualValues::nonlinear_features):
 //    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
 //    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,
 //    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "deep_ois/core/ois/lens_dynamics_network.h"
+#include "deep_ois/core/ois/linear_dynamics_basis.h"
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 
@@ -35,7 +36,7 @@ namespace deep_ois {
 // `base` plus a nonlinear residual (feature set `feature_set`) fitted by ridge regression (weight
 // `ridge` relative to each feature's energy, Huber weights as options.huber_px) on the lens
 // motion `base` leaves in `recordings`. Throws std::invalid_argument when no observation is usable.
-StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
+StabiliserModel fitNonlinearResidual(const StabiliserModel& base,
                                           const std::vector<StabiliserFitRecording>& recordings,
                                           const StabiliserFitOptions& options,
                                           const std::string& feature_set = "excursion_v1",
@@ -48,7 +49,7 @@ StabiliserParameters fitNonlinearResidual(const StabiliserParameters& base,
 // again on those whose fitted lens stays inside 80 % of the stroke (Huber-weighted as
 // options.huber_px). Returns a model whose stages are `stages`. Throws std::invalid_argument for
 // another stage in `stages` or when fewer lens motions than coefficients are usable.
-StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
+StabiliserModel fitLinearDynamics(const StabiliserModel& base,
                                        const std::vector<std::string>& stages,
                                        const LinearDynamicsBasisSpec& basis,
                                        const std::vector<StabiliserFitRecording>& recordings,
@@ -57,7 +58,7 @@ StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
 // A stabiliser model with a name for messages ("fit", "no lens motion", "generic", ...).
 struct ModelCandidate {
   std::string name;
-  StabiliserParameters parameters;
+  StabiliserModel parameters;
 };
 
 // A candidate described as data: one row of the table stabiliserCandidates builds from. Its
@@ -95,7 +96,7 @@ const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptio
 // motion", the complexity of the row that describes it (its structure, feature set and linear
 // bank), after every row for a composition no row describes (a hand-written file), and last for
 // a model with the learned lens dynamics (a network: the least simple). So a model from anywhere (a prior, the model in use) is ranked as the candidates are.
-int stabiliserComplexity(const StabiliserParameters& parameters);
+int stabiliserComplexity(const StabiliserModel& parameters);
 
 // Which rows stabiliserCandidates builds besides the physical chain and its linear bank.
 struct StabiliserCandidateKinds {
@@ -127,7 +128,7 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
 
 struct StabiliserCandidate {
   std::string name;
-  StabiliserParameters parameters;
+  StabiliserModel parameters;
   StabiliserScore training;  // scoreStabiliser (core/ois/stabiliser_fit.h)
   StabiliserScore held_out;  // observations 0 without held-out recordings
 };

@@ -41,7 +41,7 @@ class StabiliserCompensator {
   // Throws std::invalid_argument for invalid parameters or a non-positive focal length.
   // `warm_up_s`: at the start of a stream (or after a gap) the model is first run over this much
   // of the gyro history before the pair, when the caller has it (the lens state depends on it).
-  StabiliserCompensator(const StabiliserParameters& parameters, const Eigen::Matrix3d& K,
+  StabiliserCompensator(const StabiliserModel& parameters, const Eigen::Matrix3d& K,
                         double warm_up_s = kStabiliserWarmUpS);
 
   // Call before feeding a pair's rates, with the times of the same patch (e.g. the first) of the

@@ -82,7 +82,7 @@ struct StabiliserFitOptions {
 // sentence per finding, for the training report.
 struct StabiliserFitReview {
   // Parameters that ended on a bound of the fit (they wanted to go further), e.g. "sensor lag
-  // 0.00 ms is the fit's lower bound"; `on_bound_parameters` names them as StabiliserParameters
+  // 0.00 ms is the fit's lower bound"; `on_bound_parameters` names them as StabiliserModel
   // does ("sensor_lag_s", "actuator_damping", ...) for tables.
   std::vector<std::string> on_bound;
   std::vector<std::string> on_bound_parameters;
@@ -110,11 +110,11 @@ std::string timingCheckSummary(const StabiliserFitReview& review);
 // Reviews fitted parameters: bounds of the fit reached (pan_release_corner_hz only with pan
 // detection on, the only case the fit moves it) and implausible values, each with the causes that
 // apply to lens motions from `target`.
-StabiliserFitReview reviewStabiliserFit(const StabiliserParameters& parameters,
+StabiliserFitReview reviewStabiliserFit(const StabiliserModel& parameters,
                                         LensMotionTarget target = LensMotionTarget::kImages);
 
 struct StabiliserFitResult {
-  StabiliserParameters parameters;
+  StabiliserModel parameters;
   std::size_t observations_used = 0;
   std::size_t observations_skipped = 0;  // before the warm-up or outside the gyro stream
   // Root mean square of the observations' residual norm (pixels, weighted): with no lens model
@@ -143,7 +143,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
 // its linear residual bank as fitStabiliser fits it. The training RMS and the review are filled;
 // rms_without_model_px and the timing check are not (they do not depend on the composition).
 // Throws std::invalid_argument as fitStabiliser, and for an unknown stage or variant.
-StabiliserFitResult refitStabiliserStages(const StabiliserParameters& fitted,
+StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
                                           const std::vector<std::string>& stages,
                                           const std::vector<StabiliserFitRecording>& recordings,
                                           const StabiliserFitOptions& options);
@@ -155,19 +155,19 @@ struct StabiliserScore {
   double rms_without_model_px = std::numeric_limits<double>::quiet_NaN();
   std::size_t observations = 0;
 };
-StabiliserScore scoreStabiliser(const StabiliserParameters& parameters,
+StabiliserScore scoreStabiliser(const StabiliserModel& parameters,
                                 const std::vector<StabiliserFitRecording>& recordings,
                                 const StabiliserFitOptions& options);
 
 // The model of a camera whose lens does not move (no OIS, or OIS off): gain 0, no residual, no
 // pan detection: the compensation is the plain gyro. Always a candidate: a fit must beat it on
 // recordings it was not trained on (checkFitAgainstNoLensMotion, stabiliser_model_choice.h).
-StabiliserParameters noLensMotion();
+StabiliserModel noLensMotion();
 
 
 // The model's predicted lens motion for each observation of `recording` (in input order; NaN for
 // those it cannot predict: before the gyro stream's warm-up or outside it).
-std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& parameters,
+std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserModel& parameters,
                                                const StabiliserFitRecording& recording,
                                                double step_s = 1e-3, double warm_up_s = 1.0);
 
@@ -176,7 +176,7 @@ std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserParameters& param
 // `visit(predictor, observation index)` for each observation past the warm-up whose two ends the
 // predictor covers. `prepare`, when given, runs on the new predictor before the first rate (for
 // example to record its features or its learned state).
-void visitCoveredObservations(const StabiliserParameters& parameters, const StabiliserFitRecording& recording,
+void visitCoveredObservations(const StabiliserModel& parameters, const StabiliserFitRecording& recording,
                               double step_s, double warm_up_s,
                               const std::function<void(const LensShiftPredictor&, std::size_t)>& visit,
                               const std::function<void(LensShiftPredictor&)>& prepare = {});

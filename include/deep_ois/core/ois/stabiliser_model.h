@@ -22,143 +22,90 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/ois/lens_dynamics_network.h"
-#include "deep_ois/core/ois/linear_dynamics_basis.h"
 #include "deep_ois/core/ois/stabiliser_signal.h"
 
 namespace deep_ois {
 
-// The learned stage: a generic lens dynamics network (core/ois/lens_dynamics_network.h), pretrained
-// on generated stabiliser designs, conditioned on this camera's vector. Its lens (focal-length
-// units, through output_map) is added to the chain's; a model of it alone has the chain switched
-// off (noLensMotion()'s gain 0). It runs at the network's step; between its steps the lens is
-// extrapolated from its last two outputs (the predictor answers at any time up to its newest
-// gyro sample, as the chain does).
-struct LearnedLensDynamics {
-  std::shared_ptr<const LensDynamicsNetwork> network;  // null: no learned stage
-  Eigen::VectorXd conditioning;                        // network->conditioning_size values
-  // Applied to the network's lens (a camera whose lens moves on another scale, or whose axes are
-  // turned against the designs'); the identity unless the adaptation fitted it.
-  Eigen::Matrix2d output_map = Eigen::Matrix2d::Identity();
-  bool active() const { return network != nullptr; }
+struct StabiliserStage;  // core/ois/stabiliser_stage.h
+
+// One stage's values, owned by the model. Each stage declares its own type (a small header under
+// core/ois/stages/ when other code reads it; its file in src/core/ois/stages/ otherwise), derived
+// through StageValuesOf, with its stage's name as kStage.
+//
+// Why type-erased values and not one struct of every mechanism's fields: a mechanism is then one
+// file (its values, runner, fitted parameters, file keys) and one registry line, and a model holds
+// only the stages it has. The model answers a stage's values by type (find<StrokeValues>()), so
+// code that knows a mechanism reads it typed, and code that does not (the file, the fit's
+// packing, validation) loops over the stages.
+struct StageValues {
+  virtual ~StageValues() = default;
+  virtual std::unique_ptr<StageValues> clone() const = 0;
+};
+template <typename Derived>
+struct StageValuesOf : StageValues {
+  std::unique_ptr<StageValues> clone() const override {
+    return std::make_unique<Derived>(static_cast<const Derived&>(*this));
+  }
 };
 
-// The linear-dynamics stage's values (src/core/ois/stages/linear_dynamics_stage.cpp): raw command
-// += focal_px * coefficients * the state of an orthonormal basis of the three gyro axes
-// (core/ois/linear_dynamics_basis.h).
-struct LinearDynamicsValues {
-  LinearDynamicsBasisSpec basis;
-  Eigen::MatrixXd coefficients;  // 2 x 3 basis.order (focal units per basis state); empty = off
-  bool active() const { return coefficients.size() != 0; }
+// A stage of a model: its description in the registry and its values.
+struct StageInstance {
+  const StabiliserStage* stage = nullptr;
+  std::unique_ptr<StageValues> values;
 };
 
-// The stages of a sampled digital controller, as the simulator's generated designs are built
-// (core/sim/stabiliser_design.h says what each mechanism does; its ranges bound them). Each stage
-// acts when its values are set. Words as the design names them.
-struct GyroLoopValues {  // gyro_loop: the stabiliser's own gyro and when the controller samples it
-  double roll_deg = 0.0, tilt_deg = 0.0, pan_deg = 0.0;  // camera -> gyro: roll, then tilt, pan
-  double rate_hz = 4000.0;  // controller rate; the step's rate is a multiple of it
-  bool averaged = false;    // the mean rate over its period (else the newest sample)
-};
-struct MotionModeValues {  // motion_mode: pan detection (release, hold) and the gain schedule
-  std::string action = "none";  // none, release, hold
-  double threshold_rad_s = 0.2, time_constant_s = 0.2, release_factor = 6.0, hold_time_constant_s = 0.1;
-  double schedule_depth = 0.0;  // 0 = not scheduled
-  double schedule_start_rad_s = 0.1, schedule_span_rad_s = 0.3, schedule_time_constant_s = 0.1;
-};
-struct IntendedMotionValues {  // intended_motion: the angle to cancel, its gain
-  // highpass_first_order, highpass_second_order, velocity_loop, kalman_cv, alpha_beta
-  std::string kind = "highpass_first_order";
-  double corner_hz = 0.6, damping = 0.8, rate_corner_hz = 0.5;
-  double excursion_gain = 0.0, excursion_power = 2.0;  // 0 = a fixed corner
-  double gain_x = 1.0, gain_y = 1.0;
-};
-struct TravelValues {  // travel: the stroke per axis and direction, anti-windup, the DAC
-  std::string shape = "box";  // box, ellipse, soft_box, soft_ellipse
-  double x_positive_deg = 1.0, x_negative_deg = 1.0, y_positive_deg = 1.0, y_negative_deg = 1.0;
-  std::string anti_windup = "none";  // none, clamp, back_calculation
-  double back_calculation_rate_per_s = 20.0;
-  double quantiser_bits = 0.0;  // 0 = not quantised
-};
-struct HallActuatorValues {  // hall_actuator: transport delay, the lens' position loop, Hall sensor
-  double delay_s = 0.0;
-  std::string order = "second";  // first, second
-  double bandwidth_hz = 35.0, damping = 0.7, rate_limit_deg_s = 0.0, stiction_fraction = 0.0;
-  double end_stop_margin = 1.1, hall_c2 = 0.0, hall_c3 = 0.0;
-};
+// A stabiliser model: an ordered list of stages (the chain's order, stabiliserStages()), each with
+// its values. A stage acts when its values make it act (a pan threshold of 0, an empty residual:
+// the stage is there and does nothing), as every model file before the stage list was written.
+class StabiliserModel {
+ public:
+  // The default chain: every stage of the registry marked in_default_chain (centring, stroke,
+  // actuator and the optional mechanisms around them, switched off), with default values.
+  StabiliserModel();
+  // These stages (names; a token's variant is ignored), with default values, in the chain's
+  // order. Throws std::invalid_argument for an unknown name.
+  explicit StabiliserModel(const std::vector<std::string>& stage_names);
+  StabiliserModel(const StabiliserModel& other);
+  StabiliserModel& operator=(const StabiliserModel& other);
+  StabiliserModel(StabiliserModel&&) noexcept = default;
+  StabiliserModel& operator=(StabiliserModel&&) noexcept = default;
 
-struct StabiliserParameters {
-  // Commanded shift = focal_px * gain * (tan theta_x, tan theta_y) for the high-passed pan/tilt
-  // angles theta (rad, camera optical frame). An ideal stabiliser of this package's convention has
-  // gain = [[0, 1], [-1, 0]] (x follows the turn about y, y against the turn about x); a module
-  // cancelling 90 % of the motion has 0.9 of that; a mount turned in the image plane mixes axes.
-  Eigen::Matrix2d gain = (Eigen::Matrix2d() << 0.0, 1.0, -1.0, 0.0).finished();
-  double highpass_corner_hz = 0.6;  // centring: the integrated angle leaks back with this corner
-  double actuator_natural_hz = 35.0;
-  double actuator_damping = 0.7;
-  double sensor_lag_s = 0.0;  // the position loop acts on commands this old (Hall sensor delay)
-  double stroke_x_deg = 1.0;  // commanded shift limits, as angles (f tan(limit) pixels)
-  double stroke_y_deg = 1.0;
-  bool circular_stroke = false;  // false: a box of the two limits; true: the ellipse inside it
-  // A soft stroke: the command u becomes stroke * tanh(u / stroke) (per axis for the box, radially
-  // for the ellipse) instead of stopping at the stroke: a lens held by springs whose pull grows
-  // towards the end, or a controller that compresses its command as it nears the limit. Exclusive
-  // with anti_windup (a soft stroke is never met, so there is no angle to hold).
-  bool soft_stroke = false;
-  // The integrated angle at the end stop. false: it keeps integrating beyond the stroke (the lens
-  // leaves the stroke only once the angle has come back inside); true (anti-windup): it is held
-  // where the command meets the stroke, so the lens leaves the stroke as soon as the rate turns.
-  // A stabiliser whose lens sits on its stroke much of the time shows which one it has (the
-  // Pixel 4's log: anti-windup, docs/stabiliser_model.md).
-  bool anti_windup = false;
-  // Excursion-dependent re-centring: the centring corner is highpass_corner_hz * (1 + k e^2),
-  // e^2 = (u_x / stroke_x)^2 + (u_y / stroke_y)^2 for the command u before the stroke limit
-  // (e = 1 on the stroke). k = excursion_centring, 0 = a fixed corner.
-  double excursion_centring = 0.0;
-  // Cross-coupling after the actuator: the stroke limit and the actuator act in the actuator's own
-  // axes (the gain maps the camera's angles into them), and the image shift is
-  // (a_x + c_xy a_y, a_y + c_yx a_x) for the actuator's output a and actuator_coupling =
-  // (c_xy, c_yx) (a lens whose axes drag each other, a magnet turned against its coil). 0 = none.
-  // With the gain it places the stroke's box in the actuator's axes instead of the image's.
-  Eigen::Vector2d actuator_coupling = Eigen::Vector2d::Zero();
-  // Pan detection: while the low-passed |pan/tilt rate| exceeds the threshold (0 = off) the
-  // stabiliser re-centres with pan_release_corner_hz; below 0.7 x the threshold it holds again.
-  double pan_detection_rate_rad_s = 0.0;
-  double pan_detection_time_constant_s = 0.1;
-  double pan_release_corner_hz = 5.0;
-  // Linear residual: shift += focal_px * sum_k residual.col(k) ... over the bank of leaky rate
-  // integrals with residual_time_constants_s (2 x 2K matrix: the K integrals of rate x then the K
-  // of rate y). Empty = none.
-  std::vector<double> residual_time_constants_s;
-  Eigen::MatrixXd residual;  // 2 x (2 * K), unitless (radians of the leaky integral to focal units)
-  // Learned residual (empty name = none): shift += focal_px * nonlinear_residual * features, the
-  // features a fixed set of functions of the chain's own state (see nonlinearFeatureCount): the
-  // unclipped command, its excursion against the stroke and
-  // saturations of it, the clipped command, the actuator's output, and leaky integrals of the
-  // excursion-weighted command (what an excursion-dependent re-centring pulls back with). The
-  // features depend only on the chain, never on the residual's output, so a ridge regression
-  // fits them in one solve. Names the set so a file states which functions its numbers weigh.
-  std::string nonlinear_features;
-  Eigen::MatrixXd nonlinear_residual;  // 2 x nonlinearFeatureCount(nonlinear_features)
-  LearnedLensDynamics learned_dynamics;
-  LinearDynamicsValues linear_dynamics;
-  std::optional<GyroLoopValues> gyro_loop;
-  std::optional<MotionModeValues> motion_mode;
-  std::optional<IntendedMotionValues> intended_motion;
-  std::optional<TravelValues> travel;
-  std::optional<HallActuatorValues> hall_actuator;
-  // The model's stages by name, when it is not the default chain ({"linear_dynamics", "stroke",
-  // "actuator"}: no centring); only these run (each still only when its values make it act).
-  // Empty: every stage whose values make it act (centring, stroke and actuator always), as every
-  // file before the key.
-  std::vector<std::string> stages;
+  const std::vector<StageInstance>& stages() const { return stages_; }
+  std::vector<std::string> stageNames() const;
+  bool has(const std::string& stage) const { return values(stage) != nullptr; }
+  // Whether the model has every stage of the default chain (its file then names no stage list).
+  bool hasDefaultChain() const;
+
+  // The values of a stage (null when the model has not got it).
+  const StageValues* values(const std::string& stage) const;
+  StageValues* values(const std::string& stage);
+  template <typename V>
+  const V* find() const { return static_cast<const V*>(values(V::kStage)); }
+  template <typename V>
+  V* find() { return static_cast<V*>(values(V::kStage)); }
+  // As find, but the stage must be there (std::logic_error naming it otherwise).
+  template <typename V>
+  const V& get() const { return *static_cast<const V*>(&required(V::kStage)); }
+  template <typename V>
+  V& get() { return *static_cast<V*>(&required(V::kStage)); }
+  // Adds the stage with these values in the chain's order, or replaces its values.
+  template <typename V>
+  V& set(V v) { return *static_cast<V*>(&put(V::kStage, std::make_unique<V>(std::move(v)))); }
+  StageValues& put(const std::string& stage, std::unique_ptr<StageValues> values);
+  void remove(const std::string& stage);
+  // Only the named stages: those the model has keep their values, the others start at default.
+  StabiliserModel only(const std::vector<std::string>& stage_names) const;
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
-  // The chain alone: these parameters without the linear residual bank, the learned residual and
-  // the learned dynamics
-  // (the "physical" candidate, and the start of a structural refit).
-  StabiliserParameters physicalChain() const;
+  // The chain alone: the residual and learned stages cleared (the "physical" candidate, and the
+  // start of a structural refit).
+  StabiliserModel physicalChain() const;
+
+ private:
+  StageValues& required(const char* stage);
+  const StageValues& required(const char* stage) const;
+  std::vector<StageInstance> stages_;
 };
 
 // The known feature sets of the learned residual (0 for an unknown name and for ""):
@@ -179,7 +126,7 @@ class LensShiftPredictor {
   // Throws std::invalid_argument with the validate() sentence, or for a non-positive focal length
   // or step. `step_s`: the internal integration step (the rate is interpolated linearly between
   // samples); `history_s`: how far back lensShiftAt() can answer.
-  LensShiftPredictor(const StabiliserParameters& parameters, double focal_px, double step_s = 1e-3,
+  LensShiftPredictor(const StabiliserModel& model, double focal_px, double step_s = 1e-3,
                      double history_s = 0.5);
 
   // Appends a rate sample; samples must come in increasing time. A sample not after the last one
@@ -198,7 +145,7 @@ class LensShiftPredictor {
   double newestStamp() const { return last_stamp_s_; }
   bool started() const { return started_; }
   int resets() const { return resets_; }
-  // Keeps the nonlinear features of every retained step (for fitting nonlinear_residual; the
+  // Keeps the nonlinear features of every retained step (for fitting the learned residual; the
   // model must name a feature set) and answers them like lensShiftAt (focal-length units).
   void recordFeatures() { record_features_ = true; }
   Eigen::VectorXd featuresAt(double t_s) const;
@@ -220,7 +167,7 @@ class LensShiftPredictor {
 
   double step_s_;
   std::size_t history_steps_;
-  // The runners of the stages that act for the parameters (core/ois/stabiliser_stage.h).
+  // The runners of the stages that act for the model (core/ois/stabiliser_stage.h).
   StabiliserChain chain_;
 
   // State.

@@ -21,7 +21,7 @@
 
 namespace deep_ois {
 
-bool isNoLensMotion(const StabiliserParameters& parameters);
+bool isNoLensMotion(const StabiliserModel& parameters);
 
 // Candidates are scored with scoreStabiliser (core/ois/stabiliser_fit.h): the RMS of
 // |predicted - observed| lens motion over the observations the model can predict.
@@ -67,7 +67,7 @@ struct NoLensMotionCheck {
   double fit_rms_px = std::numeric_limits<double>::quiet_NaN();
   double no_lens_motion_rms_px = std::numeric_limits<double>::quiet_NaN();
 };
-NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserParameters& fitted,
+NoLensMotionCheck checkFitAgainstNoLensMotion(const StabiliserModel& fitted,
                                               const std::vector<StabiliserFitRecording>& training,
                                               const std::vector<StabiliserFitRecording>& held_out,
                                               const StabiliserFitOptions& fit_options,

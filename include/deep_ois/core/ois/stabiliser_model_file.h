@@ -38,7 +38,7 @@ struct StabiliserModelFile {
   static constexpr int kFormatVersion = 1;
   int format_version = kFormatVersion;
   std::string name;  // e.g. "generic (10 simulated modules)" or the user's camera
-  StabiliserParameters parameters;
+  StabiliserModel parameters;
   CameraDescription camera;
   StabiliserTrainingRecord training;
 

@@ -139,7 +139,7 @@ struct OnlineFramePair {
 struct LearnedStabiliser {
   std::uint64_t version = 0;  // 0: the one given at the start; +1 per swap
   std::string name;
-  StabiliserParameters parameters;
+  StabiliserModel parameters;
   double held_out_rms_px = 0.0;          // on the held-out window that chose it (NaN: not scored)
   double held_out_rms_without_px = 0.0;  // no lens motion on that window
   std::string reason;                    // the choice's sentence

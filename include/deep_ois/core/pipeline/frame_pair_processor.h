@@ -146,7 +146,7 @@ class FramePairProcessor {
   FramePairProcessor() = default;
   // With a stabiliser model (throws std::invalid_argument for invalid parameters at the first
   // pair, as StabiliserCompensator).
-  explicit FramePairProcessor(const StabiliserParameters& model,
+  explicit FramePairProcessor(const StabiliserModel& model,
                               Timeline timeline = Timeline::kRestartWhenTimeGoesBack);
 
   // Step 1 alone: the gyro's per-patch rotations and homographies from `pair.imu`.
@@ -168,7 +168,7 @@ class FramePairProcessor {
   bool hasModel() const { return model_.has_value(); }
   // Another model (the online learner's swap): the stabiliser restarts from a centred lens at the
   // next pair, warmed up on the gyro history it carries.
-  void setModel(const StabiliserParameters& model);
+  void setModel(const StabiliserModel& model);
   // Forgets the model's state (another recording): as a fresh processor with the same model.
   void restart() { compensator_.reset(); }
 
@@ -184,7 +184,7 @@ class FramePairProcessor {
   // Step 3: motion.homographies become the fused ones; the prior is kept in prior_homographies.
   static void fuse(const FramePair& pair, FramePairMotion& motion);
 
-  std::optional<StabiliserParameters> model_;
+  std::optional<StabiliserModel> model_;
   Timeline timeline_ = Timeline::kRestartWhenTimeGoesBack;
   std::unique_ptr<StabiliserCompensator> compensator_;
   Eigen::Matrix3d K_ = Eigen::Matrix3d::Zero();  // the camera compensator_ was built for

@@ -30,7 +30,7 @@ namespace sim {
 // frame, always drawn); null: none (the oracle).
 // The design as a model of the stage library, for the predictor's step of 1 / kDesignPhysicsRateHz
 // (its lens then equals runDesign's without noise).
-StabiliserParameters designModel(const StabiliserDesign& design);
+StabiliserModel designModel(const StabiliserDesign& design);
 
 LensShiftGrid runDesign(const StabiliserDesign& design, double focal_px, double start_s, int steps,
                         const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s,

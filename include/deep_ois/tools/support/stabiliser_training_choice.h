@@ -24,7 +24,7 @@ struct StabiliserTrainingChoice {
 
   bool keptNoLensMotion() const { return lens_check.refused; }
   std::string keptName() const;                // "no lens motion" or the candidate's name
-  StabiliserParameters keptParameters() const;  // noLensMotion() or the candidate's
+  StabiliserModel keptParameters() const;  // noLensMotion() or the candidate's
   // The kept model's training RMS, pixels (for no lens motion: the lens motion itself).
   double keptTrainingRmsPx() const;
   bool hasHeldOut() const;  // the candidates were scored on held-out recordings

@@ -24,7 +24,7 @@ std::string recordingSummary(const std::string& bag, const StabiliserRecordingDa
 std::string readoutMismatch(const StabiliserRecordingData& data, double config_readout_s);
 
 // The fitted parameters as a markdown table; a value that ended on a bound of the fit says so.
-std::string stabiliserParameterTable(const StabiliserParameters& parameters,
+std::string stabiliserParameterTable(const StabiliserModel& parameters,
                                      const StabiliserFitReview& review);
 
 // One row of the lens-motion table: RMS residual norms in pixels (NaN: not computed).

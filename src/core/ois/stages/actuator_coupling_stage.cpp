@@ -6,18 +6,21 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/actuator_coupling.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
 namespace deep_ois {
 namespace {
 
-bool coupled(const StabiliserParameters& p) { return !p.actuator_coupling.isZero(0.0); }
+using Values = ActuatorCouplingValues;
+
+bool coupled(const StageValues& own) { return !valuesAs<Values>(own).actuator_coupling.isZero(0.0); }
 
 // The actuator's axes to the image's (after the stroke: a coupled lens can leave the box).
 class ActuatorCouplingRunner final : public StabiliserStageRunner {
  public:
-  ActuatorCouplingRunner(const StabiliserParameters& p, const StabiliserRunContext&)
+  ActuatorCouplingRunner(const Values& p, const StabiliserModel&, const StabiliserRunContext&)
       : coupling_(p.actuator_coupling) {}
   void reset(StabiliserSignal&) override {}
   void advance(StabiliserSignal& signal) override {
@@ -36,27 +39,33 @@ const StabiliserStage& actuatorCouplingStage() {
       "actuator_coupling",
       "the image shift mixes the actuator's axes: (a_x + c_xy a_y, a_y + c_yx a_x); 0 = none",
       true,
+      true,
       {{"actuator_coupling", "actuator coupling c_xy", "", false, -0.5, 0.5, 1e-4,
-        [](const StabiliserParameters& p) { return p.actuator_coupling.x(); },
-        [](StabiliserParameters* p, double value) { p->actuator_coupling.x() = value; }, coupled},
+        [](const StageValues& v) { return valuesAs<Values>(v).actuator_coupling.x(); },
+        [](StageValues& v, double value) { valuesAs<Values>(v).actuator_coupling.x() = value; }, coupled},
        {"actuator_coupling", "actuator coupling c_yx", "", false, -0.5, 0.5, 1e-4,
-        [](const StabiliserParameters& p) { return p.actuator_coupling.y(); },
-        [](StabiliserParameters* p, double value) { p->actuator_coupling.y() = value; }, coupled}},
+        [](const StageValues& v) { return valuesAs<Values>(v).actuator_coupling.y(); },
+        [](StageValues& v, double value) { valuesAs<Values>(v).actuator_coupling.y() = value; }, coupled}},
       {"actuator_coupling"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<Values>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const Values& p = valuesAs<Values>(own);
         // Optional: files without it load uncoupled.
-        if (coupled(p))
+        if (coupled(own))
           out << YAML::Key << "actuator_coupling" << YAML::Value << YAML::Flow
               << std::vector<double>{p.actuator_coupling.x(), p.actuator_coupling.y()};
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        Values* p = &valuesAs<Values>(own);
         const auto coupling =
             stabiliser_file_fields::optional<std::vector<double>>(s, "actuator_coupling", {0.0, 0.0});
         if (coupling.size() != 2)
           throw StabiliserModelFileError("field 'actuator_coupling' must have 2 values (c_xy, c_yx)");
         p->actuator_coupling = Eigen::Vector2d(coupling[0], coupling[1]);
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const Values& p = valuesAs<Values>(own);
         std::ostringstream why;
         if (!p.actuator_coupling.allFinite() || p.actuator_coupling.cwiseAbs().maxCoeff() > 0.5)
           why << "actuator_coupling: must be within +-0.5 (got " << p.actuator_coupling.x() << ", "
@@ -64,12 +73,13 @@ const StabiliserStage& actuatorCouplingStage() {
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return coupled(p) ? stage_numerics::runner<ActuatorCouplingRunner>(p, context) : nullptr;
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        return coupled(own) ? stage_numerics::runner<ActuatorCouplingRunner, Values>(own, model, context)
+                            : nullptr;
       },
-      [](const StabiliserParameters& p) { return std::string(coupled(p) ? "actuator_coupling" : ""); },
+      [](const StageValues& own) { return std::string(coupled(own) ? "actuator_coupling" : ""); },
       // Starts at none: the chain itself, its gain then mapping into the stroke's axes.
-      [](StabiliserParameters* p, const char*) { p->actuator_coupling.setZero(); }};
+      [](StageValues& own, const char*) { valuesAs<Values>(own).actuator_coupling.setZero(); }};
   return stage;
 }
 

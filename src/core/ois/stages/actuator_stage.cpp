@@ -8,6 +8,8 @@
 
 #include "deep_ois/core/ois/lens_actuator.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/actuator.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -18,11 +20,11 @@ namespace {
 // lens itself stops at the stroke too (the command never asks for more).
 class ActuatorRunner final : public StabiliserStageRunner {
  public:
-  ActuatorRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+  ActuatorRunner(const ActuatorValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
       : natural_hz_(p.actuator_natural_hz),
         damping_(p.actuator_damping),
         step_s_(context.step_s),
-        stroke_px_(stage_numerics::strokePx(p, context.focal_px)),
+        stroke_px_(strokePx(model, context.focal_px)),  // the lens' end stop
         x_(natural_hz_, damping_, step_s_, stroke_px_.x()),
         y_(natural_hz_, damping_, step_s_, stroke_px_.y()) {
     // A fractional lag: the acted command is interpolated between the two stored around it (so
@@ -63,29 +65,36 @@ const StabiliserStage& actuatorStage() {
       "the lens follows the command through a second-order position loop (natural frequency, "
       "damping) acting on commands as old as the sensor lag",
       true,
+      true,
       {{"actuator_natural_hz", "actuator natural frequency", "Hz", true, 2.0, 500.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.actuator_natural_hz; },
-        [](StabiliserParameters* p, double value) { p->actuator_natural_hz = value; }, nullptr},
+        [](const StageValues& v) { return valuesAs<ActuatorValues>(v).actuator_natural_hz; },
+        [](StageValues& v, double value) { valuesAs<ActuatorValues>(v).actuator_natural_hz = value; }, nullptr},
        {"actuator_damping", "actuator damping", "", true, 0.05, 5.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.actuator_damping; },
-        [](StabiliserParameters* p, double value) { p->actuator_damping = value; }, nullptr},
+        [](const StageValues& v) { return valuesAs<ActuatorValues>(v).actuator_damping; },
+        [](StageValues& v, double value) { valuesAs<ActuatorValues>(v).actuator_damping = value; }, nullptr},
        // Fitted in milliseconds (a step of 0.01 ms), linear: a lag of 0 is a module's own.
        {"sensor_lag_s", "sensor lag", "ms", false, 0.0, 50.0, 1e-2,
-        [](const StabiliserParameters& p) { return 1000.0 * p.sensor_lag_s; },
-        [](StabiliserParameters* p, double value) { p->sensor_lag_s = value / 1000.0; }, nullptr}},
+        [](const StageValues& v) { return 1000.0 * valuesAs<ActuatorValues>(v).sensor_lag_s; },
+        [](StageValues& v, double value) { valuesAs<ActuatorValues>(v).sensor_lag_s = value / 1000.0; },
+        nullptr}},
       {"actuator_natural_hz", "actuator_damping", "sensor_lag_s"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<ActuatorValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const ActuatorValues& p = valuesAs<ActuatorValues>(own);
         out << YAML::Key << "actuator_natural_hz" << YAML::Value << p.actuator_natural_hz;
         out << YAML::Key << "actuator_damping" << YAML::Value << p.actuator_damping;
         out << YAML::Key << "sensor_lag_s" << YAML::Value << p.sensor_lag_s;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        ActuatorValues* p = &valuesAs<ActuatorValues>(own);
         using stabiliser_file_fields::required;
         p->actuator_natural_hz = required<double>(s, "actuator_natural_hz");
         p->actuator_damping = required<double>(s, "actuator_damping");
         p->sensor_lag_s = required<double>(s, "sensor_lag_s");
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const ActuatorValues& p = valuesAs<ActuatorValues>(own);
         auto positive = [](double x) { return std::isfinite(x) && x > 0.0; };
         std::ostringstream why;
         if (!positive(p.actuator_natural_hz)) {
@@ -98,8 +107,8 @@ const StabiliserStage& actuatorStage() {
         return why.str();
       },
       nullptr,
-      stage_numerics::runner<ActuatorRunner>,
-      [](const StabiliserParameters&) { return std::string("actuator"); }, nullptr};
+      stage_numerics::runner<ActuatorRunner, ActuatorValues>,
+      [](const StageValues&) { return std::string("actuator"); }, nullptr};
   return stage;
 }
 

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/centring.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -17,7 +18,7 @@ namespace {
 // before it decided), and commands f * gain * tan(angle).
 class CentringRunner final : public StabiliserStageRunner {
  public:
-  CentringRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+  CentringRunner(const CentringValues& p, const StabiliserModel&, const StabiliserRunContext& context)
       : corner_rad_s_(2.0 * stage_numerics::kPi * p.highpass_corner_hz),
         step_s_(context.step_s),
         decay_(stage_numerics::leakDecay(corner_rad_s_, step_s_)),
@@ -62,8 +63,8 @@ FittedStabiliserParameter gainEntry(const char* name) {
           -kInf,
           kInf,
           1e-4,
-          [](const StabiliserParameters& p) { return p.gain(kRow, kCol); },
-          [](StabiliserParameters* p, double value) { p->gain(kRow, kCol) = value; },
+          [](const StageValues& v) { return valuesAs<CentringValues>(v).gain(kRow, kCol); },
+          [](StageValues& v, double value) { valuesAs<CentringValues>(v).gain(kRow, kCol) = value; },
           nullptr};
 }
 
@@ -75,25 +76,32 @@ const StabiliserStage& centringStage() {
       "the commanded shift f * gain * tan(angle) of the integrated pan/tilt angle, which leaks back "
       "to the centre with the high-pass corner",
       true,
+      true,
       {gainEntry<0, 0>("gain_xx"), gainEntry<0, 1>("gain_xy"), gainEntry<1, 0>("gain_yx"),
        gainEntry<1, 1>("gain_yy"),
        {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.highpass_corner_hz; },
-        [](StabiliserParameters* p, double value) { p->highpass_corner_hz = value; }, nullptr}},
+        [](const StageValues& v) { return valuesAs<CentringValues>(v).highpass_corner_hz; },
+        [](StageValues& v, double value) { valuesAs<CentringValues>(v).highpass_corner_hz = value; },
+        nullptr}},
       {"gain", "highpass_corner_hz"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<CentringValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const CentringValues& p = valuesAs<CentringValues>(own);
         out << YAML::Key << "gain" << YAML::Value << YAML::Flow
             << stabiliser_file_fields::rowMajor(p.gain);
         out << YAML::Key << "highpass_corner_hz" << YAML::Value << p.highpass_corner_hz;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        CentringValues* p = &valuesAs<CentringValues>(own);
         using stabiliser_file_fields::required;
         const auto gain = required<std::vector<double>>(s, "gain");
         if (gain.size() != 4) throw StabiliserModelFileError("field 'gain' must have 4 values");
         p->gain << gain[0], gain[1], gain[2], gain[3];
         p->highpass_corner_hz = required<double>(s, "highpass_corner_hz");
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const CentringValues& p = valuesAs<CentringValues>(own);
         std::ostringstream why;
         if (!p.gain.allFinite()) {
           why << "gain: must be finite";
@@ -103,8 +111,8 @@ const StabiliserStage& centringStage() {
         return why.str();
       },
       nullptr,
-      stage_numerics::runner<CentringRunner>,
-      [](const StabiliserParameters&) { return std::string("centring"); }, nullptr};
+      stage_numerics::runner<CentringRunner, CentringValues>,
+      [](const StageValues&) { return std::string("centring"); }, nullptr};
   return stage;
 }
 

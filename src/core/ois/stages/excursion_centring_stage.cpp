@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/excursion_centring.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -17,10 +18,13 @@ namespace {
 // badly fitted stroke is small).
 constexpr double kMaxExcursion = 3.0;
 
+using Values = ExcursionCentringValues;
+double k(const StageValues& own) { return valuesAs<Values>(own).excursion_centring; }
+
 // Scales the centring's corner by the last step's excursion (unless a pan releases it).
 class ExcursionCentringRunner final : public StabiliserStageRunner {
  public:
-  ExcursionCentringRunner(const StabiliserParameters& p, const StabiliserRunContext&)
+  ExcursionCentringRunner(const Values& p, const StabiliserModel&, const StabiliserRunContext&)
       : k_(p.excursion_centring) {}
   void reset(StabiliserSignal& signal) override { signal.corner_scale = 1.0; }
   void advance(StabiliserSignal& signal) override {
@@ -40,37 +44,38 @@ const StabiliserStage& excursionCentringStage() {
       "the centring corner grows with the command's excursion e against the stroke: corner * (1 + "
       "k e^2); k = 0 is a fixed corner",
       true,
+      true,
       {{"excursion_centring", "excursion-dependent re-centring", "", true, 1e-3, 100.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.excursion_centring; },
-        [](StabiliserParameters* p, double value) { p->excursion_centring = value; },
-        [](const StabiliserParameters& p) { return p.excursion_centring > 0.0; }}},
+        [](const StageValues& v) { return k(v); },
+        [](StageValues& v, double value) { valuesAs<Values>(v).excursion_centring = value; },
+        [](const StageValues& v) { return k(v) > 0.0; }}},
       {"excursion_centring"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<Values>,
+      [](YAML::Emitter& out, const StageValues& own) {
         // Optional: files without it load with a fixed corner.
-        if (p.excursion_centring != 0.0)
-          out << YAML::Key << "excursion_centring" << YAML::Value << p.excursion_centring;
+        if (k(own) != 0.0) out << YAML::Key << "excursion_centring" << YAML::Value << k(own);
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
-        p->excursion_centring =
+      [](const YAML::Node& s, StageValues& own) {
+        valuesAs<Values>(own).excursion_centring =
             stabiliser_file_fields::optional<double>(s, "excursion_centring", 0.0);
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
         std::ostringstream why;
-        if (!std::isfinite(p.excursion_centring) || p.excursion_centring < 0.0)
-          why << "excursion_centring: must be >= 0, 0 = off (got " << p.excursion_centring << ")";
+        if (!std::isfinite(k(own)) || k(own) < 0.0)
+          why << "excursion_centring: must be >= 0, 0 = off (got " << k(own) << ")";
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.excursion_centring > 0.0
-                   ? stage_numerics::runner<ExcursionCentringRunner>(p, context)
-                   : nullptr;
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        return k(own) > 0.0 ? stage_numerics::runner<ExcursionCentringRunner, Values>(own, model, context)
+                            : nullptr;
       },
-      [](const StabiliserParameters& p) {
-        return std::string(p.excursion_centring > 0.0 ? "excursion_centring" : "");
-      },
+      [](const StageValues& own) { return std::string(k(own) > 0.0 ? "excursion_centring" : ""); },
       // Starts from k = 1 (its fit's bound 0.001 is named when it wants none).
-      [](StabiliserParameters* p, const char* variant) { p->excursion_centring = variant ? 1.0 : 0.0; }};
+      [](StageValues& own, const char* variant) {
+        valuesAs<Values>(own).excursion_centring = variant ? 1.0 : 0.0;
+      }};
   return stage;
 }
 

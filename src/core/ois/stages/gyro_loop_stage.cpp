@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -25,10 +26,10 @@ stabiliser_file_fields::ValueFields fields(GyroLoopValues& v) {
 
 class GyroLoopRunner final : public StabiliserStageRunner {
  public:
-  GyroLoopRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : averaged_(p.gyro_loop->averaged), tick_(stage_numerics::controlTick(p, context)) {
+  GyroLoopRunner(const GyroLoopValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+      : averaged_(p.averaged), tick_(stage_numerics::controlTick(model, context)) {
     using stage_numerics::kDegToRad;
-    const GyroLoopValues& v = *p.gyro_loop;
+    const GyroLoopValues& v = p;
     to_gyro_ = (Eigen::AngleAxisd(v.pan_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
                 Eigen::AngleAxisd(v.tilt_deg * kDegToRad, Eigen::Vector3d::UnitX()) *
                 Eigen::AngleAxisd(v.roll_deg * kDegToRad, Eigen::Vector3d::UnitZ()))
@@ -62,21 +63,20 @@ const StabiliserStage& gyroLoopStage() {
       "the stabiliser's gyro turned against the camera (roll, tilt, pan, deg) and sampled by a "
       "controller at rate_hz (newest sample or averaged), its command held in between",
       true,
+      false,
       {},
       {"gyro_loop"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        if (!p.gyro_loop) return;  // optional: files without it load without the stage
-        GyroLoopValues v = *p.gyro_loop;
+      stage_numerics::make<GyroLoopValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        GyroLoopValues v = valuesAs<GyroLoopValues>(own);
         stabiliser_file_fields::writeValueMap(out, "gyro_loop", fields(v));
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
-        GyroLoopValues v;
-        if (stabiliser_file_fields::readValueMap(s, "gyro_loop", fields(v))) p->gyro_loop = v;
+      [](const YAML::Node& s, StageValues& own) {
+        return stabiliser_file_fields::readValueMap(s, "gyro_loop", fields(valuesAs<GyroLoopValues>(own)));
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
         std::ostringstream why;
-        if (!p.gyro_loop) return why.str();
-        const GyroLoopValues& v = *p.gyro_loop;
+        const GyroLoopValues& v = valuesAs<GyroLoopValues>(own);
         if (!(std::abs(v.roll_deg) <= 45.0 && std::abs(v.tilt_deg) <= 45.0 && std::abs(v.pan_deg) <= 45.0))
           why << "gyro_loop: roll_deg, tilt_deg and pan_deg must be within +-45";
         else if (!(v.rate_hz > 0.0 && v.rate_hz < 1e6))
@@ -84,10 +84,8 @@ const StabiliserStage& gyroLoopStage() {
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.gyro_loop ? stage_numerics::runner<GyroLoopRunner>(p, context) : nullptr;
-      },
-      [](const StabiliserParameters& p) { return std::string(p.gyro_loop ? "gyro_loop" : ""); },
+      stage_numerics::runner<GyroLoopRunner, GyroLoopValues>,
+      [](const StageValues&) { return std::string("gyro_loop"); },
       nullptr};
   return stage;
 }

@@ -14,6 +14,7 @@
 
 #include "deep_ois/core/common/matrix_exponential.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -150,10 +151,10 @@ class HallAxis {
 
 class HallActuatorRunner final : public StabiliserStageRunner {
  public:
-  HallActuatorRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : delay_steps_(static_cast<std::size_t>(std::lround(p.hall_actuator->delay_s * (1.0 / context.step_s)))) {
-    const HallActuatorValues& v = *p.hall_actuator;
-    const TravelValues& t = *p.travel;
+  HallActuatorRunner(const HallActuatorValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+      : delay_steps_(static_cast<std::size_t>(std::lround(p.delay_s * (1.0 / context.step_s)))) {
+    const HallActuatorValues& v = p;
+    const TravelValues& t = model.get<TravelValues>();
     auto px = [&](double deg) { return context.focal_px * std::tan(deg * kDegToRad); };
     const double x_pos = px(t.x_positive_deg), x_neg = px(t.x_negative_deg);
     const double y_pos = px(t.y_positive_deg), y_neg = px(t.y_negative_deg);
@@ -199,21 +200,20 @@ const StabiliserStage& hallActuatorStage() {
       "bandwidth_hz, damping, slew limit, stiction, end stops) on a Hall reading with quadratic and "
       "cubic terms",
       true,
+      false,
       {},
       {"hall_actuator"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        if (!p.hall_actuator) return;  // optional: files without it load without the stage
-        HallActuatorValues v = *p.hall_actuator;
+      stage_numerics::make<HallActuatorValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        HallActuatorValues v = valuesAs<HallActuatorValues>(own);
         stabiliser_file_fields::writeValueMap(out, "hall_actuator", fields(v));
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
-        HallActuatorValues v;
-        if (stabiliser_file_fields::readValueMap(s, "hall_actuator", fields(v))) p->hall_actuator = v;
+      [](const YAML::Node& s, StageValues& own) {
+        return stabiliser_file_fields::readValueMap(s, "hall_actuator", fields(valuesAs<HallActuatorValues>(own)));
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel& model) {
         std::ostringstream why;
-        if (!p.hall_actuator) return why.str();
-        const HallActuatorValues& v = *p.hall_actuator;
+        const HallActuatorValues& v = valuesAs<HallActuatorValues>(own);
         if (v.order != "first" && v.order != "second")
           why << "hall_actuator.order: must be first or second (got '" << v.order << "')";
         else if (!(v.delay_s >= 0.0 && v.delay_s < 1.0 && v.bandwidth_hz > 0.0 && v.damping > 0.0 &&
@@ -222,17 +222,13 @@ const StabiliserStage& hallActuatorStage() {
                  "stiction not negative, end_stop_margin >= 1";
         else if (!(std::abs(v.hall_c2) <= 0.2 && std::abs(v.hall_c3) <= 0.3))
           why << "hall_actuator: hall_c2 within +-0.2 and hall_c3 within +-0.3 (a monotone reading)";
-        else if (!p.travel)
+        else if (!model.has("travel"))
           why << "hall_actuator: needs the travel stage (its stroke sets the end stops)";
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.hall_actuator ? stage_numerics::runner<HallActuatorRunner>(p, context) : nullptr;
-      },
-      [](const StabiliserParameters& p) {
-        return p.hall_actuator ? "hall_actuator:" + p.hall_actuator->order : std::string();
-      },
+      stage_numerics::runner<HallActuatorRunner, HallActuatorValues>,
+      [](const StageValues& own) { return "hall_actuator:" + valuesAs<HallActuatorValues>(own).order; },
       nullptr};
   return stage;
 }

@@ -11,6 +11,7 @@
 
 #include "deep_ois/core/ois/intended_motion_tracker.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -48,10 +49,10 @@ stabiliser_file_fields::ValueFields fields(IntendedMotionValues& v) {
 
 class IntendedMotionRunner final : public StabiliserStageRunner {
  public:
-  IntendedMotionRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : v_(*p.intended_motion),
-        kind_(static_cast<Kind>(kindIndex(p.intended_motion->kind))),
-        T_(stage_numerics::controlPeriod(p, context)),
+  IntendedMotionRunner(const IntendedMotionValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+      : v_(p),
+        kind_(static_cast<Kind>(kindIndex(p.kind))),
+        T_(stage_numerics::controlPeriod(model, context)),
         focal_px_(context.focal_px) {}
   void reset(StabiliserSignal& signal) override {
     theta_.setZero();
@@ -154,21 +155,20 @@ const StabiliserStage& intendedMotionStage() {
       "the angle to cancel by an estimator (highpass_first_order, highpass_second_order, "
       "velocity_loop, kalman_cv, alpha_beta) with excursion-dependent corner, and its gain per axis",
       true,
+      false,
       {},
       {"intended_motion"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        if (!p.intended_motion) return;  // optional: files without it load without the stage
-        IntendedMotionValues v = *p.intended_motion;
+      stage_numerics::make<IntendedMotionValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        IntendedMotionValues v = valuesAs<IntendedMotionValues>(own);
         stabiliser_file_fields::writeValueMap(out, "intended_motion", fields(v));
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
-        IntendedMotionValues v;
-        if (stabiliser_file_fields::readValueMap(s, "intended_motion", fields(v))) p->intended_motion = v;
+      [](const YAML::Node& s, StageValues& own) {
+        return stabiliser_file_fields::readValueMap(s, "intended_motion", fields(valuesAs<IntendedMotionValues>(own)));
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel& model) {
         std::ostringstream why;
-        if (!p.intended_motion) return why.str();
-        const IntendedMotionValues& v = *p.intended_motion;
+        const IntendedMotionValues& v = valuesAs<IntendedMotionValues>(own);
         if (kindIndex(v.kind) < 0)
           why << "intended_motion.kind: unknown '" << v.kind << "'";
         else if (!(v.corner_hz > 0.0 && v.damping > 0.0 && v.rate_corner_hz > 0.0 &&
@@ -176,17 +176,13 @@ const StabiliserStage& intendedMotionStage() {
           why << "intended_motion: corners, damping and excursion_power must be positive";
         else if (!(std::isfinite(v.gain_x) && std::isfinite(v.gain_y)))
           why << "intended_motion: gain_x and gain_y must be finite";
-        else if (!p.gyro_loop || !p.travel)
+        else if (!model.has("gyro_loop") || !model.has("travel"))
           why << "intended_motion: needs the gyro_loop and travel stages";
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.intended_motion ? stage_numerics::runner<IntendedMotionRunner>(p, context) : nullptr;
-      },
-      [](const StabiliserParameters& p) {
-        return p.intended_motion ? "intended_motion:" + p.intended_motion->kind : std::string();
-      },
+      stage_numerics::runner<IntendedMotionRunner, IntendedMotionValues>,
+      [](const StageValues& own) { return "intended_motion:" + valuesAs<IntendedMotionValues>(own).kind; },
       nullptr};
   return stage;
 }

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -18,9 +19,9 @@ namespace {
 // in between, its lens is extrapolated from its last two outputs.
 class LearnedLensDynamicsRunner final : public StabiliserStageRunner {
  public:
-  LearnedLensDynamicsRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : learned_(p.learned_dynamics),
-        runner_(p.learned_dynamics.network, p.learned_dynamics.conditioning),
+  LearnedLensDynamicsRunner(const LearnedLensDynamics& p, const StabiliserModel&, const StabiliserRunContext& context)
+      : learned_(p),
+        runner_(p.network, p.conditioning),
         focal_px_(context.focal_px) {
     const double network_step_s = learned_.network->step_s;
     every_steps_ = std::llround(network_step_s / context.step_s);
@@ -78,11 +79,14 @@ const StabiliserStage& learnedLensDynamicsStage() {
       "a recurrent network pretrained on generated stabiliser designs, conditioned on the "
       "camera's vector; its lens (focal units, through a 2 x 2 output map) is added to the chain's",
       false,
+      true,
       {},
       {"learned_dynamics"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        if (!p.learned_dynamics.active()) return;
-        const LearnedLensDynamics& learned = p.learned_dynamics;
+      stage_numerics::make<LearnedLensDynamics>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const LearnedLensDynamics& p = valuesAs<LearnedLensDynamics>(own);
+        if (!p.active()) return;
+        const LearnedLensDynamics& learned = p;
         out << YAML::Key << "learned_dynamics" << YAML::Value << YAML::BeginMap;
         out << YAML::Key << "conditioning" << YAML::Value << YAML::Flow
             << std::vector<double>(learned.conditioning.data(),
@@ -93,29 +97,32 @@ const StabiliserStage& learnedLensDynamicsStage() {
         writeLensDynamicsNetwork(out, *learned.network);
         out << YAML::EndMap;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        LearnedLensDynamics* p = &valuesAs<LearnedLensDynamics>(own);
         using stabiliser_file_fields::optional;
         using stabiliser_file_fields::required;
-        p->learned_dynamics = LearnedLensDynamics();
-        if (!s["learned_dynamics"]) return;
+        *p = LearnedLensDynamics();
+        if (!s["learned_dynamics"]) return true;
         const YAML::Node learned = s["learned_dynamics"];
         try {
-          p->learned_dynamics.network = std::make_shared<const LensDynamicsNetwork>(
+          p->network = std::make_shared<const LensDynamicsNetwork>(
               readLensDynamicsNetwork(learned["network"]));
         } catch (const LensDynamicsNetworkError& e) {
           throw StabiliserModelFileError(std::string("field 'learned_dynamics.network': ") +
                                          e.what());
         }
         const auto conditioning = required<std::vector<double>>(learned, "conditioning");
-        p->learned_dynamics.conditioning = Eigen::Map<const Eigen::VectorXd>(
+        p->conditioning = Eigen::Map<const Eigen::VectorXd>(
             conditioning.data(), static_cast<long>(conditioning.size()));
         const auto map = optional<std::vector<double>>(learned, "output_map", {1.0, 0.0, 0.0, 1.0});
         if (map.size() != 4)
           throw StabiliserModelFileError("field 'learned_dynamics.output_map' must have 4 values");
-        p->learned_dynamics.output_map << map[0], map[1], map[2], map[3];
+        p->output_map << map[0], map[1], map[2], map[3];
+        return true;
       },
-      [](const StabiliserParameters& p) {
-        const LearnedLensDynamics& learned = p.learned_dynamics;
+      [](const StageValues& own, const StabiliserModel&) {
+        const LearnedLensDynamics& p = valuesAs<LearnedLensDynamics>(own);
+        const LearnedLensDynamics& learned = p;
         if (!learned.active()) return std::string();
         std::ostringstream why;
         if (const std::string problem = learned.network->validate(); !problem.empty()) {
@@ -129,14 +136,17 @@ const StabiliserStage& learnedLensDynamicsStage() {
         }
         return why.str();
       },
-      [](StabiliserParameters* p) { p->learned_dynamics = LearnedLensDynamics(); },
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.learned_dynamics.active()
-                   ? stage_numerics::runner<LearnedLensDynamicsRunner>(p, context)
+      [](StageValues& own) {
+        LearnedLensDynamics* p = &valuesAs<LearnedLensDynamics>(own); *p = LearnedLensDynamics(); },
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        const LearnedLensDynamics& p = valuesAs<LearnedLensDynamics>(own);
+        return p.active()
+                   ? stage_numerics::runner<LearnedLensDynamicsRunner, LearnedLensDynamics>(own, model, context)
                    : nullptr;
       },
-      [](const StabiliserParameters& p) {
-        return std::string(p.learned_dynamics.active() ? "learned_lens_dynamics" : "");
+      [](const StageValues& own) {
+        const LearnedLensDynamics& p = valuesAs<LearnedLensDynamics>(own);
+        return std::string(p.active() ? "learned_lens_dynamics" : "");
       },
       nullptr};
   return stage;

@@ -7,6 +7,8 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/learned_residual.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -40,10 +42,11 @@ bool hasRateBankFeatures(const std::string& set) {
 // features alone, for its fit).
 class LearnedResidualRunner final : public StabiliserStageRunner {
  public:
-  LearnedResidualRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+  LearnedResidualRunner(const LearnedResidualValues& p, const StabiliserModel& model,
+                        const StabiliserRunContext& context)
       : residual_(p.nonlinear_residual),
         focal_px_(context.focal_px),
-        stroke_px_(stage_numerics::strokePx(p, context.focal_px)),
+        stroke_px_(strokePx(model, context.focal_px)),
         size_(nonlinearFeatureCount(p.nonlinear_features)),
         excursion_(hasExcursionFeatures(p.nonlinear_features)) {
     using stage_numerics::leakDecay;
@@ -132,9 +135,12 @@ const StabiliserStage& learnedResidualStage() {
       "adds a linear map (2 x M) of a named set of M nonlinear features of the chain's state "
       "(excursion_v1, rate_bank_v1, excursion_rate_v1) to the lens (focal units)",
       false,
+      true,
       {},
       {"nonlinear_features", "nonlinear_residual"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<LearnedResidualValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const LearnedResidualValues& p = valuesAs<LearnedResidualValues>(own);
         // Optional: files without it (every model before the learned nonlinear residual) still load.
         if (p.nonlinear_features.empty()) return;
         out << YAML::Key << "nonlinear_features" << YAML::Value << p.nonlinear_features;
@@ -144,7 +150,8 @@ const StabiliserStage& learnedResidualStage() {
             nonlinear.push_back(p.nonlinear_residual(r, c));
         out << YAML::Key << "nonlinear_residual" << YAML::Value << YAML::Flow << nonlinear;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        LearnedResidualValues* p = &valuesAs<LearnedResidualValues>(own);
         using stabiliser_file_fields::optional;
         p->nonlinear_features = optional<std::string>(s, "nonlinear_features", "");
         const auto nonlinear = optional<std::vector<double>>(s, "nonlinear_residual", {});
@@ -160,8 +167,10 @@ const StabiliserStage& learnedResidualStage() {
         for (long r = 0; r < p->nonlinear_residual.rows(); ++r)
           for (long c = 0; c < m; ++c)
             p->nonlinear_residual(r, c) = nonlinear[static_cast<std::size_t>(r * m + c)];
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const LearnedResidualValues& p = valuesAs<LearnedResidualValues>(own);
         std::ostringstream why;
         if (!p.nonlinear_features.empty() && nonlinearFeatureCount(p.nonlinear_features) == 0) {
           why << "nonlinear_features: unknown set '" << p.nonlinear_features << "' (known: "
@@ -176,16 +185,19 @@ const StabiliserStage& learnedResidualStage() {
         }
         return why.str();
       },
-      [](StabiliserParameters* p) {
+      [](StageValues& own) {
+        LearnedResidualValues* p = &valuesAs<LearnedResidualValues>(own);
         p->nonlinear_features.clear();
         p->nonlinear_residual.resize(0, 0);
       },
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        const LearnedResidualValues& p = valuesAs<LearnedResidualValues>(own);
         return p.nonlinear_features.empty()
                    ? nullptr
-                   : stage_numerics::runner<LearnedResidualRunner>(p, context);
+                   : stage_numerics::runner<LearnedResidualRunner, LearnedResidualValues>(own, model, context);
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own) {
+        const LearnedResidualValues& p = valuesAs<LearnedResidualValues>(own);
         return p.nonlinear_features.empty() ? std::string()
                                             : "learned_residual:" + p.nonlinear_features;
       },

@@ -17,6 +17,8 @@
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -27,9 +29,9 @@ namespace {
 // stroke or an actuator after it acts).
 class LinearDynamicsRunner final : public StabiliserStageRunner {
  public:
-  LinearDynamicsRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : basis_(p.linear_dynamics.basis, context.step_s),
-        coefficients_(p.linear_dynamics.coefficients),
+  LinearDynamicsRunner(const LinearDynamicsValues& p, const StabiliserModel&, const StabiliserRunContext& context)
+      : basis_(p.basis, context.step_s),
+        coefficients_(p.coefficients),
         focal_px_(context.focal_px) {}
   void reset(StabiliserSignal&) override { basis_.reset(); }
   void advance(StabiliserSignal& signal) override {
@@ -51,10 +53,13 @@ const StabiliserStage& linearDynamicsStage() {
       "adds a linear filter of free order of the three gyro axes to the raw command: 2 x 3N "
       "coefficients (focal units) of an orthonormal (Laguerre) basis of N functions per axis",
       true,
+      true,
       {},
       {"linear_dynamics"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        const LinearDynamicsValues& v = p.linear_dynamics;
+      stage_numerics::make<LinearDynamicsValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
+        const LinearDynamicsValues& v = p;
         if (!v.active()) return;  // optional: files without it load without the stage
         out << YAML::Key << "linear_dynamics" << YAML::Value << YAML::BeginMap;
         out << YAML::Key << "pole_hz" << YAML::Value << v.basis.pole_hz;
@@ -66,13 +71,14 @@ const StabiliserStage& linearDynamicsStage() {
         out << YAML::Key << "coefficients" << YAML::Value << YAML::Flow << coefficients;
         out << YAML::EndMap;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        LinearDynamicsValues* p = &valuesAs<LinearDynamicsValues>(own);
         using stabiliser_file_fields::optional;
         using stabiliser_file_fields::required;
-        p->linear_dynamics = LinearDynamicsValues();
-        if (!s["linear_dynamics"]) return;
+        *p = LinearDynamicsValues();
+        if (!s["linear_dynamics"]) return true;
         const YAML::Node node = s["linear_dynamics"];
-        LinearDynamicsValues& v = p->linear_dynamics;
+        LinearDynamicsValues& v = *p;
         v.basis.pole_hz = required<double>(node, "pole_hz");
         v.basis.second_pole_hz = optional<double>(node, "second_pole_hz", 0.0);
         v.basis.order = required<int>(node, "order");
@@ -84,9 +90,11 @@ const StabiliserStage& linearDynamicsStage() {
         v.coefficients.resize(2, n);
         for (long r = 0; r < 2; ++r)
           for (long c = 0; c < n; ++c) v.coefficients(r, c) = coefficients[static_cast<std::size_t>(r * n + c)];
+        return true;
       },
-      [](const StabiliserParameters& p) {
-        const LinearDynamicsValues& v = p.linear_dynamics;
+      [](const StageValues& own, const StabiliserModel&) {
+        const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
+        const LinearDynamicsValues& v = p;
         if (!v.active()) return std::string();
         std::ostringstream why;
         // The predictor's step is at most 1 ms in every use: a pole the basis cannot run at 1 ms is
@@ -101,12 +109,14 @@ const StabiliserStage& linearDynamicsStage() {
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.linear_dynamics.active() ? stage_numerics::runner<LinearDynamicsRunner>(p, context)
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
+        return p.active() ? stage_numerics::runner<LinearDynamicsRunner, LinearDynamicsValues>(own, model, context)
                                           : nullptr;
       },
-      [](const StabiliserParameters& p) {
-        return std::string(p.linear_dynamics.active() ? "linear_dynamics" : "");
+      [](const StageValues& own) {
+        const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
+        return std::string(p.active() ? "linear_dynamics" : "");
       },
       nullptr};
   return stage;
@@ -117,7 +127,7 @@ namespace {
 // The lens (px) at each observation's t_a and t_b for p over `recording` (NaN where the predictor
 // does not cover them, or before the warm-up), fed as the fit feeds its predictor.
 std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lensAtObservations(
-    const StabiliserParameters& p, const StabiliserFitRecording& recording,
+    const StabiliserModel& p, const StabiliserFitRecording& recording,
     const StabiliserFitOptions& options) {
   const Eigen::Vector2d nan = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lens(recording.observations.size(),
@@ -139,7 +149,7 @@ bool insideStroke(const Eigen::Vector2d& lens_px, const Eigen::Vector2d& stroke_
 
 }  // namespace
 
-StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
+StabiliserModel fitLinearDynamics(const StabiliserModel& base,
                                        const std::vector<std::string>& stages,
                                        const LinearDynamicsBasisSpec& basis,
                                        const std::vector<StabiliserFitRecording>& recordings,
@@ -151,14 +161,16 @@ StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
       throw std::invalid_argument("fitLinearDynamics: the chain around linear_dynamics must be "
                                   "linear inside the stroke (stroke, actuator), not '" + name + "'");
   const long n = 3L * basis.order;
-  StabiliserParameters model = base.physicalChain();
-  model.stages = stages;
-  model.linear_dynamics.basis = basis;
+  StabiliserModel model = base.physicalChain().only(stages);
+  model.get<LinearDynamicsValues>().basis = basis;
+  // Where the chain is linear: inside the fitted chain's stroke.
+  const StrokeValues* base_stroke = base.find<StrokeValues>();
+  const StrokeValues stroke = base_stroke ? *base_stroke : StrokeValues();
   // The chain without the stroke is linear in the coefficients: its lens for a coefficient matrix
   // with `probe` in column j of both rows is probe times the j-th regressor. The probe is small so
   // that the actuator's end stop (at the stroke) is never met.
-  StabiliserParameters probe = model;
-  probe.stages.erase(std::remove(probe.stages.begin(), probe.stages.end(), "stroke"), probe.stages.end());
+  StabiliserModel probe = model;
+  probe.remove("stroke");
   constexpr double kProbe = 1e-6;
   // Per observation (all recordings, in order): the x lens of each column at t_a and t_b.
   std::vector<const LensMotionObservation*> observations;
@@ -166,13 +178,14 @@ StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
   for (const StabiliserFitRecording& recording : recordings)
     for (const LensMotionObservation& o : recording.observations) {
       observations.push_back(&o);
-      stroke_px.push_back(stage_numerics::strokePx(model, recording.focal_px));
+      stroke_px.push_back(strokePx(stroke, recording.focal_px));
     }
   const long m = static_cast<long>(observations.size());
   Eigen::MatrixXd at_a(m, n), at_b(m, n);
   for (long j = 0; j < n; ++j) {
-    probe.linear_dynamics.coefficients = Eigen::MatrixXd::Zero(2, n);
-    probe.linear_dynamics.coefficients.col(j).setConstant(kProbe);
+    Eigen::MatrixXd& probed = probe.get<LinearDynamicsValues>().coefficients;
+    probed = Eigen::MatrixXd::Zero(2, n);
+    probed.col(j).setConstant(kProbe);
     long i = 0;
     for (const StabiliserFitRecording& recording : recordings)
       for (const auto& [a, b] : lensAtObservations(probe, recording, options)) {
@@ -209,14 +222,14 @@ StabiliserParameters fitLinearDynamics(const StabiliserParameters& base,
     const Eigen::Vector2d lens_b = coefficients * at_b.row(i).transpose();
     const double residual =
         (targets.row(r).transpose() - coefficients * states.row(r).transpose()).norm();
-    const Eigen::Vector2d& stroke = stroke_px[static_cast<std::size_t>(i)];
-    const bool linear = insideStroke(lens_a, stroke, model.circular_stroke, 0.8) &&
-                        insideStroke(lens_b, stroke, model.circular_stroke, 0.8);
+    const Eigen::Vector2d& stroke_limit = stroke_px[static_cast<std::size_t>(i)];
+    const bool linear = insideStroke(lens_a, stroke_limit, stroke.circular_stroke, 0.8) &&
+                        insideStroke(lens_b, stroke_limit, stroke.circular_stroke, 0.8);
     inside(r) *= !linear ? 0.0 : residual <= options.huber_px ? 1.0 : options.huber_px / residual;
     if (inside(r) > 0.0) ++kept;
   }
   if (kept >= 2 * n) coefficients = fitLinearDynamicsCoefficients(states, targets, inside, ridge);
-  model.linear_dynamics.coefficients = coefficients;
+  model.get<LinearDynamicsValues>().coefficients = coefficients;
   return model;
 }
 

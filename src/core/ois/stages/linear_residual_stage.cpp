@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/linear_residual.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -15,7 +16,7 @@ namespace {
 // Adds residual * (the leaky rate integrals) to the lens.
 class LinearResidualRunner final : public StabiliserStageRunner {
  public:
-  LinearResidualRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+  LinearResidualRunner(const LinearResidualValues& p, const StabiliserModel&, const StabiliserRunContext& context)
       : residual_(p.residual), focal_px_(context.focal_px) {
     for (double tau : p.residual_time_constants_s) {
       decay_.push_back(stage_numerics::leakDecay(1.0 / tau, context.step_s));
@@ -51,9 +52,12 @@ const StabiliserStage& linearResidualStage() {
       "adds a linear map (2 x 2K, unitless) of K leaky integrals of the pan/tilt rate to the lens "
       "(focal units): dynamics the chain does not name",
       false,
+      true,
       {},
       {"residual_time_constants_s", "residual"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<LinearResidualValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const LinearResidualValues& p = valuesAs<LinearResidualValues>(own);
         out << YAML::Key << "residual_time_constants_s" << YAML::Value << YAML::Flow
             << p.residual_time_constants_s;
         std::vector<double> residual;
@@ -61,7 +65,8 @@ const StabiliserStage& linearResidualStage() {
           for (long c = 0; c < p.residual.cols(); ++c) residual.push_back(p.residual(r, c));
         out << YAML::Key << "residual" << YAML::Value << YAML::Flow << residual;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        LinearResidualValues* p = &valuesAs<LinearResidualValues>(own);
         using stabiliser_file_fields::optional;
         p->residual_time_constants_s =
             optional<std::vector<double>>(s, "residual_time_constants_s", {});
@@ -74,8 +79,10 @@ const StabiliserStage& linearResidualStage() {
         for (long r = 0; r < p->residual.rows(); ++r)
           for (long c = 0; c < p->residual.cols(); ++c)
             p->residual(r, c) = residual[static_cast<std::size_t>(r * 2 * k + c)];
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const LinearResidualValues& p = valuesAs<LinearResidualValues>(own);
         std::ostringstream why;
         if (p.residual.size() != 0 &&
             (p.residual.rows() != 2 ||
@@ -93,16 +100,19 @@ const StabiliserStage& linearResidualStage() {
         }
         return why.str();
       },
-      [](StabiliserParameters* p) {
+      [](StageValues& own) {
+        LinearResidualValues* p = &valuesAs<LinearResidualValues>(own);
         p->residual_time_constants_s.clear();
         p->residual.resize(0, 0);
       },
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        const LinearResidualValues& p = valuesAs<LinearResidualValues>(own);
         return p.residual_time_constants_s.empty()
                    ? nullptr
-                   : stage_numerics::runner<LinearResidualRunner>(p, context);
+                   : stage_numerics::runner<LinearResidualRunner, LinearResidualValues>(own, model, context);
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own) {
+        const LinearResidualValues& p = valuesAs<LinearResidualValues>(own);
         return std::string(p.residual.size() != 0 ? "linear_residual" : "");
       },
       nullptr};

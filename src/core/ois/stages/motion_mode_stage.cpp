@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -29,17 +30,18 @@ stabiliser_file_fields::ValueFields fields(MotionModeValues& v) {
           {}};
 }
 
-bool acts(const StabiliserParameters& p) {
-  return p.motion_mode && (p.motion_mode->action != "none" || p.motion_mode->schedule_depth > 0.0);
+bool acts(const StageValues& own) {
+  const MotionModeValues& v = valuesAs<MotionModeValues>(own);
+  return v.action != "none" || v.schedule_depth > 0.0;
 }
 
 class MotionModeRunner final : public StabiliserStageRunner {
  public:
-  MotionModeRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : v_(*p.motion_mode),
+  MotionModeRunner(const MotionModeValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+      : v_(p),
         detects_(v_.action != "none"),
         releases_(v_.action == "release"),
-        T_(stage_numerics::controlPeriod(p, context)) {}
+        T_(stage_numerics::controlPeriod(model, context)) {}
   void reset(StabiliserSignal& signal) override {
     sustained_rate_.setZero();
     panning_ = false;
@@ -88,21 +90,20 @@ const StabiliserStage& motionModeStage() {
       "pan detection on the sustained rate that releases (corner x release_factor) or holds (gain "
       "to 0), and a gain schedule that lowers the gain with the motion",
       true,
+      false,
       {},
       {"motion_mode"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        if (!p.motion_mode) return;  // optional: files without it load without the stage
-        MotionModeValues v = *p.motion_mode;
+      stage_numerics::make<MotionModeValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        MotionModeValues v = valuesAs<MotionModeValues>(own);
         stabiliser_file_fields::writeValueMap(out, "motion_mode", fields(v));
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
-        MotionModeValues v;
-        if (stabiliser_file_fields::readValueMap(s, "motion_mode", fields(v))) p->motion_mode = v;
+      [](const YAML::Node& s, StageValues& own) {
+        return stabiliser_file_fields::readValueMap(s, "motion_mode", fields(valuesAs<MotionModeValues>(own)));
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
         std::ostringstream why;
-        if (!p.motion_mode) return why.str();
-        const MotionModeValues& v = *p.motion_mode;
+        const MotionModeValues& v = valuesAs<MotionModeValues>(own);
         if (v.action != "none" && v.action != "release" && v.action != "hold")
           why << "motion_mode.action: must be none, release or hold (got '" << v.action << "')";
         else if (!(v.threshold_rad_s > 0.0 && v.time_constant_s > 0.0 && v.release_factor >= 1.0 &&
@@ -114,10 +115,11 @@ const StabiliserStage& motionModeStage() {
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return acts(p) ? stage_numerics::runner<MotionModeRunner>(p, context) : nullptr;
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        return acts(own) ? stage_numerics::runner<MotionModeRunner, MotionModeValues>(own, model, context)
+                         : nullptr;
       },
-      [](const StabiliserParameters& p) { return std::string(acts(p) ? "motion_mode" : ""); },
+      [](const StageValues& own) { return std::string(acts(own) ? "motion_mode" : ""); },
       nullptr};
   return stage;
 }

@@ -8,16 +8,20 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/pan_detection.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
 namespace deep_ois {
 namespace {
 
+using Values = PanDetectionValues;
+bool detects(const StageValues& own) { return valuesAs<Values>(own).pan_detection_rate_rad_s > 0.0; }
+
 // Decides, before the centring runs, whether this step re-centres with the release corner.
 class PanDetectionRunner final : public StabiliserStageRunner {
  public:
-  PanDetectionRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
+  PanDetectionRunner(const Values& p, const StabiliserModel&, const StabiliserRunContext& context)
       : threshold_rad_s_(p.pan_detection_rate_rad_s),
         smoothing_(-std::expm1(-context.step_s / p.pan_detection_time_constant_s)),
         release_decay_(stage_numerics::leakDecay(2.0 * stage_numerics::kPi * p.pan_release_corner_hz,
@@ -52,24 +56,30 @@ const StabiliserStage& panDetectionStage() {
       "while the low-passed pan/tilt rate exceeds the threshold (0 = off) the angle re-centres "
       "with the release corner; below 0.7 x the threshold it holds again",
       true,
+      true,
       {{"pan_release_corner_hz", "pan release corner", "Hz", true, 0.05, 100.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.pan_release_corner_hz; },
-        [](StabiliserParameters* p, double value) { p->pan_release_corner_hz = value; },
-        [](const StabiliserParameters& p) { return p.pan_detection_rate_rad_s > 0.0; }}},
+        [](const StageValues& v) { return valuesAs<Values>(v).pan_release_corner_hz; },
+        [](StageValues& v, double value) { valuesAs<Values>(v).pan_release_corner_hz = value; },
+        detects}},
       {"pan_detection_rate_rad_s", "pan_detection_time_constant_s", "pan_release_corner_hz"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<Values>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const Values& p = valuesAs<Values>(own);
         out << YAML::Key << "pan_detection_rate_rad_s" << YAML::Value << p.pan_detection_rate_rad_s;
         out << YAML::Key << "pan_detection_time_constant_s" << YAML::Value
             << p.pan_detection_time_constant_s;
         out << YAML::Key << "pan_release_corner_hz" << YAML::Value << p.pan_release_corner_hz;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        Values* p = &valuesAs<Values>(own);
         using stabiliser_file_fields::required;
         p->pan_detection_rate_rad_s = required<double>(s, "pan_detection_rate_rad_s");
         p->pan_detection_time_constant_s = required<double>(s, "pan_detection_time_constant_s");
         p->pan_release_corner_hz = required<double>(s, "pan_release_corner_hz");
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const Values& p = valuesAs<Values>(own);
         auto positive = [](double x) { return std::isfinite(x) && x > 0.0; };
         std::ostringstream why;
         if (!std::isfinite(p.pan_detection_rate_rad_s) || p.pan_detection_rate_rad_s < 0.0) {
@@ -83,13 +93,11 @@ const StabiliserStage& panDetectionStage() {
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.pan_detection_rate_rad_s > 0.0 ? stage_numerics::runner<PanDetectionRunner>(p, context)
-                                                : nullptr;
+      [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
+        return detects(own) ? stage_numerics::runner<PanDetectionRunner, Values>(own, model, context)
+                            : nullptr;
       },
-      [](const StabiliserParameters& p) {
-        return std::string(p.pan_detection_rate_rad_s > 0.0 ? "pan_detection" : "");
-      },
+      [](const StageValues& own) { return std::string(detects(own) ? "pan_detection" : ""); },
       nullptr};
   return stage;
 }

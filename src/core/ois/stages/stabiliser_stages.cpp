@@ -2,6 +2,7 @@
 // stage is its file (src/core/ois/stages/) and one line here (docs/stabiliser_model.md, "Adding a
 // stage").
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -56,21 +57,23 @@ const StabiliserStage& stabiliserStage(const std::string& name) {
   throw std::invalid_argument("no stabiliser stage named '" + name + "' (known: " + known + ")");
 }
 
-const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& name) {
-  for (const StabiliserStage& stage : stabiliserStages())
-    for (const FittedStabiliserParameter& parameter : stage.fitted)
-      if (name == parameter.name) return parameter;
+const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& name,
+                                                           const StabiliserStage** stage) {
+  for (const StabiliserStage& each : stabiliserStages())
+    for (const FittedStabiliserParameter& parameter : each.fitted)
+      if (name == parameter.name) {
+        if (stage) *stage = &each;
+        return parameter;
+      }
   throw std::invalid_argument("no fitted stabiliser parameter named '" + name + "'");
 }
 
-namespace {
-
-// Whether the model's stage list (when it has one) names the stage.
-bool listed(const StabiliserParameters& p, const StabiliserStage& stage) {
-  return p.stages.empty() || std::find(p.stages.begin(), p.stages.end(), stage.name) != p.stages.end();
+double fittedValue(const FittedStabiliserParameter& parameter, const StabiliserModel& model) {
+  for (const StageInstance& instance : model.stages())
+    for (const FittedStabiliserParameter& each : instance.stage->fitted)
+      if (&each == &parameter) return parameter.value(*instance.values);
+  return std::numeric_limits<double>::quiet_NaN();
 }
-
-}  // namespace
 
 std::string stageOfToken(const std::string& token) { return token.substr(0, token.find(':')); }
 std::string variantOfToken(const std::string& token) {
@@ -78,22 +81,21 @@ std::string variantOfToken(const std::string& token) {
   return colon == std::string::npos ? std::string() : token.substr(colon + 1);
 }
 
-std::vector<std::string> stabiliserComposition(const StabiliserParameters& p) {
+std::vector<std::string> stabiliserComposition(const StabiliserModel& model) {
   std::vector<std::string> tokens;
-  for (const StabiliserStage& stage : stabiliserStages()) {
-    if (!listed(p, stage)) continue;
-    const std::string token = stage.token(p);
+  for (const StageInstance& instance : model.stages()) {
+    const std::string token = instance.stage->token(*instance.values);
     if (!token.empty()) tokens.push_back(token);
   }
   return tokens;
 }
 
 std::vector<std::unique_ptr<StabiliserStageRunner>> stabiliserRunners(
-    const StabiliserParameters& p, const StabiliserRunContext& context) {
+    const StabiliserModel& model, const StabiliserRunContext& context) {
   std::vector<std::unique_ptr<StabiliserStageRunner>> runners;
-  for (const StabiliserStage& stage : stabiliserStages())
-    if (listed(p, stage))
-      if (auto runner = stage.runner(p, context)) runners.push_back(std::move(runner));
+  for (const StageInstance& instance : model.stages())
+    if (auto runner = instance.stage->runner(*instance.values, model, context))
+      runners.push_back(std::move(runner));
   return runners;
 }
 

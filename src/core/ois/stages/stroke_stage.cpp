@@ -12,10 +12,23 @@
 #include <string>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/stroke.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
 namespace deep_ois {
+
+Eigen::Vector2d strokePx(const StrokeValues& stroke, double focal_px) {
+  return Eigen::Vector2d(focal_px * std::tan(stroke.stroke_x_deg * stage_numerics::kDegToRad),
+                         focal_px * std::tan(stroke.stroke_y_deg * stage_numerics::kDegToRad));
+}
+
+Eigen::Vector2d strokePx(const StabiliserModel& model, double focal_px) {
+  const StrokeValues* stroke = model.find<StrokeValues>();
+  return strokePx(stroke ? *stroke : StrokeValues(), focal_px);
+}
+
 namespace {
 
 // The command the stroke lets through: per axis for a box, radially for an ellipse; an end stop
@@ -41,19 +54,21 @@ Eigen::Vector2d limitToStroke(const Eigen::Vector2d& command, const Eigen::Vecto
 // Limits the raw command; with anti-windup holds the angle where its command meets the stroke.
 class StrokeRunner final : public StabiliserStageRunner {
  public:
-  StrokeRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : stroke_px_(stage_numerics::strokePx(p, context.focal_px)),
+  StrokeRunner(const StrokeValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+      : stroke_px_(strokePx(p, context.focal_px)),
         circular_(p.circular_stroke),
         soft_(p.soft_stroke),
         focal_px_(context.focal_px) {
     // Anti-windup needs the angle that gives a limited command, through the centring's gain: with
     // a gain that is not invertible (no lens motion, gain 0) there is none, and nothing winds up
-    // that the lens would show.
-    if (p.anti_windup) {
-      const double scale = p.gain.cwiseAbs().maxCoeff();
-      if (scale > 0.0 && std::abs(p.gain.determinant()) > 1e-6 * scale * scale) {
+    // that the lens would show; nor without a centring stage (no angle to hold).
+    const CentringValues* centring = model.find<CentringValues>();
+    if (p.anti_windup && centring) {
+      const Eigen::Matrix2d& gain = centring->gain;
+      const double scale = gain.cwiseAbs().maxCoeff();
+      if (scale > 0.0 && std::abs(gain.determinant()) > 1e-6 * scale * scale) {
         anti_windup_ = true;
-        inverse_gain_ = p.gain.inverse();
+        inverse_gain_ = gain.inverse();
       }
     }
   }
@@ -88,14 +103,17 @@ const StabiliserStage& strokeStage() {
       "it), at an end stop or softly (tanh); at an end stop the integrator winds up or is held "
       "(anti-windup)",
       true,
+      true,
       {{"stroke_x_deg", "stroke x", "deg", true, 0.02, 20.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.stroke_x_deg; },
-        [](StabiliserParameters* p, double value) { p->stroke_x_deg = value; }, nullptr},
+        [](const StageValues& v) { return valuesAs<StrokeValues>(v).stroke_x_deg; },
+        [](StageValues& v, double value) { valuesAs<StrokeValues>(v).stroke_x_deg = value; }, nullptr},
        {"stroke_y_deg", "stroke y", "deg", true, 0.02, 20.0, 1e-3,
-        [](const StabiliserParameters& p) { return p.stroke_y_deg; },
-        [](StabiliserParameters* p, double value) { p->stroke_y_deg = value; }, nullptr}},
+        [](const StageValues& v) { return valuesAs<StrokeValues>(v).stroke_y_deg; },
+        [](StageValues& v, double value) { valuesAs<StrokeValues>(v).stroke_y_deg = value; }, nullptr}},
       {"stroke_x_deg", "stroke_y_deg", "circular_stroke", "soft_stroke", "anti_windup"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
+      stage_numerics::make<StrokeValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        const StrokeValues& p = valuesAs<StrokeValues>(own);
         out << YAML::Key << "stroke_x_deg" << YAML::Value << p.stroke_x_deg;
         out << YAML::Key << "stroke_y_deg" << YAML::Value << p.stroke_y_deg;
         out << YAML::Key << "circular_stroke" << YAML::Value << p.circular_stroke;
@@ -104,7 +122,8 @@ const StabiliserStage& strokeStage() {
         if (p.soft_stroke) out << YAML::Key << "soft_stroke" << YAML::Value << p.soft_stroke;
         if (p.anti_windup) out << YAML::Key << "anti_windup" << YAML::Value << p.anti_windup;
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
+      [](const YAML::Node& s, StageValues& own) {
+        StrokeValues* p = &valuesAs<StrokeValues>(own);
         using stabiliser_file_fields::optional;
         using stabiliser_file_fields::required;
         p->stroke_x_deg = required<double>(s, "stroke_x_deg");
@@ -112,8 +131,10 @@ const StabiliserStage& strokeStage() {
         p->circular_stroke = required<bool>(s, "circular_stroke");
         p->soft_stroke = optional<bool>(s, "soft_stroke", false);
         p->anti_windup = optional<bool>(s, "anti_windup", false);
+        return true;
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
+        const StrokeValues& p = valuesAs<StrokeValues>(own);
         std::ostringstream why;
         if (!(p.stroke_x_deg > 0.0 && p.stroke_x_deg < 45.0) ||
             !(p.stroke_y_deg > 0.0 && p.stroke_y_deg < 45.0)) {
@@ -126,11 +147,13 @@ const StabiliserStage& strokeStage() {
         return why.str();
       },
       nullptr,
-      stage_numerics::runner<StrokeRunner>,
-      [](const StabiliserParameters& p) {
+      stage_numerics::runner<StrokeRunner, StrokeValues>,
+      [](const StageValues& own) {
+        const StrokeValues& p = valuesAs<StrokeValues>(own);
         return std::string(p.soft_stroke ? "stroke:soft" : p.anti_windup ? "stroke:anti_windup" : "stroke");
       },
-      [](StabiliserParameters* p, const char* variant) {
+      [](StageValues& own, const char* variant) {
+        StrokeValues* p = &valuesAs<StrokeValues>(own);
         const std::string v = variant ? variant : "";
         if (v != "" && v != "soft" && v != "anti_windup")
           throw std::invalid_argument("stroke: no variant '" + v + "' (soft, anti_windup)");

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -29,12 +30,12 @@ stabiliser_file_fields::ValueFields fields(TravelValues& v) {
 
 class TravelRunner final : public StabiliserStageRunner {
  public:
-  TravelRunner(const StabiliserParameters& p, const StabiliserRunContext& context)
-      : v_(*p.travel),
+  TravelRunner(const TravelValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+      : v_(p),
         elliptic_(v_.shape == "ellipse" || v_.shape == "soft_ellipse"),
         soft_(v_.shape == "soft_box" || v_.shape == "soft_ellipse"),
         anti_windup_(v_.anti_windup != "none") {
-    const double T = stage_numerics::controlPeriod(p, context);
+    const double T = stage_numerics::controlPeriod(model, context);
     auto px = [&](double deg) { return context.focal_px * std::tan(deg * stage_numerics::kDegToRad); };
     x_pos_ = px(v_.x_positive_deg), x_neg_ = px(v_.x_negative_deg);
     y_pos_ = px(v_.y_positive_deg), y_neg_ = px(v_.y_negative_deg);
@@ -103,21 +104,20 @@ const StabiliserStage& travelStage() {
       "intended-motion angle's anti-windup (none, clamp, back_calculation) and a DAC of "
       "quantiser_bits",
       true,
+      false,
       {},
       {"travel"},
-      [](YAML::Emitter& out, const StabiliserParameters& p) {
-        if (!p.travel) return;  // optional: files without it load without the stage
-        TravelValues v = *p.travel;
+      stage_numerics::make<TravelValues>,
+      [](YAML::Emitter& out, const StageValues& own) {
+        TravelValues v = valuesAs<TravelValues>(own);
         stabiliser_file_fields::writeValueMap(out, "travel", fields(v));
       },
-      [](const YAML::Node& s, StabiliserParameters* p) {
-        TravelValues v;
-        if (stabiliser_file_fields::readValueMap(s, "travel", fields(v))) p->travel = v;
+      [](const YAML::Node& s, StageValues& own) {
+        return stabiliser_file_fields::readValueMap(s, "travel", fields(valuesAs<TravelValues>(own)));
       },
-      [](const StabiliserParameters& p) {
+      [](const StageValues& own, const StabiliserModel&) {
         std::ostringstream why;
-        if (!p.travel) return why.str();
-        const TravelValues& v = *p.travel;
+        const TravelValues& v = valuesAs<TravelValues>(own);
         if (v.shape != "box" && v.shape != "ellipse" && v.shape != "soft_box" && v.shape != "soft_ellipse")
           why << "travel.shape: must be box, ellipse, soft_box or soft_ellipse (got '" << v.shape << "')";
         else if (v.anti_windup != "none" && v.anti_windup != "clamp" && v.anti_windup != "back_calculation")
@@ -131,10 +131,8 @@ const StabiliserStage& travelStage() {
         return why.str();
       },
       nullptr,
-      [](const StabiliserParameters& p, const StabiliserRunContext& context) {
-        return p.travel ? stage_numerics::runner<TravelRunner>(p, context) : nullptr;
-      },
-      [](const StabiliserParameters& p) { return p.travel ? "travel:" + p.travel->shape : std::string(); },
+      stage_numerics::runner<TravelRunner, TravelValues>,
+      [](const StageValues& own) { return "travel:" + valuesAs<TravelValues>(own).shape; },
       nullptr};
   return stage;
 }
