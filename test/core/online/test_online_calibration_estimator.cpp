@@ -196,6 +196,34 @@ TEST(OnlineCalibrationEstimator, TracksADriftingOffset) {
   // held and the offset refined on its own; 0.35 ms now).
   EXPECT_LT(worst_in_use_ms, 0.5);
   EXPECT_GT(estimator.status().refinements, 0u);
+  // The calibration in use carries the drift (50 us/s): a frame a second later gets that much more
+  // offset, and a stamp on another timeline (time went back by more than a second) the offset at
+  // the reference.
+  const CameraImuCalibration& in_use = estimator.status().in_use;
+  std::cout << "[ measured ] drift rate in use " << in_use.time_offset_rate * 1e6 << " us/s (true 50)\n";
+  EXPECT_NEAR(in_use.time_offset_rate, 50e-6, 25e-6);
+  const double reference_s = in_use.time_offset_reference_s;
+  EXPECT_DOUBLE_EQ(in_use.timeOffsetAt(reference_s), in_use.time_offset_s);
+  EXPECT_NEAR(in_use.timeOffsetAt(reference_s + 1.0) - in_use.time_offset_s, in_use.time_offset_rate, 1e-12);
+  EXPECT_NEAR(in_use.timeOffsetAt(reference_s - 0.5) - in_use.time_offset_s, -0.5 * in_use.time_offset_rate, 1e-12);
+  EXPECT_EQ(in_use.timeOffsetAt(reference_s - 30.0), in_use.time_offset_s);
+  EXPECT_EQ(in_use.heldAt(reference_s + 2.0).time_offset_rate, 0.0);
+}
+
+TEST(OnlineCalibrationEstimator, AConstantOffsetIsAppliedWhenTheRateIsNot) {
+  sim::SyntheticTrackOptions options;
+  options.duration_s = 20.0;
+  options.seed = 4;
+  options.extra_offset_s = [](double t) { return 3e-3 * t / 60.0; };
+  const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(false), options);
+  OnlineCalibrationOptions online = unbudgeted();
+  online.estimate_rotation = false;
+  online.apply_drift_rate = false;
+  OnlineCalibrationEstimator estimator(online, recording.camera, truthAt(recording, 0.0));
+  replay(recording, estimator);
+  EXPECT_GT(estimator.status().swaps, 0u);
+  EXPECT_EQ(estimator.status().in_use.time_offset_rate, 0.0);
+  EXPECT_EQ(estimator.status().estimate.time_offset_rate, 0.0);
 }
 
 TEST(OnlineCalibrationEstimator, ReconvergesAfterATenMillisecondJump) {
