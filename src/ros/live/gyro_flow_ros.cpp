@@ -508,6 +508,12 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
   // frame), as a drifting clock does; a consumer sees a continuous offset, not a jump.
   config.time_offset_s = timeOffsetOnLine(config.time_offset_s, params_.time_offset_rate,
                                          params_.time_offset_reference_s, frame.stamp.toSec());
+  // Each move of a drifting offset is a calibration change for a consumer keeping state along the
+  // stream: frame a of this pair is frame b of the last one, now at an IMU time moved by the
+  // drift (microseconds). Without a new epoch a negative rate reads as time going back by that
+  // much, and the compensation restarted its model on every pair (the drifting-clock soak).
+  if (params_.time_offset_rate != 0.0 && config.time_offset_s != last_pair_time_offset_s_) ++calibration_epoch_;
+  last_pair_time_offset_s_ = config.time_offset_s;
   // The pair for the frame-pair processor: its first step (the gyro's motion) runs here, alone,
   // because the pair may have to wait for IMU data and then for the lens log between the steps.
   FramePair pair;
