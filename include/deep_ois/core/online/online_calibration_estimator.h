@@ -112,7 +112,11 @@ struct OnlineCalibrationOptions {
   // time_offset_rate): the offset applied to a frame is the line at its stamp, so a drifting clock
   // is followed between swaps instead of being left behind until the next one. false: a constant
   // offset, carried ahead by the rate when it is applied (half an interval ahead of the drift).
-  bool apply_drift_rate = true;
+  // Off by default: the gyro flow then gives every frame another offset (a new calibration epoch a
+  // frame), and the online stabiliser learner, whose windows are runs of pairs under one timing,
+  // never closes a window: in a 30-minute soak with it on the learner never fitted
+  // (docs/results/reliability.md). On until windows tolerate an offset moving along a line.
+  bool apply_drift_rate = false;
   // The offset and the readout slide together along a ridge in a window of a few seconds (a
   // later readout and an earlier offset explain the same tracks; about -0.7 ms of offset per ms
   // of readout on the benchmark cameras), so a window measuring both measures the offset ~2x
