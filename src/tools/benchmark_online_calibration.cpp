@@ -177,6 +177,7 @@ int g_max_pairs_per_window = deep_ois::OnlineCalibrationOptions().max_pairs_per_
 double g_jump_window_s = deep_ois::OnlineCalibrationOptions().jump_window_s;
 deep_ois::ClockModelOptions g_clock = deep_ois::OnlineCalibrationOptions().clock;
 double g_refine_offset_s = deep_ois::OnlineCalibrationOptions().refine_offset_s;
+bool g_apply_drift_rate = deep_ois::OnlineCalibrationOptions().apply_drift_rate;
 
 deep_ois::OnlineCalibrationOptions onlineOptions(bool ois, bool mount_known) {
   deep_ois::OnlineCalibrationOptions options;
@@ -186,6 +187,7 @@ deep_ois::OnlineCalibrationOptions onlineOptions(bool ois, bool mount_known) {
   options.jump_window_s = std::min(g_jump_window_s, options.window_s);
   options.clock = g_clock;
   options.refine_offset_s = g_refine_offset_s;
+  options.apply_drift_rate = g_apply_drift_rate;
   options.lens_shift = ois ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
   options.estimate_rotation = !mount_known;
   return options;
@@ -219,12 +221,13 @@ void wrongStartScenario(const std::string& label, const deep_ois::sim::Synthetic
     const CameraImuCalibration truth = truthAt(recording, pair.stamp_b_s);
     probe.after(estimator.status(), pair.stamp_b_s, truth.time_offset_s, 10.0, recording.time_offset_s);
     if (pair.stamp_b_s <= 30.0) {
-      const CameraImuCalibration& in_use = estimator.status().in_use;
+      const CameraImuCalibration in_use = estimator.status().in_use.heldAt(pair.stamp_b_s);
       met_at_30 = std::abs(in_use.time_offset_s - truth.time_offset_s) <= 0.5e-3 &&
                   std::abs(in_use.readout_time_s - truth.readout_time_s) <= 1e-3;
     }
     // Each pair is aligned with the calibration in use when it arrives, as the pipeline would.
-    const std::vector<std::vector<double>> r = pairResiduals(recording, pair, {start, estimator.status().in_use, truth});
+    const std::vector<std::vector<double>> r =
+        pairResiduals(recording, pair, {start, estimator.status().in_use.heldAt(pair.stamp_a_s), truth});
     if (r[0].size() == r[1].size() && r[1].size() == r[2].size()) {
       for (std::size_t k = 0; k < r[0].size(); ++k) {
         if (std::min({r[0][k], r[1][k], r[2][k]}) > 2.0) continue;  // an outlier for all three
@@ -236,7 +239,7 @@ void wrongStartScenario(const std::string& label, const deep_ois::sim::Synthetic
       const double s = sums[0] / tracks, o = sums[1] / tracks, t = sums[2] / tracks;
       last_window_vs_true = o / t - 1.0;
       std::printf("| %.0f-%.0f | %s | %.4f / %.4f / %.4f | %.1f %% | %+.1f %% |\n", window_end_s - window_s,
-                  window_end_s, errors(estimator.status().in_use, truth).c_str(), s, o, t,
+                  window_end_s, errors(estimator.status().in_use.heldAt(pair.stamp_b_s), truth).c_str(), s, o, t,
                   100.0 * (s - o) / (s - t), 100.0 * (o / t - 1.0));
       sums[0] = sums[1] = sums[2] = 0.0;
       tracks = 0;
@@ -320,6 +323,10 @@ int main(int argc, char** argv) {
   for (const auto& [flag, value, description] : clock_flags) {
     command_line.addNumber(flag, *value, description)->check(deep_ois::atLeast(0.0));
   }
+  app.add_option("--apply-drift-rate", g_apply_drift_rate,
+                 "the calibration in use carries the clock model's drift rate (true) or is a constant offset "
+                 "carried ahead when applied (false) (apply_drift_rate)")
+      ->capture_default_str();
   app.add_flag("--trace", g_trace, "drift and jump: one line per calibration window (its error, the estimate's, the "
                "calibration in use's, the drift rate, the innovation) and one per applied calibration");
   command_line.addNumber("--seed", seed, "the first recording's seed (+1 per camera)");
@@ -394,10 +401,11 @@ int main(int argc, char** argv) {
                             "err %+.3f ms | rate %+.1f us/s, innovation %+.2f sigma\n",
                             t, now.window_stamp_s, (now.window_offset_s - recording.time_offset_s(now.window_stamp_s)) * 1e3,
                             now.window_offset_sigma_s * 1e3, (now.estimate.time_offset_s - truth_s) * 1e3,
-                            now.estimate.time_offset_sigma_s * 1e3, (now.in_use.time_offset_s - truth_s) * 1e3,
+                            now.estimate.time_offset_sigma_s * 1e3, (now.in_use.timeOffsetAt(t) - truth_s) * 1e3,
                             estimator.clockModel().rate() * 1e6, estimator.clockModel().lastNormalisedInnovation());
               }
-              const double in_use_ms = std::abs(estimator.status().in_use.time_offset_s - truth_s) * 1e3;
+              // The calibration in use as a frame at t gets it (its line at t when it drifts).
+              const double in_use_ms = std::abs(estimator.status().in_use.timeOffsetAt(t) - truth_s) * 1e3;
               const deep_ois::ClockOffsetFilter& clock = estimator.clockModel();
               if (now.windows_measured != windows_before && clock.initialised() && t >= 10.0) {
                 const double innovation = clock.lastNormalisedInnovation();
@@ -408,7 +416,7 @@ int main(int argc, char** argv) {
               }
               if (drift && t >= 10.0 && clock.initialised()) {
                 const double line_ms = (clock.offsetAt(t) - truth_s) * 1e3;
-                const double lag_ms = (estimator.status().in_use.time_offset_s - clock.offsetAt(t)) * 1e3;
+                const double lag_ms = (estimator.status().in_use.timeOffsetAt(t) - clock.offsetAt(t)) * 1e3;
                 worst_line_ms = std::max(worst_line_ms, std::abs(line_ms));
                 worst_lag_ms = std::max(worst_lag_ms, std::abs(lag_ms));
                 if (in_use_ms > worst_in_use_ms) {
@@ -423,7 +431,8 @@ int main(int argc, char** argv) {
                 version_seen = now.version;
                 last_swap_s = t;
                 if (g_trace)
-                  std::printf("  t %6.2f  applied: in use err %+.3f ms\n", t, (now.in_use.time_offset_s - truth_s) * 1e3);
+                  std::printf("  t %6.2f  applied: in use err %+.3f ms, rate %+.1f us/s\n", t,
+                              (now.in_use.timeOffsetAt(t) - truth_s) * 1e3, now.in_use.time_offset_rate * 1e6);
               }
               if (drift && t >= 10.0) {
                 worst_estimate_ms =

@@ -118,6 +118,9 @@ OnlineCalibrationSession::Outcome OnlineCalibrationSession::addPair(const Online
     std::ostringstream said;
     said << "online calibration applied (version " << applied_version_ << "): time offset "
          << millis(status.in_use.time_offset_s) << " +- " << millis(status.in_use.time_offset_sigma_s)
+         << (status.in_use.time_offset_rate != 0.0
+                 ? " drifting " + std::to_string(1e6 * status.in_use.time_offset_rate) + " us/s"
+                 : std::string())
          << ", readout " << millis(status.in_use.readout_time_s) << " +- "
          << millis(status.in_use.readout_time_sigma_s) << "; " << status.last_reason
          << "; on trial until the per-pair check confirms it on " << confirm_pairs_ << " pairs";

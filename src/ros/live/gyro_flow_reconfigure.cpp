@@ -98,6 +98,8 @@ GyroFlowConfig toGyroFlowConfig(const GyroFlowParameters& params) {
 
 void applyOnlineCalibration(const OnlineCalibration& msg, GyroFlowParameters& params) {
   params.rolling_shutter.time_offset_s = msg.time_offset;
+  params.time_offset_rate = msg.time_offset_rate;
+  params.time_offset_reference_s = msg.time_offset_reference.toSec();
   params.rolling_shutter.readout_time_s = msg.readout_time;
   params.integration.gyro_bias_rad_s = Eigen::Vector3d(msg.gyro_bias[0], msg.gyro_bias[1], msg.gyro_bias[2]);
   if (msg.mount_estimated) {
@@ -127,6 +129,8 @@ void GyroFlowReconfigure::callback(GyroFlowConfig& config, uint32_t) {
   }
   const RollingShutterConfig& a = updated.rolling_shutter;
   const RollingShutterConfig& b = current_.rolling_shutter;
+  // An offset set by hand is constant: the online calibration's drift goes with the offset it came with.
+  if (a.time_offset_s != b.time_offset_s) updated.time_offset_rate = updated.time_offset_reference_s = 0.0;
   const bool changed = a.time_offset_s != b.time_offset_s || a.readout_time_s != b.readout_time_s ||
                        a.patch_time != b.patch_time || updated.color_max_flow_px != current_.color_max_flow_px ||
                        updated.imu_wait_timeout_s != current_.imu_wait_timeout_s ||
@@ -154,6 +158,9 @@ std::string GyroFlowReconfigure::set(const GyroFlowParameters& wanted) {
   GyroFlowParameters updated = current_;
   const std::string problem = applyGyroFlowConfig(config, updated);
   if (!problem.empty()) return problem;
+  // Not a reconfigure parameter: the online calibration's drift comes with its offset.
+  updated.time_offset_rate = wanted.time_offset_rate;
+  updated.time_offset_reference_s = wanted.time_offset_reference_s;
   current_ = updated;
   server_.updateConfig(config);  // published on ~parameter_updates: dynparam get shows it
   apply_(current_);

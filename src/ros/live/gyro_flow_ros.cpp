@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 #include <boost/make_shared.hpp>
 
+#include "deep_ois/core/calibration/camera_imu_calibration.h"
 #include "deep_ois/core/flow/flow_color.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
 #include "deep_ois/core/ois/lens_shift_homographies.h"
@@ -38,7 +39,8 @@ void showCalibration(LiveDiagnostics& diagnostics, const GyroFlowParameters& par
 // Whether the calibration a flow is made with differs: timing, mount (or its source) or gyro bias.
 bool calibrationDiffers(const GyroFlowParameters& a, const GyroFlowParameters& b) {
   const RollingShutterConfig &x = a.rolling_shutter, &y = b.rolling_shutter;
-  return x.time_offset_s != y.time_offset_s || x.readout_time_s != y.readout_time_s ||
+  return x.time_offset_s != y.time_offset_s || a.time_offset_rate != b.time_offset_rate ||
+         a.time_offset_reference_s != b.time_offset_reference_s || x.readout_time_s != y.readout_time_s ||
          x.patch_count != y.patch_count || x.patch_time != y.patch_time ||
          a.rotation_from_tf != b.rotation_from_tf ||
          (!a.rotation_from_tf && x.imu_to_camera_rotation != y.imu_to_camera_rotation) ||
@@ -120,6 +122,8 @@ void GyroFlowRos::onlineCalibrationCallback(const OnlineCalibrationConstPtr& msg
     // the next version; a restarted compensation (its versions from 0 again) differs in values.
     if (calibration_applied_ && calibration_applied_->version == msg->version &&
         calibration_applied_->time_offset == msg->time_offset &&
+        calibration_applied_->time_offset_rate == msg->time_offset_rate &&
+        calibration_applied_->time_offset_reference == msg->time_offset_reference &&
         calibration_applied_->readout_time == msg->readout_time && calibration_applied_->gyro_bias == msg->gyro_bias &&
         calibration_applied_->imu_to_camera_rotation == msg->imu_to_camera_rotation)
       return;
@@ -146,9 +150,11 @@ void GyroFlowRos::onlineCalibrationCallback(const OnlineCalibrationConstPtr& msg
       return;
     }
     calibration_applied_ = msg;
-    ROS_INFO_NAMED("gyro_flow", "%s: following the online calibration (version %u, %s): time offset %.3f ms, readout "
-                   "%.3f ms, gyro bias (%.5f, %.5f, %.5f) rad/s%s", log_name_.c_str(), msg->version,
-                   msg->confirmation.c_str(), 1e3 * msg->time_offset, 1e3 * msg->readout_time, msg->gyro_bias[0],
+    ROS_INFO_NAMED("gyro_flow", "%s: following the online calibration (version %u, %s): time offset %.3f ms "
+                   "(drifting %.2f us/s), readout %.3f ms, gyro bias (%.5f, %.5f, %.5f) rad/s%s", log_name_.c_str(),
+                   msg->version,
+                   msg->confirmation.c_str(), 1e3 * msg->time_offset, 1e6 * msg->time_offset_rate,
+                   1e3 * msg->readout_time, msg->gyro_bias[0],
                    msg->gyro_bias[1], msg->gyro_bias[2], msg->mount_estimated ? ", mount estimated" : "");
   } catch (const std::exception& e) {
     ROS_WARN_THROTTLE_NAMED(kWarnPeriodS, "gyro_flow", "%s: the online calibration on %s could not be applied: %s",
@@ -497,6 +503,17 @@ GyroFlowRos::Outcome GyroFlowRos::processFrame(const Frame& frame) {
 
   RollingShutterConfig config = params_.rolling_shutter;
   config.imu_to_camera_rotation = *rotation;
+  // A drifting clock (the online calibration's line): the offset at frame b, so that it follows the
+  // drift between calibrations. Within an epoch it changes by the drift alone (microseconds a
+  // frame), as a drifting clock does; a consumer sees a continuous offset, not a jump.
+  config.time_offset_s = timeOffsetOnLine(config.time_offset_s, params_.time_offset_rate,
+                                         params_.time_offset_reference_s, frame.stamp.toSec());
+  // Each move of a drifting offset is a calibration change for a consumer keeping state along the
+  // stream: frame a of this pair is frame b of the last one, now at an IMU time moved by the
+  // drift (microseconds). Without a new epoch a negative rate reads as time going back by that
+  // much, and the compensation restarted its model on every pair (the drifting-clock soak).
+  if (params_.time_offset_rate != 0.0 && config.time_offset_s != last_pair_time_offset_s_) ++calibration_epoch_;
+  last_pair_time_offset_s_ = config.time_offset_s;
   // The pair for the frame-pair processor: its first step (the gyro's motion) runs here, alone,
   // because the pair may have to wait for IMU data and then for the lens log between the steps.
   FramePair pair;

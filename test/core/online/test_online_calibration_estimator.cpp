@@ -105,7 +105,7 @@ TEST(OnlineCalibrationEstimator, ConvergesFromAWrongStartWithoutOis) {
     const CameraImuCalibration& in_use = estimator.status().in_use;
     // Issue 33's target is 0.5 ms / 1 ms after 30 s; the 3 s windows carry a bias of about -0.3 ms
     // on these tracks (within their 1-sigma), so the calibration in use may end a little beyond it.
-    const bool close = std::abs(in_use.time_offset_s - truth.time_offset_s) < 0.75e-3 &&
+    const bool close = std::abs(in_use.timeOffsetAt(t) - truth.time_offset_s) < 0.75e-3 &&
                        std::abs(in_use.readout_time_s - truth.readout_time_s) < 1e-3;
     if (close && converged_at_s < 0.0) converged_at_s = t;
     if (!close) converged_at_s = -1.0;
@@ -178,13 +178,15 @@ TEST(OnlineCalibrationEstimator, TracksADriftingOffset) {
   const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(false), options);
   OnlineCalibrationOptions online = unbudgeted();
   online.estimate_rotation = false;
+  online.apply_drift_rate = true;  // off by default in the live pipeline (the header says why)
   OnlineCalibrationEstimator estimator(online, recording.camera, truthAt(recording, 0.0));
   double worst_estimate_ms = 0.0, worst_in_use_ms = 0.0;
   replay(recording, estimator, [&](double t) {
     if (t < 10.0) return;
     const double truth_s = recording.time_offset_s(t);
     worst_estimate_ms = std::max(worst_estimate_ms, std::abs(estimator.status().estimate.time_offset_s - truth_s) * 1e3);
-    worst_in_use_ms = std::max(worst_in_use_ms, std::abs(estimator.status().in_use.time_offset_s - truth_s) * 1e3);
+    // As a frame at t gets it: the line at t (the calibration in use carries the drift rate).
+    worst_in_use_ms = std::max(worst_in_use_ms, std::abs(estimator.status().in_use.timeOffsetAt(t) - truth_s) * 1e3);
   });
   say("drift 3 ms/min, 40 s (truth at the end)", estimator.status(), truthAt(recording, 40.0));
   std::cout << "[ measured ] after 10 s: worst estimate error " << worst_estimate_ms << " ms, in use "
@@ -195,6 +197,34 @@ TEST(OnlineCalibrationEstimator, TracksADriftingOffset) {
   // held and the offset refined on its own; 0.35 ms now).
   EXPECT_LT(worst_in_use_ms, 0.5);
   EXPECT_GT(estimator.status().refinements, 0u);
+  // The calibration in use carries the drift (50 us/s): a frame a second later gets that much more
+  // offset, and a stamp on another timeline (time went back by more than a second) the offset at
+  // the reference.
+  const CameraImuCalibration& in_use = estimator.status().in_use;
+  std::cout << "[ measured ] drift rate in use " << in_use.time_offset_rate * 1e6 << " us/s (true 50)\n";
+  EXPECT_NEAR(in_use.time_offset_rate, 50e-6, 25e-6);
+  const double reference_s = in_use.time_offset_reference_s;
+  EXPECT_DOUBLE_EQ(in_use.timeOffsetAt(reference_s), in_use.time_offset_s);
+  EXPECT_NEAR(in_use.timeOffsetAt(reference_s + 1.0) - in_use.time_offset_s, in_use.time_offset_rate, 1e-12);
+  EXPECT_NEAR(in_use.timeOffsetAt(reference_s - 0.5) - in_use.time_offset_s, -0.5 * in_use.time_offset_rate, 1e-12);
+  EXPECT_EQ(in_use.timeOffsetAt(reference_s - 30.0), in_use.time_offset_s);
+  EXPECT_EQ(in_use.heldAt(reference_s + 2.0).time_offset_rate, 0.0);
+}
+
+TEST(OnlineCalibrationEstimator, AConstantOffsetIsAppliedWhenTheRateIsNot) {
+  sim::SyntheticTrackOptions options;
+  options.duration_s = 20.0;
+  options.seed = 4;
+  options.extra_offset_s = [](double t) { return 3e-3 * t / 60.0; };
+  const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(false), options);
+  OnlineCalibrationOptions online = unbudgeted();
+  online.estimate_rotation = false;
+  online.apply_drift_rate = false;
+  OnlineCalibrationEstimator estimator(online, recording.camera, truthAt(recording, 0.0));
+  replay(recording, estimator);
+  EXPECT_GT(estimator.status().swaps, 0u);
+  EXPECT_EQ(estimator.status().in_use.time_offset_rate, 0.0);
+  EXPECT_EQ(estimator.status().estimate.time_offset_rate, 0.0);
 }
 
 TEST(OnlineCalibrationEstimator, ReconvergesAfterATenMillisecondJump) {
@@ -210,7 +240,7 @@ TEST(OnlineCalibrationEstimator, ReconvergesAfterATenMillisecondJump) {
   double back_at_s = -1.0;
   replay(recording, estimator, [&](double t) {
     if (t < kJumpS) return;
-    const bool close = std::abs(estimator.status().in_use.time_offset_s - recording.time_offset_s(t)) < 0.5e-3;
+    const bool close = std::abs(estimator.status().in_use.timeOffsetAt(t) - recording.time_offset_s(t)) < 0.5e-3;
     if (close && back_at_s < 0.0) back_at_s = t;
     if (!close) back_at_s = -1.0;
   });

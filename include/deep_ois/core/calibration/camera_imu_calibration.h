@@ -178,8 +178,35 @@ struct CalibrationOptions {
   std::string validate() const;
 };
 
+// A drifting clock's time offset at camera stamp t: offset_s + rate * (t - reference_s) (seconds;
+// rate in s/s). A stamp more than kOtherTimelineS before the reference is on another timeline (time
+// went back: a bag loop, a restarted clock), where the line says nothing: the offset at the reference.
+constexpr double kOtherTimelineS = 1.0;
+inline double timeOffsetOnLine(double offset_s, double rate, double reference_s, double camera_stamp_s) {
+  if (rate == 0.0 || camera_stamp_s < reference_s - kOtherTimelineS) return offset_s;
+  return offset_s + rate * (camera_stamp_s - reference_s);
+}
+
 struct CameraImuCalibration {
   double time_offset_s = 0.0;
+  // A drifting clock (the online calibration's line): the offset at camera stamp t is
+  // timeOffsetOnLine(time_offset_s, time_offset_rate, time_offset_reference_s, t). Rate 0 (the
+  // offline calibration's, and the default) is a constant offset; use timeOffsetAt() wherever a
+  // stamp is known.
+  double time_offset_rate = 0.0;          // s/s
+  double time_offset_reference_s = 0.0;   // camera clock, seconds
+  double timeOffsetAt(double camera_stamp_s) const {
+    return timeOffsetOnLine(time_offset_s, time_offset_rate, time_offset_reference_s, camera_stamp_s);
+  }
+  // This calibration with its offset at camera_stamp_s held constant (for code that takes one offset:
+  // a pair, a few frames).
+  CameraImuCalibration heldAt(double camera_stamp_s) const {
+    CameraImuCalibration held = *this;
+    held.time_offset_s = timeOffsetAt(camera_stamp_s);
+    held.time_offset_rate = 0.0;
+    held.time_offset_reference_s = camera_stamp_s;
+    return held;
+  }
   double readout_time_s = 0.0;
   Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();               // IMU frame
   Eigen::Matrix3d imu_to_camera_rotation = Eigen::Matrix3d::Identity();  // R_cam_imu

@@ -27,6 +27,8 @@
 //    used, and the small rotation about the permutation is fused like the other quantities.
 //  - Each swap remembers the state before the fit that offered it: when the caller's per-pair
 //    check undoes the swap, rewindBeforeSwap() returns the estimator there.
+//  - The calibration in use is a line too (apply_drift_rate): its offset, its drift rate and the
+//    camera stamp where the offset holds; whoever applies it takes the line at each frame.
 //  - A candidate (the filtered estimate after a fit) waits for `held_out_s` of pairs after its
 //    window and is scored there against the calibration in use: the mean track residual over the
 //    tracks that either explains (within `outlier_px`). It replaces the calibration in use only when
@@ -106,6 +108,15 @@ struct OnlineCalibrationOptions {
   // refinement when not worse, however wide the estimate's interval: a drift of 3 ms a minute
   // leaves a 2-sigma interval of ~0.3 ms in about 12 s. 0 = the sigma rule alone.
   double refine_offset_s = 0.15e-3;
+  // The calibration in use carries the clock model's drift rate (CameraImuCalibration::
+  // time_offset_rate): the offset applied to a frame is the line at its stamp, so a drifting clock
+  // is followed between swaps instead of being left behind until the next one. false: a constant
+  // offset, carried ahead by the rate when it is applied (half an interval ahead of the drift).
+  // Off by default: the gyro flow then gives every frame another offset (a new calibration epoch a
+  // frame), and the online stabiliser learner, whose windows are runs of pairs under one timing,
+  // never closes a window: in a 30-minute soak with it on the learner never fitted
+  // (docs/results/reliability.md). On until windows tolerate an offset moving along a line.
+  bool apply_drift_rate = false;
   // The offset and the readout slide together along a ridge in a window of a few seconds (a
   // later readout and an earlier offset explain the same tracks; about -0.7 ms of offset per ms
   // of readout on the benchmark cameras), so a window measuring both measures the offset ~2x
@@ -190,7 +201,8 @@ class OnlineCalibrationEstimator {
   const ClockOffsetFilter& clockModel() const { return clock_; }
 
   // The held-out score: mean |x_b - predicted| over the tracks of `pairs` that either calibration
-  // explains within outlier_px, for both (pixels); NaN when no pair is covered by the gyro.
+  // explains within outlier_px, for both (pixels); NaN when no pair is covered by the gyro. A
+  // drifting calibration (time_offset_rate) is taken with its offset at each pair.
   void scorePair(const std::vector<OnlineCalibrationPair>& pairs, const CameraImuCalibration& a,
                  const CameraImuCalibration& b, double* a_px, double* b_px, int* tracks) const;
 

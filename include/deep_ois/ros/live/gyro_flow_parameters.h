@@ -25,6 +25,12 @@ struct GyroFlowParameters {
   // online_calibration, deep_ois/OnlineCalibration) through the dynamic_reconfigure server: time
   // offset, readout, gyro bias, and the mount when the compensation estimates it.
   bool follow_online_calibration = true;
+  // The online calibration's clock drift: a pair is made with the offset
+  // rolling_shutter.time_offset_s + time_offset_rate * (frame b's stamp - time_offset_reference_s).
+  // Only the online calibration sets a rate; an offset set by hand (parameter, reconfigure) is
+  // constant (rate 0).
+  double time_offset_rate = 0.0;          // s/s
+  double time_offset_reference_s = 0.0;  // camera clock (the frames' ROS stamps), seconds
 
   std::string camera_frame_id;  // overrides the image's frame_id when not empty
   std::string imu_frame_id;     // overrides the Imu message's frame_id when not empty

@@ -167,6 +167,7 @@ class GyroFlowRos {
   std::size_t flows_published_ = 0;
   // GyroFlow.calibration_epoch: +1 per change of the calibration in use (reconfigure or online).
   std::uint32_t calibration_epoch_ = 0;
+  double last_pair_time_offset_s_ = 0.0;  // the offset the last pair was made with (a drifting one moves)
   std::size_t imu_in_window_ = 0, frames_in_window_ = 0, flows_in_window_ = 0;
   std::string window_problem_;          // the latest reason a pair gave no flow in the window
   bool input_stopped_reported_ = false;  // said once when the input stops, until it resumes
