@@ -213,8 +213,8 @@ TEST(LensDynamics, AdaptationRecoversTheCamerasConditioningAndMap) {
   adaptation.prior_weight_px2 = 1e-6;
   const LensDynamicsAdaptation adapted = adaptLensDynamics(net, recordings, options, adaptation);
   std::printf("[ figures  ] adaptation with map: rms %.5f -> %.3e px, conditioning (%.4f, %.4f), map(0,0) %.4f, %d passes\n",
-              adapted.rms_start_px, adapted.rms_px, adapted.parameters.learned_dynamics.conditioning(0),
-              adapted.parameters.learned_dynamics.conditioning(1), adapted.parameters.learned_dynamics.output_map(0, 0),
+              adapted.rms_start_px, adapted.rms_px, adapted.parameters.get<LearnedLensDynamics>().conditioning(0),
+              adapted.parameters.get<LearnedLensDynamics>().conditioning(1), adapted.parameters.get<LearnedLensDynamics>().output_map(0, 0),
               adapted.passes);
   EXPECT_GT(adapted.rms_start_px, 0.05) << "the default conditioning must be wrong for this test";
   EXPECT_LT(adapted.rms_px, 0.01 * adapted.rms_start_px);
