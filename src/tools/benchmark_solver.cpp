@@ -23,21 +23,6 @@ namespace {
 using deep_ois::StabiliserFitRecording;
 namespace sim = deep_ois::sim;
 
-// The solver's cost on `recordings`: 1/2 sum of Huber(|predicted - observed|^2), Ceres' convention.
-double huberCost(const deep_ois::StabiliserModel& p, const std::vector<StabiliserFitRecording>& recordings,
-                 const deep_ois::StabiliserFitOptions& options) {
-  const deep_ois::RobustLoss loss = deep_ois::RobustLoss::huber(options.huber_px);
-  double cost = 0.0;
-  for (const StabiliserFitRecording& r : recordings) {
-    const auto predicted = deep_ois::predictLensMotion(p, r, options.step_s, options.warm_up_s);
-    for (std::size_t i = 0; i < predicted.size(); ++i) {
-      if (!predicted[i].allFinite()) continue;
-      cost += 0.5 * loss.rho(r.observations[i].weight * (predicted[i] - r.observations[i].motion_px).squaredNorm());
-    }
-  }
-  return cost;
-}
-
 double cpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
 }  // namespace
@@ -100,7 +85,7 @@ int main(int argc, char** argv) {
         const double started = cpuSeconds();
         const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser(training, options);
         const double cpu = cpuSeconds() - started;
-        cost[e] = huberCost(fit.parameters, training, options);
+        cost[e] = deep_ois::stabiliserFitCost(fit.parameters, training, options);
         const double eval_px = deep_ois::scoreStabiliser(fit.parameters, evaluation, options).rms_px;
         std::printf(" | %-5s %10.4f %8.4f %5zu %6.2f", "", cost[e], eval_px, fit.rms_history.size(), cpu);
         cpu_total[e] += cpu;

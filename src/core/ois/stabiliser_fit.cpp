@@ -26,11 +26,12 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// The parameters a Levenberg-Marquardt refinement moves, as an unconstrained vector: the fitted
-// parameters (core/ois/stabiliser_stage.h), named and bounded there, of the stages being fitted,
-// in the stages' order: the chain's (centring, stroke, actuator) always, and those named (stage
-// names or tokens: "pan_detection", "excursion_centring", "actuator_coupling"). Each is held in its
-// bounds when unpacked (a parameter that ends on one is reported by reviewStabiliserFit).
+// The parameters a refinement frees: the fitted parameters (core/ois/stabiliser_stage.h), named
+// and bounded there, of the stages being fitted, in the stages' order: the chain's (centring,
+// stroke, actuator) always, and those named (stage names or tokens: "pan_detection",
+// "excursion_centring", "actuator_coupling"). Entry j reads and writes its parameter on the stage's
+// own values in a model; a write is held in the parameter's bounds (a parameter that ends on one
+// is reported by reviewStabiliserFit).
 class FreeParameters {
  public:
   explicit FreeParameters(std::vector<std::string> stages = {}) {
@@ -106,13 +107,12 @@ double weightedRms(const Eigen::VectorXd& residuals, const Eigen::VectorXd& weig
   return std::sqrt(2.0 * residuals.cwiseAbs2().cwiseProduct(weights).sum() / weights.sum());
 }
 
-// Robust cost: sum of Huber losses of the observations' residual norms.
+// The fit's robust cost, the solver's convention (core/common/nonlinear_least_squares.h): 1/2 sum
+// of Huber(|weighted residual|^2) over the observations.
 double huberCost(const Eigen::VectorXd& residuals, double huber_px) {
+  const RobustLoss loss = RobustLoss::huber(huber_px);
   double cost = 0.0;
-  for (long k = 0; k + 1 < residuals.size(); k += 2) {
-    const double n = std::hypot(residuals(k), residuals(k + 1));
-    cost += n <= huber_px ? 0.5 * n * n : huber_px * (n - 0.5 * huber_px);
-  }
+  for (long k = 0; k + 1 < residuals.size(); k += 2) cost += 0.5 * loss.rho(residuals.segment<2>(k).squaredNorm());
   return cost;
 }
 
@@ -149,7 +149,7 @@ StabiliserModel levenbergMarquardt(StabiliserModel start, const FreeParameters& 
   const NonlinearLeastSquaresReport report = solveNonlinearLeastSquares(problem, values, solver);
   if (rms_history) rms_history->insert(rms_history->end(), report.rms_history.begin(), report.rms_history.end());
   if (!report.usable()) {
-    if (final_cost) *final_cost = huberCost(residualsOf(start, recordings, options).values, options.huber_px);
+    if (final_cost) *final_cost = stabiliserFitCost(start, recordings, options);
     return start;
   }
   if (final_cost) *final_cost = report.final_cost;  // the solver's cost is huberCost's
@@ -569,6 +569,12 @@ std::vector<Eigen::Vector2d> predictLensMotion(const StabiliserModel& parameters
   return predicted;
 }
 
+double stabiliserFitCost(const StabiliserModel& parameters,
+                         const std::vector<StabiliserFitRecording>& recordings,
+                         const StabiliserFitOptions& options) {
+  return huberCost(residualsOf(parameters, recordings, options).values, options.huber_px);
+}
+
 StabiliserScore scoreStabiliser(const StabiliserModel& parameters,
                                 const std::vector<StabiliserFitRecording>& recordings,
                                 const StabiliserFitOptions& options) {
@@ -705,7 +711,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
       StrokeValues& limits = candidate.get<StrokeValues>();
       (axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg) = stroke;
       const double cost =
-          huberCost(residualsOf(candidate, recordings, physical_options).values, options.huber_px);
+          stabiliserFitCost(candidate, recordings, physical_options);
       if (cost < axis_best) {
         axis_best = cost;
         scanned = candidate;
@@ -844,7 +850,7 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
       const FittedStabiliserParameter& bounds =
           fittedStabiliserParameter(axis == 0 ? "stroke_x_deg" : "stroke_y_deg");
       stroke = std::clamp(stroke * factor, bounds.lower, bounds.upper);
-      const double c = huberCost(residualsOf(candidate, recordings, options).values, options.huber_px);
+      const double c = stabiliserFitCost(candidate, recordings, options);
       if (c < cost) cost = c, scanned = candidate;
     }
     start = scanned;

@@ -164,6 +164,12 @@ StabiliserScore scoreStabiliser(const StabiliserModel& parameters,
 // recordings it was not trained on (checkFitAgainstNoLensMotion, stabiliser_model_choice.h).
 StabiliserModel noLensMotion();
 
+// The fit's robust cost of `parameters` on `recordings` (what fitStabiliser minimises): 1/2 sum of
+// Huber(|predicted - observed lens motion|^2, options.huber_px) over the observations the model
+// predicts, each weighted by its weight (the solver's convention, nonlinear_least_squares.h).
+double stabiliserFitCost(const StabiliserModel& parameters,
+                         const std::vector<StabiliserFitRecording>& recordings,
+                         const StabiliserFitOptions& options);
 
 // The model's predicted lens motion for each observation of `recording` (in input order; NaN for
 // those it cannot predict: before the gyro stream's warm-up or outside it).
