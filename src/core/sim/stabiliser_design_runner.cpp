@@ -66,12 +66,15 @@ StabiliserModel moduleModel(const OisConfig& config) {
   loop.roll_deg = config.mount_rotation_deg;
   // A digital loop samples its newest gyro sample every `tick` control steps; a continuous one
   // integrates the rate over each step (its two samples' mean).
-  const long tick = digital ? std::max(1L, std::lround(config.control_rate_hz / config.digital_rate_hz)) : 1L;
+  const long tick =
+      digital ? std::max(1L, std::lround(config.control_rate_hz / config.digital_rate_hz)) : 1L;
   loop.rate_hz = config.control_rate_hz / static_cast<double>(tick);
   loop.sampling = digital ? "latest" : "middle";
   if (!kalman && config.pan_detection_rate_rad_s > 0.0) {
-    if (!(config.highpass_corner_hz > 0.0) || config.pan_release_corner_hz < config.highpass_corner_hz)
-      throw std::invalid_argument("ois: pan detection needs pan_release_corner_hz >= highpass_corner_hz > 0");
+    if (!(config.highpass_corner_hz > 0.0) ||
+        config.pan_release_corner_hz < config.highpass_corner_hz)
+      throw std::invalid_argument(
+          "ois: pan detection needs pan_release_corner_hz >= highpass_corner_hz > 0");
     MotionModeValues& mode = model.set(MotionModeValues());
     mode.action = "release", mode.detector = "norm";
     mode.threshold_rad_s = config.pan_detection_rate_rad_s;
@@ -118,9 +121,11 @@ namespace {
 // signal: per step the Hall reading's (drawn only when it has any), then its gyro's end sample;
 // `start_sample` draws the gyro's sample at step 0 first (a controller that integrates between
 // samples sees it).
-LensShiftGrid runChain(const StabiliserModel& model, double focal_px, double start_s, double rate_hz, int steps,
+LensShiftGrid runChain(const StabiliserModel& model, double focal_px, double start_s,
+                       double rate_hz, int steps,
                        const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s,
-                       std::mt19937* noise, double gyro_noise_rad_s, double hall_noise_px, bool start_sample) {
+                       std::mt19937* noise, double gyro_noise_rad_s, double hall_noise_px,
+                       bool start_sample) {
   if (!(focal_px > 0.0) || !std::isfinite(focal_px) || steps < 1) {
     throw std::invalid_argument("stabiliser: focal_px must be positive and steps at least 1");
   }
@@ -163,16 +168,18 @@ LensShiftGrid runDesign(const StabiliserDesign& design, double focal_px, double 
                         std::mt19937* noise) {
   const std::string problem = design.validate();
   if (!problem.empty()) throw std::invalid_argument("stabiliser design: " + problem);
-  return runChain(designModel(design), focal_px, start_s, kDesignPhysicsRateHz, steps, angular_velocity_rad_s,
-                  noise, design.mount.noise_rad_s, design.hall.noise_px, false);
+  return runChain(designModel(design), focal_px, start_s, kDesignPhysicsRateHz, steps,
+                  angular_velocity_rad_s, noise, design.mount.noise_rad_s, design.hall.noise_px,
+                  false);
 }
 
 // Sign of the cancelling shift and the discretisation: see OisModel (core/sim/ois_model.cpp).
-LensShiftGrid runStabiliser(const OisConfig& config, double focal_px, double start_s, int steps,
-                            const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s,
-                            std::mt19937* noise) {
-  return runChain(moduleModel(config), focal_px, start_s, config.control_rate_hz, steps, angular_velocity_rad_s,
-                  noise, config.gyro_noise_rad_s, config.hall_noise_px, true);
+LensShiftGrid runStabiliser(
+    const OisConfig& config, double focal_px, double start_s, int steps,
+    const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s, std::mt19937* noise) {
+  return runChain(moduleModel(config), focal_px, start_s, config.control_rate_hz, steps,
+                  angular_velocity_rad_s, noise, config.gyro_noise_rad_s, config.hall_noise_px,
+                  true);
 }
 
 }  // namespace sim

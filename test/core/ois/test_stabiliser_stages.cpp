@@ -214,14 +214,20 @@ TEST(StabiliserStages, ValidationNamesTheStagesField) {
 // The sampled controller's words that camera modules use (core/sim/stabiliser_design_runner.h's
 // moduleModel) are checked and named as the other fields are.
 TEST(StabiliserStages, TheSampledControllersModuleWordsAreValidated) {
-  const std::vector<std::string> names = {"gyro_loop", "motion_mode", "intended_motion", "travel", "hall_actuator"};
+  const std::vector<std::string> names = {"gyro_loop", "motion_mode", "intended_motion", "travel",
+                                          "hall_actuator"};
   EXPECT_EQ(StabiliserModel(names).validate(), "");
   const std::pair<void (*)(StabiliserModel*), const char*> cases[] = {
-      {[](StabiliserModel* p) { p->get<GyroLoopValues>().sampling = "mean"; }, "gyro_loop.sampling"},
-      {[](StabiliserModel* p) { p->get<MotionModeValues>().detector = "peak"; }, "motion_mode.detector"},
-      {[](StabiliserModel* p) { p->get<IntendedMotionValues>().manoeuvre_factor = 0.5; }, "intended_motion: manoeuvre"},
-      {[](StabiliserModel* p) { p->get<TravelValues>().quantiser_lsb_deg = 1.5; }, "travel: quantiser_lsb_deg"},
-      {[](StabiliserModel* p) { p->get<HallActuatorValues>().order = "third"; }, "hall_actuator.order"},
+      {[](StabiliserModel* p) { p->get<GyroLoopValues>().sampling = "mean"; },
+       "gyro_loop.sampling"},
+      {[](StabiliserModel* p) { p->get<MotionModeValues>().detector = "peak"; },
+       "motion_mode.detector"},
+      {[](StabiliserModel* p) { p->get<IntendedMotionValues>().manoeuvre_factor = 0.5; },
+       "intended_motion: manoeuvre"},
+      {[](StabiliserModel* p) { p->get<TravelValues>().quantiser_lsb_deg = 1.5; },
+       "travel: quantiser_lsb_deg"},
+      {[](StabiliserModel* p) { p->get<HallActuatorValues>().order = "third"; },
+       "hall_actuator.order"},
       {[](StabiliserModel* p) {
          p->get<HallActuatorValues>().order = "pi";
          p->get<HallActuatorValues>().pi_kp = 0.0;

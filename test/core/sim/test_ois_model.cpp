@@ -9,12 +9,12 @@
 #include <vector>
 
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
-#include "deep_ois/core/ois/stabiliser_stage.h"
 #include "deep_ois/core/sim/stabiliser_design_runner.h"
-#include "test_helpers.h"
 #include "sim_test_helpers.h"
+#include "test_helpers.h"
 
 namespace deep_ois {
 namespace sim {
@@ -488,7 +488,6 @@ TEST(OisModel, ValidatesTheNewFields) {
   EXPECT_EQ(StrokeShape::kCircle, shape);
   EXPECT_FALSE(parseStrokeShape("square", &shape));
 }
-
 
 // ---- The controller family (the stages of core/sim/stabiliser_design_runner.h) ----
 

@@ -9,10 +9,10 @@
 //   DEEP_OIS_WRITE_GOLDEN=1 ./test_sim --gtest_filter='StabiliserLensGolden.*'
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <algorithm>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -114,8 +114,8 @@ void checkAgainstGolden(const std::string& file, const Track& track) {
 
 // The model's predictor on the gyro of the golden motion, sampled at every step of h, against the
 // simulator's noise-free lens.
-void expectPredictsItsOwnLens(const StabiliserModel& model, const LensShiftGrid& simulated, double h,
-                              int steps, const std::string& name) {
+void expectPredictsItsOwnLens(const StabiliserModel& model, const LensShiftGrid& simulated,
+                              double h, int steps, const std::string& name) {
   LensShiftPredictor predictor(model, kFocalPx, h);
   double worst = 0.0, largest = 0.0;
   for (int j = 0; j <= steps; ++j) {
@@ -125,7 +125,8 @@ void expectPredictsItsOwnLens(const StabiliserModel& model, const LensShiftGrid&
     worst = std::max(worst, (predictor.lensShiftAt(t) - truth).cwiseAbs().maxCoeff());
     largest = std::max(largest, truth.cwiseAbs().maxCoeff());
   }
-  std::printf("%s as a model file: worst deviation %.3g px, lens up to %.1f px\n", name.c_str(), worst, largest);
+  std::printf("%s as a model file: worst deviation %.3g px, lens up to %.1f px\n", name.c_str(),
+              worst, largest);
   EXPECT_LE(worst, kTolerancePx) << name;
   EXPECT_GT(largest, 1.0) << name << ": the lens hardly moved; the check says little";
 }
@@ -135,7 +136,8 @@ StabiliserModel throughAFile(const StabiliserModel& model, const std::string& na
   StabiliserModelFile file;
   file.name = name;
   file.parameters = model;
-  const std::string path = testing::TempDir() + "/stabiliser_" + std::to_string(std::hash<std::string>()(name)) + ".yaml";
+  const std::string path = testing::TempDir() + "/stabiliser_" +
+                           std::to_string(std::hash<std::string>()(name)) + ".yaml";
   file.save(path);
   const StabiliserModelFile loaded = StabiliserModelFile::load(path);
   std::remove(path.c_str());
@@ -144,15 +146,22 @@ StabiliserModel throughAFile(const StabiliserModel& model, const std::string& na
 }
 
 const char* const kCommittedModules[] = {"",  // the package's camera (RE.yaml alone)
-                                         "phone_main", "intended_motion_kalman", "excursion_soft_stroke",
-                                         "digital_loop", "rotated_mount", "pi_position_loop", "pan_release",
-                                         "hall_noisy_circular", "over_compensating_asymmetric",
+                                         "phone_main",
+                                         "intended_motion_kalman",
+                                         "excursion_soft_stroke",
+                                         "digital_loop",
+                                         "rotated_mount",
+                                         "pi_position_loop",
+                                         "pan_release",
+                                         "hall_noisy_circular",
+                                         "over_compensating_asymmetric",
                                          "fast_centring_short_stroke"};
 
 OisConfig committedModule(const std::string& module) {
   const std::string dir = std::string(DEEP_OIS_SOURCE_DIR) + "/config/simulator/";
-  return (module.empty() ? loadSimulatorConfig(dir + "RE.yaml")
-                         : loadSimulatorConfig(dir + "RE.yaml", {dir + "modules/" + module + ".yaml"}))
+  return (module.empty()
+              ? loadSimulatorConfig(dir + "RE.yaml")
+              : loadSimulatorConfig(dir + "RE.yaml", {dir + "modules/" + module + ".yaml"}))
       .ois;
 }
 
@@ -192,7 +201,8 @@ TEST(StabiliserLensGolden, AGeneratedDesignSavedAsAModelFilePredictsItsOwnLens) 
     const StabiliserDesign design = generateDesign(seed);
     if (taken[designClass(design)]++ >= 2) continue;  // two of each class
     SCOPED_TRACE(describe(design));
-    const StabiliserModel loaded = throughAFile(designModel(design), "generated design " + std::to_string(seed));
+    const StabiliserModel loaded =
+        throughAFile(designModel(design), "generated design " + std::to_string(seed));
     const std::vector<std::string> composition = stabiliserComposition(loaded);
     EXPECT_NE(std::find(composition.begin(), composition.end(),
                         std::string("intended_motion:") + designClass(design)),
@@ -227,7 +237,8 @@ TEST(StabiliserLensGolden, ACommittedModuleSavedAsAModelFilePredictsItsOwnLens) 
     const OisConfig ois = committedModule(module);
     const int steps = static_cast<int>(std::lround(kDurationS * ois.control_rate_hz));
     const StabiliserModel loaded = throughAFile(moduleModel(ois), "module " + module);
-    const LensShiftGrid simulated = runStabiliser(ois, kFocalPx, kStartS, steps, angularVelocity, nullptr);
+    const LensShiftGrid simulated =
+        runStabiliser(ois, kFocalPx, kStartS, steps, angularVelocity, nullptr);
     expectPredictsItsOwnLens(loaded, simulated, 1.0 / ois.control_rate_hz, steps,
                              "module " + (module.empty() ? std::string("RE") : module));
   }

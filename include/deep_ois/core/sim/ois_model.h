@@ -50,9 +50,10 @@ struct OisConfig {
   double pi_plant_damping = 0.7;
   double pi_kp = 4.0;
   double pi_ki = 300.0;
-  // The controller (the intended_motion stage, core/sim/stabiliser_design_runner.h): "highpass" (integrate and re-centre, the
-  // keys above) or "kalman" (an intended-motion estimator: a constant-velocity Kalman filter on
-  // the integrated angle with this bandwidth; the lens cancels the angle minus the intended path).
+  // The controller (the intended_motion stage, core/sim/stabiliser_design_runner.h): "highpass"
+  // (integrate and re-centre, the keys above) or "kalman" (an intended-motion estimator: a
+  // constant-velocity Kalman filter on the integrated angle with this bandwidth; the lens cancels
+  // the angle minus the intended path).
   std::string controller = "highpass";
   double kalman_bandwidth_hz = 0.5;
   // Manoeuvre gate (0 = off): while the innovation (integrated angle minus the predicted intended

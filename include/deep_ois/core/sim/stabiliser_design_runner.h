@@ -46,9 +46,9 @@ LensShiftGrid runDesign(const StabiliserDesign& design, double focal_px, double 
 // As runDesign for a module: `config` valid (OisConfig::validate()), control step j at
 // start_s + j / control_rate_hz; its gyro's noise (ois.gyro_noise_rad_s) is drawn for step 0 too,
 // first, as a continuous controller integrates from there.
-LensShiftGrid runStabiliser(const OisConfig& config, double focal_px, double start_s, int steps,
-                            const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s,
-                            std::mt19937* noise);
+LensShiftGrid runStabiliser(
+    const OisConfig& config, double focal_px, double start_s, int steps,
+    const std::function<Eigen::Vector3d(double t_s)>& angular_velocity_rad_s, std::mt19937* noise);
 
 }  // namespace sim
 }  // namespace deep_ois

@@ -20,19 +20,24 @@ namespace deep_ois {
 namespace {
 
 stabiliser_file_fields::ValueFields fields(GyroLoopValues& v) {
-  return {{{"roll_deg", &v.roll_deg}, {"tilt_deg", &v.tilt_deg}, {"pan_deg", &v.pan_deg}, {"rate_hz", &v.rate_hz}},
+  return {{{"roll_deg", &v.roll_deg},
+           {"tilt_deg", &v.tilt_deg},
+           {"pan_deg", &v.pan_deg},
+           {"rate_hz", &v.rate_hz}},
           {{"sampling", &v.sampling}},
           {}};
 }
 
 class GyroLoopRunner final : public StabiliserStageRunner {
  public:
-  GyroLoopRunner(const GyroLoopValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+  GyroLoopRunner(const GyroLoopValues& p, const StabiliserModel& model,
+                 const StabiliserRunContext& context)
       : averaged_(p.sampling == "averaged"),
         middle_(p.sampling == "middle"),
         tick_(stage_numerics::controlTick(model, context)) {
     if (middle_ && tick_ != 1)
-      throw std::invalid_argument("gyro_loop: sampling 'middle' needs rate_hz equal to the step's rate");
+      throw std::invalid_argument(
+          "gyro_loop: sampling 'middle' needs rate_hz equal to the step's rate");
     using stage_numerics::kDegToRad;
     const GyroLoopValues& v = p;
     to_gyro_ = (Eigen::AngleAxisd(v.pan_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
@@ -51,9 +56,11 @@ class GyroLoopRunner final : public StabiliserStageRunner {
     if (!signal.control_tick) return;
     signal.newest_rate_rad_s = measured;
     if (middle_) {
-      signal.sampled_rate_rad_s = (to_gyro_ * signal.rate_rad_s).head<2>() + signal.gyro_noise_mid_rad_s;
+      signal.sampled_rate_rad_s =
+          (to_gyro_ * signal.rate_rad_s).head<2>() + signal.gyro_noise_mid_rad_s;
     } else {
-      signal.sampled_rate_rad_s = averaged_ ? Eigen::Vector2d(sum_rate_ / static_cast<double>(tick_)) : measured;
+      signal.sampled_rate_rad_s =
+          averaged_ ? Eigen::Vector2d(sum_rate_ / static_cast<double>(tick_)) : measured;
     }
     sum_rate_.setZero();
   }
@@ -91,7 +98,8 @@ const StabiliserStage& gyroLoopStage() {
         if (!(std::abs(v.roll_deg) <= 45.0 && std::abs(v.tilt_deg) <= 45.0 && std::abs(v.pan_deg) <= 45.0))
           why << "gyro_loop: roll_deg, tilt_deg and pan_deg must be within +-45";
         else if (v.sampling != "latest" && v.sampling != "averaged" && v.sampling != "middle")
-          why << "gyro_loop.sampling: must be latest, averaged or middle (got '" << v.sampling << "')";
+          why << "gyro_loop.sampling: must be latest, averaged or middle (got '" << v.sampling
+              << "')";
         else if (!(v.rate_hz > 0.0 && v.rate_hz < 1e6))
           why << "gyro_loop.rate_hz: must be positive (got " << v.rate_hz << ")";
         return why.str();

@@ -2,10 +2,10 @@
 // driver IC; plus the one step the controller's update takes), then the lens under its Hall-sensor
 // position loop per axis: first- or second-order dynamics discretised exactly for a command held
 // over a step, or a spring-mass lens under a PI loop (a camera module's: zero steady-state error,
-// a third-order closed loop that rings more), a slew limit, stiction (stick below the breakaway error, slide against half of it)
-// and inelastic end stops at end_stop_margin x the stroke. The loop drives the Hall reading
-// h(x) = x + c2 L (x/L)^2 + c3 L (x/L)^3 (L the axis' largest stroke) to the command, so the lens
-// sits at h^-1 of it.
+// a third-order closed loop that rings more), a slew limit, stiction (stick below the breakaway
+// error, slide against half of it) and inelastic end stops at end_stop_margin x the stroke. The
+// loop drives the Hall reading h(x) = x + c2 L (x/L)^2 + c3 L (x/L)^3 (L the axis' largest stroke)
+// to the command, so the lens sits at h^-1 of it.
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -128,13 +128,15 @@ class LensAxis {
   // while the lens rests against an end stop it is pushed into (anti-windup).
   void advancePi(double drive) {
     const double error = drive - position_;
-    const bool at_stop = (position_ >= high_stop_ && error > 0.0) || (position_ <= low_stop_ && error < 0.0);
+    const bool at_stop =
+        (position_ >= high_stop_ && error > 0.0) || (position_ <= low_stop_ && error < 0.0);
     if (!at_stop) integral_ += error * h_;
     const double force = kp_ * error + ki_ * integral_;
-    double velocity = velocity_scaled_ * natural_rad_s_;
-    velocity += h_ * (natural_rad_s_ * natural_rad_s_ * (force - position_) - 2.0 * damping_ * natural_rad_s_ * velocity);
+    const double wn = natural_rad_s_;
+    double velocity = velocity_scaled_ * wn;
+    velocity += h_ * (wn * wn * (force - position_) - 2.0 * damping_ * wn * velocity);
     position_ += h_ * velocity;
-    velocity_scaled_ = velocity / natural_rad_s_;
+    velocity_scaled_ = velocity / wn;
   }
 
   bool first_order_, pi_;
@@ -222,9 +224,8 @@ const StabiliserStage& hallActuatorStage() {
   static const StabiliserStage stage{
       "hall_actuator",
       "the command late by delay_s, then the lens' position loop (first or second order, or a PI "
-      "loop around a spring-mass lens; "
-      "bandwidth_hz, damping, slew limit, stiction, end stops) on a Hall reading with quadratic and "
-      "cubic terms",
+      "loop around a spring-mass lens; bandwidth_hz, damping, slew limit, stiction, end stops) on "
+      "a Hall reading with quadratic and cubic terms",
       true,
       false,
       {},
@@ -256,7 +257,9 @@ const StabiliserStage& hallActuatorStage() {
       },
       nullptr,
       stage_numerics::runner<HallActuatorRunner, HallActuatorValues>,
-      [](const StageValues& own) { return "hall_actuator:" + valuesAs<HallActuatorValues>(own).order; },
+      [](const StageValues& own) {
+        return "hall_actuator:" + valuesAs<HallActuatorValues>(own).order;
+      },
       nullptr};
   return stage;
 }

@@ -159,8 +159,8 @@ const StabiliserStage& intendedMotionStage() {
   static const StabiliserStage stage{
       "intended_motion",
       "the angle to cancel by an estimator (highpass_first_order, highpass_second_order, "
-      "velocity_loop, kalman_cv with a manoeuvre gate, alpha_beta) with excursion-dependent corner, "
-      "and its gain per axis",
+      "velocity_loop, kalman_cv with a manoeuvre gate, alpha_beta) with excursion-dependent "
+      "corner, and its gain per axis",
       true,
       false,
       {},
@@ -178,10 +178,12 @@ const StabiliserStage& intendedMotionStage() {
         const IntendedMotionValues& v = valuesAs<IntendedMotionValues>(own);
         if (kindIndex(v.kind) < 0)
           why << "intended_motion.kind: unknown '" << v.kind << "'";
-        else if (!((v.corner_hz > 0.0 || (v.corner_hz == 0.0 && v.kind == "highpass_first_order")) &&
-                   v.damping > 0.0 && v.rate_corner_hz > 0.0 && v.excursion_gain >= 0.0 && v.excursion_power > 0.0))
-          why << "intended_motion: corners, damping and excursion_power must be positive (corner_hz 0: "
-                 "a highpass_first_order that never re-centres)";
+        else if (!((v.corner_hz > 0.0 ||
+                    (v.corner_hz == 0.0 && v.kind == "highpass_first_order")) &&
+                   v.damping > 0.0 && v.rate_corner_hz > 0.0 && v.excursion_gain >= 0.0 &&
+                   v.excursion_power > 0.0))
+          why << "intended_motion: corners, damping and excursion_power must be positive "
+                 "(corner_hz 0: a highpass_first_order that never re-centres)";
         else if (!(v.manoeuvre_deg >= 0.0 && v.manoeuvre_factor >= 1.0))
           why << "intended_motion: manoeuvre_deg must be >= 0 (0 = no gate), manoeuvre_factor >= 1";
         else if (!(std::isfinite(v.gain_x) && std::isfinite(v.gain_y)))
@@ -192,7 +194,9 @@ const StabiliserStage& intendedMotionStage() {
       },
       nullptr,
       stage_numerics::runner<IntendedMotionRunner, IntendedMotionValues>,
-      [](const StageValues& own) { return "intended_motion:" + valuesAs<IntendedMotionValues>(own).kind; },
+      [](const StageValues& own) {
+        return "intended_motion:" + valuesAs<IntendedMotionValues>(own).kind;
+      },
       nullptr};
   return stage;
 }

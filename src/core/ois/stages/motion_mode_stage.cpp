@@ -37,7 +37,8 @@ bool acts(const StageValues& own) {
 
 class MotionModeRunner final : public StabiliserStageRunner {
  public:
-  MotionModeRunner(const MotionModeValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+  MotionModeRunner(const MotionModeValues& p, const StabiliserModel& model,
+                   const StabiliserRunContext& context)
       : v_(p),
         detects_(v_.action != "none"),
         on_norm_(v_.detector == "norm"),

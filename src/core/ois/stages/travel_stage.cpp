@@ -42,7 +42,8 @@ class TravelRunner final : public StabiliserStageRunner {
     x_pos_ = px(v_.x_positive_deg), x_neg_ = px(v_.x_negative_deg);
     y_pos_ = px(v_.y_positive_deg), y_neg_ = px(v_.y_negative_deg);
     if (v_.quantiser_bits > 0.0) lsb_px_ = (x_pos_ + x_neg_) / std::ldexp(1.0, static_cast<int>(v_.quantiser_bits));
-    if (v_.quantiser_lsb_deg > 0.0) lsb_px_ = context.focal_px * std::tan(v_.quantiser_lsb_deg * stage_numerics::kPi / 180.0);
+    if (v_.quantiser_lsb_deg > 0.0)
+      lsb_px_ = context.focal_px * std::tan(v_.quantiser_lsb_deg * stage_numerics::kPi / 180.0);
     fraction_ = v_.anti_windup == "clamp" ? 1.0 : -std::expm1(-v_.back_calculation_rate_per_s * T);
   }
   void reset(StabiliserSignal& signal) override {
@@ -125,8 +126,10 @@ const StabiliserStage& travelStage() {
           why << "travel.shape: must be box, ellipse, soft_box or soft_ellipse (got '" << v.shape << "')";
         else if (v.anti_windup != "none" && v.anti_windup != "clamp" && v.anti_windup != "back_calculation")
           why << "travel.anti_windup: must be none, clamp or back_calculation (got '" << v.anti_windup << "')";
-        else if (!(std::min({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg, v.y_negative_deg}) > 0.0 &&
-                   std::max({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg, v.y_negative_deg}) < 45.0))
+        else if (!(std::min({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg,
+                             v.y_negative_deg}) > 0.0 &&
+                   std::max({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg,
+                             v.y_negative_deg}) < 45.0))
           why << "travel: the stroke must be in (0, 45) deg in every direction";
         else if (!(v.back_calculation_rate_per_s > 0.0) ||
                  !(v.quantiser_bits >= 0.0 && v.quantiser_bits <= 24.0 && v.quantiser_bits == std::floor(v.quantiser_bits)))
