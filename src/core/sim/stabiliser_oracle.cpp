@@ -7,7 +7,6 @@
 #include "deep_ois/core/ois/camera_rate_cursor.h"
 #include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/stabiliser_design_runner.h"
-#include "deep_ois/core/sim/stabiliser_lens_loop.h"
 
 namespace deep_ois {
 namespace sim {

@@ -211,6 +211,42 @@ TEST(StabiliserStages, ValidationNamesTheStagesField) {
   }
 }
 
+// The sampled controller's words that camera modules use (core/sim/stabiliser_design_runner.h's
+// moduleModel) are checked and named as the other fields are.
+TEST(StabiliserStages, TheSampledControllersModuleWordsAreValidated) {
+  const std::vector<std::string> names = {"gyro_loop", "motion_mode", "intended_motion", "travel",
+                                          "hall_actuator"};
+  EXPECT_EQ(StabiliserModel(names).validate(), "");
+  const std::pair<void (*)(StabiliserModel*), const char*> cases[] = {
+      {[](StabiliserModel* p) { p->get<GyroLoopValues>().sampling = "mean"; },
+       "gyro_loop.sampling"},
+      {[](StabiliserModel* p) { p->get<MotionModeValues>().detector = "peak"; },
+       "motion_mode.detector"},
+      {[](StabiliserModel* p) { p->get<IntendedMotionValues>().manoeuvre_factor = 0.5; },
+       "intended_motion: manoeuvre"},
+      {[](StabiliserModel* p) { p->get<TravelValues>().quantiser_lsb_deg = 1.5; },
+       "travel: quantiser_lsb_deg"},
+      {[](StabiliserModel* p) { p->get<HallActuatorValues>().order = "third"; },
+       "hall_actuator.order"},
+      {[](StabiliserModel* p) {
+         p->get<HallActuatorValues>().order = "pi";
+         p->get<HallActuatorValues>().pi_kp = 0.0;
+       },
+       "hall_actuator: pi_kp"},
+  };
+  for (const auto& [spoil, field] : cases) {
+    StabiliserModel p(names);
+    spoil(&p);
+    EXPECT_EQ(p.validate().rfind(field, 0), 0u) << p.validate();
+  }
+  // Sampling at the step's middle is a continuous controller's: not at a slower rate.
+  StabiliserModel slow(names);
+  slow.get<GyroLoopValues>().sampling = "middle";
+  slow.get<GyroLoopValues>().rate_hz = 1000.0;
+  EXPECT_THROW(stabiliserRunners(slow, {420.0, 1.0 / 4000.0}), std::invalid_argument);
+  EXPECT_NO_THROW(stabiliserRunners(slow, {420.0, 1.0 / 1000.0}));
+}
+
 TEST(StabiliserStages, TheReviewNamesAParameterOnItsStagesBound) {
   StabiliserModel p = everyMechanism();
   p.get<PanDetectionValues>().pan_release_corner_hz = fittedStabiliserParameter("pan_release_corner_hz").upper;

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -8,11 +9,12 @@
 #include <vector>
 
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/stabiliser_stage.h"
 #include "deep_ois/core/sim/camera_motion.h"
 #include "deep_ois/core/sim/ois_model.h"
-#include "deep_ois/core/sim/stabiliser_controller.h"
-#include "test_helpers.h"
+#include "deep_ois/core/sim/stabiliser_design_runner.h"
 #include "sim_test_helpers.h"
+#include "test_helpers.h"
 
 namespace deep_ois {
 namespace sim {
@@ -487,8 +489,7 @@ TEST(OisModel, ValidatesTheNewFields) {
   EXPECT_FALSE(parseStrokeShape("square", &shape));
 }
 
-
-// ---- The controller family (core/sim/stabiliser_controller.h) ----
+// ---- The controller family (the stages of core/sim/stabiliser_design_runner.h) ----
 
 // The intended-motion estimator stabilises a shake inside its band as the high-pass does, and its
 // manoeuvre gate lets go during a deliberate pan.
@@ -566,14 +567,20 @@ TEST(OisController, ExcursionRecentringAndSoftStroke) {
 TEST(OisController, DigitalLoopHoldsQuantisesAndDelays) {
   OisConfig config;
   config.command_lsb_deg = 0.05;
-  StabiliserController controller(config, kFocalPx);
+  config.control_rate_hz = 1000.0;
+  // The module's stages (its travel stage quantises) on a steady rate.
+  StabiliserChain chain(stabiliserRunners(moduleModel(config), {kFocalPx, 0.001}));
+  chain.reset();
   const double lsb_px = kFocalPx * std::tan(0.05 * kPi / 180.0);
+  double largest_px = 0.0;
   for (int k = 0; k < 200; ++k) {
-    controller.advance(Eigen::Vector2d(0.2, -0.1), Eigen::Vector2d(0.2, -0.1), 0.001);
-    const Eigen::Vector2d c = controller.command();
+    chain.step(Eigen::Vector3d(0.2, -0.1, 0.0), Eigen::Vector3d(0.2, -0.1, 0.0));
+    const Eigen::Vector2d c = chain.signal().command_px;
     EXPECT_NEAR(c.x() / lsb_px, std::round(c.x() / lsb_px), 1e-9);
     EXPECT_NEAR(c.y() / lsb_px, std::round(c.y() / lsb_px), 1e-9);
+    largest_px = std::max(largest_px, c.cwiseAbs().maxCoeff());
   }
+  EXPECT_GT(largest_px, 3.0 * lsb_px);  // it moved over several steps of the DAC
   const CameraMotion shake(shakeOnly(1.0, 12.0), 5, 0.0, 4.0);
   OisConfig digital;
   digital.digital_rate_hz = 500.0;

@@ -38,15 +38,19 @@ struct StabiliserSignal {
   Eigen::Vector2d command_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d actuator_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d lens_px = Eigen::Vector2d::Zero();
-  // The stages of a sampled controller (a generated design, core/sim/stabiliser_design_runner.h).
-  // Inputs a simulator fills: its stabiliser's own sensors' noise over the step (its gyro's, rad/s
-  // in the gyro's axes; the Hall reading's, px); zero in a model.
+  // The stages of a sampled controller (a generated design or a camera module,
+  // core/sim/stabiliser_design_runner.h). Inputs a simulator fills: its stabiliser's own sensors'
+  // noise over the step (its gyro's at the step's end and, as the mean of the two samples, at its
+  // middle, rad/s in the gyro's axes; the Hall reading's, px); zero in a model.
   Eigen::Vector2d gyro_noise_rad_s = Eigen::Vector2d::Zero();
+  Eigen::Vector2d gyro_noise_mid_rad_s = Eigen::Vector2d::Zero();
   Eigen::Vector2d hall_noise_px = Eigen::Vector2d::Zero();
-  // gyro_loop: whether the controller updates at the end of this step, and the pan/tilt rate it
-  // samples then (rad/s, its gyro's axes); between updates the command is held.
+  // gyro_loop: whether the controller updates at the end of this step, the pan/tilt rate it
+  // samples then and its newest sample (rad/s, its gyro's axes); between updates the command is
+  // held.
   bool control_tick = true;
   Eigen::Vector2d sampled_rate_rad_s = Eigen::Vector2d::Zero();
+  Eigen::Vector2d newest_rate_rad_s = Eigen::Vector2d::Zero();
   // motion_mode: the gain's multiplier (a hold ramps it to 0, a schedule lowers it with the motion).
   double gain_scale = 1.0;
   // intended_motion -> travel: the command per tan(angle) (px, x and y; angle_rad is the angle

@@ -17,7 +17,8 @@
 // dynamics, stroke (limits, shape, soft, anti-windup), travel, actuator (bandwidth, damping, sensor
 // lag), Hall actuator, actuator coupling, linear residual, learned residual, learned lens dynamics.
 // The gyro loop, motion mode, intended motion, travel and Hall actuator are a sampled controller's:
-// the simulator's generated designs are built from them (core/sim/stabiliser_design_runner.h).
+// the simulator's generated designs and camera modules are built from them
+// (core/sim/stabiliser_design_runner.h).
 // docs/stabiliser_model.md ("The stage library") tabulates them for users and shows how to add one.
 #pragma once
 

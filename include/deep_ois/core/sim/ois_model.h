@@ -50,9 +50,10 @@ struct OisConfig {
   double pi_plant_damping = 0.7;
   double pi_kp = 4.0;
   double pi_ki = 300.0;
-  // The controller (core/sim/stabiliser_controller.h): "highpass" (integrate and re-centre, the
-  // keys above) or "kalman" (an intended-motion estimator: a constant-velocity Kalman filter on
-  // the integrated angle with this bandwidth; the lens cancels the angle minus the intended path).
+  // The controller (the intended_motion stage, core/sim/stabiliser_design_runner.h): "highpass"
+  // (integrate and re-centre, the keys above) or "kalman" (an intended-motion estimator: a
+  // constant-velocity Kalman filter on the integrated angle with this bandwidth; the lens cancels
+  // the angle minus the intended path).
   std::string controller = "highpass";
   double kalman_bandwidth_hz = 0.5;
   // Manoeuvre gate (0 = off): while the innovation (integrated angle minus the predicted intended
@@ -61,7 +62,7 @@ struct OisConfig {
   double kalman_manoeuvre_deg = 0.0;
   double kalman_manoeuvre_factor = 100.0;
   // Excursion-dependent re-centring (highpass; 0 = off): the corner is multiplied by
-  // 1 + gain * (|excursion| / stroke)^power per axis.
+  // 1 + gain * (|raw command| / stroke)^power per axis (the command before the stroke, in pixels).
   double excursion_recentring_gain = 0.0;
   double excursion_recentring_power = 2.0;
   // A soft stroke: the command is stroke * tanh(command / stroke) instead of clipped.

@@ -1,6 +1,7 @@
-// The oracle of a stabiliser design: the simulator's own controller and lens loop for that design
-// (core/sim/stabiliser_lens_loop.h, the code the simulator runs), with the design's parameters,
-// driven by a camera's gyro instead of the stabiliser's own. It is what the best possible model of
+// The oracle of a stabiliser design: the simulator's own stabiliser for that design, a model of the
+// package's stage library (core/sim/stabiliser_design_runner.h: moduleModel, designModel), so the
+// package's own prediction with the design's exact stages, driven by a camera's gyro instead of the
+// stabiliser's own. It is what the best possible model of
 // that design could predict from the camera's IMU: the design's structure and parameters exact,
 // only the gyro input differs (the camera IMU's noise, bias and rate instead of the stabiliser
 // gyro's). A learned stabiliser model (core/ois/) that comes close to it has learned everything

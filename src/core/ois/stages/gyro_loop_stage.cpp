@@ -1,7 +1,8 @@
 // The gyro-loop stage: the stabiliser's own gyro, turned against the camera (roll about the optical
 // axis, then small tilt and pan errors of the die: it sees part of the camera's roll as pan and
-// tilt), and a controller that samples it at its own rate (the newest sample or the mean over its
-// period) and holds its command in between. The first stage of a sampled controller
+// tilt), and a controller that samples it at its own rate (the newest sample, the mean over its
+// period, or for a continuous controller the rate at the step's middle) and holds its command in
+// between. The first stage of a sampled controller
 // (motion_mode, intended_motion, travel and hall_actuator update only when it ticks).
 #include <yaml-cpp/yaml.h>
 
@@ -19,15 +20,24 @@ namespace deep_ois {
 namespace {
 
 stabiliser_file_fields::ValueFields fields(GyroLoopValues& v) {
-  return {{{"roll_deg", &v.roll_deg}, {"tilt_deg", &v.tilt_deg}, {"pan_deg", &v.pan_deg}, {"rate_hz", &v.rate_hz}},
-          {},
-          {{"averaged", &v.averaged}}};
+  return {{{"roll_deg", &v.roll_deg},
+           {"tilt_deg", &v.tilt_deg},
+           {"pan_deg", &v.pan_deg},
+           {"rate_hz", &v.rate_hz}},
+          {{"sampling", &v.sampling}},
+          {}};
 }
 
 class GyroLoopRunner final : public StabiliserStageRunner {
  public:
-  GyroLoopRunner(const GyroLoopValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
-      : averaged_(p.averaged), tick_(stage_numerics::controlTick(model, context)) {
+  GyroLoopRunner(const GyroLoopValues& p, const StabiliserModel& model,
+                 const StabiliserRunContext& context)
+      : averaged_(p.sampling == "averaged"),
+        middle_(p.sampling == "middle"),
+        tick_(stage_numerics::controlTick(model, context)) {
+    if (middle_ && tick_ != 1)
+      throw std::invalid_argument(
+          "gyro_loop: sampling 'middle' needs rate_hz equal to the step's rate");
     using stage_numerics::kDegToRad;
     const GyroLoopValues& v = p;
     to_gyro_ = (Eigen::AngleAxisd(v.pan_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
@@ -44,13 +54,20 @@ class GyroLoopRunner final : public StabiliserStageRunner {
     sum_rate_ += measured;
     signal.control_tick = signal.step_index % tick_ == 0;
     if (!signal.control_tick) return;
-    signal.sampled_rate_rad_s = averaged_ ? Eigen::Vector2d(sum_rate_ / static_cast<double>(tick_)) : measured;
+    signal.newest_rate_rad_s = measured;
+    if (middle_) {
+      signal.sampled_rate_rad_s =
+          (to_gyro_ * signal.rate_rad_s).head<2>() + signal.gyro_noise_mid_rad_s;
+    } else {
+      signal.sampled_rate_rad_s =
+          averaged_ ? Eigen::Vector2d(sum_rate_ / static_cast<double>(tick_)) : measured;
+    }
     sum_rate_.setZero();
   }
 
  private:
   Eigen::Matrix3d to_gyro_;
-  bool averaged_;
+  bool averaged_, middle_;
   long long tick_;
   Eigen::Vector2d sum_rate_ = Eigen::Vector2d::Zero();
 };
@@ -61,7 +78,8 @@ const StabiliserStage& gyroLoopStage() {
   static const StabiliserStage stage{
       "gyro_loop",
       "the stabiliser's gyro turned against the camera (roll, tilt, pan, deg) and sampled by a "
-      "controller at rate_hz (newest sample or averaged), its command held in between",
+      "controller at rate_hz (newest sample, averaged, or the step's middle), its command held in "
+      "between",
       true,
       false,
       {},
@@ -79,6 +97,9 @@ const StabiliserStage& gyroLoopStage() {
         const GyroLoopValues& v = valuesAs<GyroLoopValues>(own);
         if (!(std::abs(v.roll_deg) <= 45.0 && std::abs(v.tilt_deg) <= 45.0 && std::abs(v.pan_deg) <= 45.0))
           why << "gyro_loop: roll_deg, tilt_deg and pan_deg must be within +-45";
+        else if (v.sampling != "latest" && v.sampling != "averaged" && v.sampling != "middle")
+          why << "gyro_loop.sampling: must be latest, averaged or middle (got '" << v.sampling
+              << "')";
         else if (!(v.rate_hz > 0.0 && v.rate_hz < 1e6))
           why << "gyro_loop.rate_hz: must be positive (got " << v.rate_hz << ")";
         return why.str();

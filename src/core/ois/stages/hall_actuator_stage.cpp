@@ -1,10 +1,11 @@
 // The Hall-actuator stage of a sampled controller: the command late by a transport delay (bus,
 // driver IC; plus the one step the controller's update takes), then the lens under its Hall-sensor
 // position loop per axis: first- or second-order dynamics discretised exactly for a command held
-// over a step, a slew limit, stiction (stick below the breakaway error, slide against half of it)
-// and inelastic end stops at end_stop_margin x the stroke. The loop drives the Hall reading
-// h(x) = x + c2 L (x/L)^2 + c3 L (x/L)^3 (L the axis' largest stroke) to the command, so the lens
-// sits at h^-1 of it.
+// over a step, or a spring-mass lens under a PI loop (a camera module's: zero steady-state error,
+// a third-order closed loop that rings more), a slew limit, stiction (stick below the breakaway
+// error, slide against half of it) and inelastic end stops at end_stop_margin x the stroke. The
+// loop drives the Hall reading h(x) = x + c2 L (x/L)^2 + c3 L (x/L)^3 (L the axis' largest stroke)
+// to the command, so the lens sits at h^-1 of it.
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -30,6 +31,8 @@ stabiliser_file_fields::ValueFields fields(HallActuatorValues& v) {
            {"damping", &v.damping},
            {"rate_limit_deg_s", &v.rate_limit_deg_s},
            {"stiction_fraction", &v.stiction_fraction},
+           {"pi_kp", &v.pi_kp},
+           {"pi_ki", &v.pi_ki},
            {"end_stop_margin", &v.end_stop_margin},
            {"hall_c2", &v.hall_c2},
            {"hall_c3", &v.hall_c3}},
@@ -44,12 +47,17 @@ class LensAxis {
   LensAxis(const HallActuatorValues& v, double step_s, double rate_limit_px_s, double breakaway_px,
            double low_stop, double high_stop)
       : first_order_(v.order == "first"),
+        pi_(v.order == "pi"),
+        kp_(v.pi_kp),
+        ki_(v.pi_ki),
         h_(step_s),
         rate_limit_px_s_(rate_limit_px_s),
         breakaway_px_(breakaway_px),
         low_stop_(low_stop),
         high_stop_(high_stop) {
     const double wh = 2.0 * kPi * v.bandwidth_hz * step_s;
+    natural_rad_s_ = 2.0 * kPi * v.bandwidth_hz;
+    damping_ = v.damping;
     if (first_order_) {
       decay_ = std::exp(-wh);
     } else {
@@ -59,12 +67,11 @@ class LensAxis {
       const Eigen::Matrix3d e = matrixExponential(augmented);
       transition_ = e.topLeftCorner<2, 2>();
       input_ = e.topRightCorner<2, 1>();
-      natural_rad_s_ = 2.0 * kPi * v.bandwidth_hz;
     }
   }
 
   void reset() {
-    position_ = velocity_scaled_ = 0.0;
+    position_ = velocity_scaled_ = integral_ = 0.0;
     stuck_ = breakaway_px_ > 0.0;  // at rest: held by its stiction until the loop pulls
   }
 
@@ -78,7 +85,9 @@ class LensAxis {
     const double drive = command - std::copysign(std::min(0.5 * breakaway_px_, std::abs(error)), error);
     const double before = position_;
     const double velocity_before = velocity_scaled_;
-    if (first_order_) {
+    if (pi_) {
+      advancePi(drive);
+    } else if (first_order_) {
       position_ = drive + (position_ - drive) * decay_;
     } else {
       const Eigen::Vector2d state = transition_ * Eigen::Vector2d(position_, velocity_scaled_) + input_ * drive;
@@ -114,10 +123,28 @@ class LensAxis {
   }
 
  private:
-  bool first_order_;
+  // Force F = kp e + ki integral(e) on the lens x'' = wn^2 (F - x) - 2 zeta wn x' (force in pixels
+  // of static deflection), semi-implicit Euler at the step (wn h << 1). The integrator is held
+  // while the lens rests against an end stop it is pushed into (anti-windup).
+  void advancePi(double drive) {
+    const double error = drive - position_;
+    const bool at_stop =
+        (position_ >= high_stop_ && error > 0.0) || (position_ <= low_stop_ && error < 0.0);
+    if (!at_stop) integral_ += error * h_;
+    const double force = kp_ * error + ki_ * integral_;
+    const double wn = natural_rad_s_;
+    double velocity = velocity_scaled_ * wn;
+    velocity += h_ * (wn * wn * (force - position_) - 2.0 * damping_ * wn * velocity);
+    position_ += h_ * velocity;
+    velocity_scaled_ = velocity / wn;
+  }
+
+  bool first_order_, pi_;
+  double kp_, ki_;
   double h_, rate_limit_px_s_, breakaway_px_, low_stop_, high_stop_;
   double decay_ = 0.0;
-  double natural_rad_s_ = 1.0;
+  double natural_rad_s_ = 1.0, damping_ = 0.0;
+  double integral_ = 0.0;  // the PI loop's integral of the error, px s
   Eigen::Matrix2d transition_ = Eigen::Matrix2d::Identity();
   Eigen::Vector2d input_ = Eigen::Vector2d::Zero();
   double position_ = 0.0, velocity_scaled_ = 0.0;
@@ -196,9 +223,9 @@ class HallActuatorRunner final : public StabiliserStageRunner {
 const StabiliserStage& hallActuatorStage() {
   static const StabiliserStage stage{
       "hall_actuator",
-      "the command late by delay_s, then the lens' position loop (first or second order, "
-      "bandwidth_hz, damping, slew limit, stiction, end stops) on a Hall reading with quadratic and "
-      "cubic terms",
+      "the command late by delay_s, then the lens' position loop (first or second order, or a PI "
+      "loop around a spring-mass lens; bandwidth_hz, damping, slew limit, stiction, end stops) on "
+      "a Hall reading with quadratic and cubic terms",
       true,
       false,
       {},
@@ -214,8 +241,10 @@ const StabiliserStage& hallActuatorStage() {
       [](const StageValues& own, const StabiliserModel& model) {
         std::ostringstream why;
         const HallActuatorValues& v = valuesAs<HallActuatorValues>(own);
-        if (v.order != "first" && v.order != "second")
-          why << "hall_actuator.order: must be first or second (got '" << v.order << "')";
+        if (v.order != "first" && v.order != "second" && v.order != "pi")
+          why << "hall_actuator.order: must be first, second or pi (got '" << v.order << "')";
+        else if (!(v.pi_kp > 0.0 && v.pi_ki >= 0.0))
+          why << "hall_actuator: pi_kp must be positive and pi_ki not negative";
         else if (!(v.delay_s >= 0.0 && v.delay_s < 1.0 && v.bandwidth_hz > 0.0 && v.damping > 0.0 &&
                    v.rate_limit_deg_s >= 0.0 && v.stiction_fraction >= 0.0 && v.end_stop_margin >= 1.0))
           why << "hall_actuator: delay in [0, 1) s, bandwidth and damping positive, slew limit and "
@@ -228,7 +257,9 @@ const StabiliserStage& hallActuatorStage() {
       },
       nullptr,
       stage_numerics::runner<HallActuatorRunner, HallActuatorValues>,
-      [](const StageValues& own) { return "hall_actuator:" + valuesAs<HallActuatorValues>(own).order; },
+      [](const StageValues& own) {
+        return "hall_actuator:" + valuesAs<HallActuatorValues>(own).order;
+      },
       nullptr};
   return stage;
 }

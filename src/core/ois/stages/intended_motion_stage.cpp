@@ -42,7 +42,9 @@ stabiliser_file_fields::ValueFields fields(IntendedMotionValues& v) {
            {"excursion_gain", &v.excursion_gain},
            {"excursion_power", &v.excursion_power},
            {"gain_x", &v.gain_x},
-           {"gain_y", &v.gain_y}},
+           {"gain_y", &v.gain_y},
+           {"manoeuvre_deg", &v.manoeuvre_deg},
+           {"manoeuvre_factor", &v.manoeuvre_factor}},
           {{"kind", &v.kind}},
           {}};
 }
@@ -87,7 +89,7 @@ class IntendedMotionRunner final : public StabiliserStageRunner {
  private:
   // y' = u - w y over the period for a held u: exact.
   double leak(double y, double u, double w) const {
-    return std::exp(-w * T_) * y - std::expm1(-w * T_) / w * u;
+    return w > 0.0 ? std::exp(-w * T_) * y - std::expm1(-w * T_) / w * u : y + T_ * u;
   }
 
   void advanceAxis(int a, double rate, double multiplier) {
@@ -126,6 +128,10 @@ class IntendedMotionRunner final : public StabiliserStageRunner {
         step.step_s = T_;
         step.bandwidth_hz = v_.corner_hz;
         step.process_noise_scale = std::pow(w / (2.0 * kPi * v_.corner_hz), 4);
+        if (v_.manoeuvre_deg > 0.0) {
+          step.manoeuvre_rad = v_.manoeuvre_deg * kPi / 180.0;
+          step.manoeuvre_factor = v_.manoeuvre_factor;
+        }
         integrated_(a) += T_ * rate;
         Eigen::Vector2d intended = intended_.col(a);
         advanceIntendedMotion(step, integrated_(a), intended, covariance_[a]);
@@ -153,7 +159,8 @@ const StabiliserStage& intendedMotionStage() {
   static const StabiliserStage stage{
       "intended_motion",
       "the angle to cancel by an estimator (highpass_first_order, highpass_second_order, "
-      "velocity_loop, kalman_cv, alpha_beta) with excursion-dependent corner, and its gain per axis",
+      "velocity_loop, kalman_cv with a manoeuvre gate, alpha_beta) with excursion-dependent "
+      "corner, and its gain per axis",
       true,
       false,
       {},
@@ -171,9 +178,14 @@ const StabiliserStage& intendedMotionStage() {
         const IntendedMotionValues& v = valuesAs<IntendedMotionValues>(own);
         if (kindIndex(v.kind) < 0)
           why << "intended_motion.kind: unknown '" << v.kind << "'";
-        else if (!(v.corner_hz > 0.0 && v.damping > 0.0 && v.rate_corner_hz > 0.0 &&
-                   v.excursion_gain >= 0.0 && v.excursion_power > 0.0))
-          why << "intended_motion: corners, damping and excursion_power must be positive";
+        else if (!((v.corner_hz > 0.0 ||
+                    (v.corner_hz == 0.0 && v.kind == "highpass_first_order")) &&
+                   v.damping > 0.0 && v.rate_corner_hz > 0.0 && v.excursion_gain >= 0.0 &&
+                   v.excursion_power > 0.0))
+          why << "intended_motion: corners, damping and excursion_power must be positive "
+                 "(corner_hz 0: a highpass_first_order that never re-centres)";
+        else if (!(v.manoeuvre_deg >= 0.0 && v.manoeuvre_factor >= 1.0))
+          why << "intended_motion: manoeuvre_deg must be >= 0 (0 = no gate), manoeuvre_factor >= 1";
         else if (!(std::isfinite(v.gain_x) && std::isfinite(v.gain_y)))
           why << "intended_motion: gain_x and gain_y must be finite";
         else if (!model.has("gyro_loop") || !model.has("travel"))
@@ -182,7 +194,9 @@ const StabiliserStage& intendedMotionStage() {
       },
       nullptr,
       stage_numerics::runner<IntendedMotionRunner, IntendedMotionValues>,
-      [](const StageValues& own) { return "intended_motion:" + valuesAs<IntendedMotionValues>(own).kind; },
+      [](const StageValues& own) {
+        return "intended_motion:" + valuesAs<IntendedMotionValues>(own).kind;
+      },
       nullptr};
   return stage;
 }

@@ -26,7 +26,7 @@ stabiliser_file_fields::ValueFields fields(MotionModeValues& v) {
            {"schedule_start_rad_s", &v.schedule_start_rad_s},
            {"schedule_span_rad_s", &v.schedule_span_rad_s},
            {"schedule_time_constant_s", &v.schedule_time_constant_s}},
-          {{"action", &v.action}},
+          {{"action", &v.action}, {"detector", &v.detector}},
           {}};
 }
 
@@ -37,13 +37,16 @@ bool acts(const StageValues& own) {
 
 class MotionModeRunner final : public StabiliserStageRunner {
  public:
-  MotionModeRunner(const MotionModeValues& p, const StabiliserModel& model, const StabiliserRunContext& context)
+  MotionModeRunner(const MotionModeValues& p, const StabiliserModel& model,
+                   const StabiliserRunContext& context)
       : v_(p),
         detects_(v_.action != "none"),
+        on_norm_(v_.detector == "norm"),
         releases_(v_.action == "release"),
         T_(stage_numerics::controlPeriod(model, context)) {}
   void reset(StabiliserSignal& signal) override {
     sustained_rate_.setZero();
+    sustained_norm_ = 0.0;
     panning_ = false;
     hold_gain_ = 1.0;
     schedule_level_ = 0.0;
@@ -54,8 +57,15 @@ class MotionModeRunner final : public StabiliserStageRunner {
     const Eigen::Vector2d& rate = signal.sampled_rate_rad_s;
     double release = 1.0;
     if (detects_) {
-      sustained_rate_ += -std::expm1(-T_ / v_.time_constant_s) * (rate - sustained_rate_);
-      const double level = sustained_rate_.norm();
+      const double smoothing = -std::expm1(-T_ / v_.time_constant_s);
+      double level;
+      if (on_norm_) {
+        sustained_norm_ += smoothing * (signal.newest_rate_rad_s.norm() - sustained_norm_);
+        level = sustained_norm_;
+      } else {
+        sustained_rate_ += smoothing * (rate - sustained_rate_);
+        level = sustained_rate_.norm();
+      }
       if (!panning_ && level > v_.threshold_rad_s) panning_ = true;
       if (panning_ && level < 0.7 * v_.threshold_rad_s) panning_ = false;
       if (releases_ && panning_) release = v_.release_factor;
@@ -75,9 +85,10 @@ class MotionModeRunner final : public StabiliserStageRunner {
 
  private:
   MotionModeValues v_;
-  bool detects_, releases_;  // a pan is detected; it releases (else holds)
+  bool detects_, on_norm_, releases_;  // a pan is detected (on the norm); it releases (else holds)
   double T_;
   Eigen::Vector2d sustained_rate_ = Eigen::Vector2d::Zero();
+  double sustained_norm_ = 0.0;
   bool panning_ = false;
   double hold_gain_ = 1.0, schedule_level_ = 0.0;
 };
@@ -106,6 +117,8 @@ const StabiliserStage& motionModeStage() {
         const MotionModeValues& v = valuesAs<MotionModeValues>(own);
         if (v.action != "none" && v.action != "release" && v.action != "hold")
           why << "motion_mode.action: must be none, release or hold (got '" << v.action << "')";
+        else if (v.detector != "vector" && v.detector != "norm")
+          why << "motion_mode.detector: must be vector or norm (got '" << v.detector << "')";
         else if (!(v.threshold_rad_s > 0.0 && v.time_constant_s > 0.0 && v.release_factor >= 1.0 &&
                    v.hold_time_constant_s > 0.0))
           why << "motion_mode: threshold and time constants must be positive, release_factor >= 1";

@@ -2,7 +2,8 @@
 // direction (asymmetric when they differ), hard (a box or an ellipse) or soft (limit x tanh), the
 // anti-windup of the intended-motion angle while the command is beyond the hard stroke (none: it
 // winds up; clamp: held at the stroke; back_calculation: pulled back at a rate), and a DAC that
-// quantises the command to (x_positive + x_negative) stroke / 2^bits.
+// quantises the command to (x_positive + x_negative) stroke / 2^bits, or to a step given as an
+// angle.
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -23,7 +24,8 @@ stabiliser_file_fields::ValueFields fields(TravelValues& v) {
            {"y_positive_deg", &v.y_positive_deg},
            {"y_negative_deg", &v.y_negative_deg},
            {"back_calculation_rate_per_s", &v.back_calculation_rate_per_s},
-           {"quantiser_bits", &v.quantiser_bits}},
+           {"quantiser_bits", &v.quantiser_bits},
+           {"quantiser_lsb_deg", &v.quantiser_lsb_deg}},
           {{"shape", &v.shape}, {"anti_windup", &v.anti_windup}},
           {}};
 }
@@ -40,6 +42,8 @@ class TravelRunner final : public StabiliserStageRunner {
     x_pos_ = px(v_.x_positive_deg), x_neg_ = px(v_.x_negative_deg);
     y_pos_ = px(v_.y_positive_deg), y_neg_ = px(v_.y_negative_deg);
     if (v_.quantiser_bits > 0.0) lsb_px_ = (x_pos_ + x_neg_) / std::ldexp(1.0, static_cast<int>(v_.quantiser_bits));
+    if (v_.quantiser_lsb_deg > 0.0)
+      lsb_px_ = context.focal_px * std::tan(v_.quantiser_lsb_deg * stage_numerics::kPi / 180.0);
     fraction_ = v_.anti_windup == "clamp" ? 1.0 : -std::expm1(-v_.back_calculation_rate_per_s * T);
   }
   void reset(StabiliserSignal& signal) override {
@@ -102,7 +106,7 @@ const StabiliserStage& travelStage() {
       "travel",
       "the stroke per axis and direction (box, ellipse, soft_box, soft_ellipse; deg), the "
       "intended-motion angle's anti-windup (none, clamp, back_calculation) and a DAC of "
-      "quantiser_bits",
+      "quantiser_bits or a step of quantiser_lsb_deg",
       true,
       false,
       {},
@@ -122,12 +126,17 @@ const StabiliserStage& travelStage() {
           why << "travel.shape: must be box, ellipse, soft_box or soft_ellipse (got '" << v.shape << "')";
         else if (v.anti_windup != "none" && v.anti_windup != "clamp" && v.anti_windup != "back_calculation")
           why << "travel.anti_windup: must be none, clamp or back_calculation (got '" << v.anti_windup << "')";
-        else if (!(std::min({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg, v.y_negative_deg}) > 0.0 &&
-                   std::max({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg, v.y_negative_deg}) < 10.0))
-          why << "travel: the stroke must be in (0, 10) deg in every direction";
+        else if (!(std::min({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg,
+                             v.y_negative_deg}) > 0.0 &&
+                   std::max({v.x_positive_deg, v.x_negative_deg, v.y_positive_deg,
+                             v.y_negative_deg}) < 45.0))
+          why << "travel: the stroke must be in (0, 45) deg in every direction";
         else if (!(v.back_calculation_rate_per_s > 0.0) ||
                  !(v.quantiser_bits >= 0.0 && v.quantiser_bits <= 24.0 && v.quantiser_bits == std::floor(v.quantiser_bits)))
           why << "travel: back_calculation_rate_per_s must be positive, quantiser_bits a whole 0..24";
+        else if (!(v.quantiser_lsb_deg >= 0.0 && v.quantiser_lsb_deg < 1.0) ||
+                 (v.quantiser_lsb_deg > 0.0 && v.quantiser_bits > 0.0))
+          why << "travel: quantiser_lsb_deg must be in [0, 1) deg, and not with quantiser_bits";
         return why.str();
       },
       nullptr,
