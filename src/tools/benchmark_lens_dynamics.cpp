@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
   std::string network_path, split = "held_out", csv_path;
   std::uint32_t seed_begin = 0, count = 40;
   Settings settings;
-  bool chain_candidates = true, describe = false;
+  bool chain_candidates = true, describe = false, list_candidates = false;
   deep_ois::ToolCommandLine command_line("benchmark_lens_dynamics", kDescription);
   CLI::App& app = command_line.app();
   app.add_option("--network", network_path, "the lens dynamics network (none: the chain alone)")
@@ -83,7 +83,14 @@ int main(int argc, char** argv) {
   app.add_option("--chain-candidates", chain_candidates,
                  "also fit the chain's structural and learned-residual candidates (slower)")
       ->capture_default_str();
+  std::vector<std::string> classes;
+  app.add_option("--classes", classes, "only designs of these classes, comma-separated (default: all)")
+      ->delimiter(',')
+      ->check(CLI::IsMember(sim::designClasses()));
   app.add_flag("--describe", describe, "print each design's description under its row");
+  app.add_flag("--candidates", list_candidates,
+               "print every candidate under its row: its lens-motion RMS on the choice trace and "
+               "the share it explains on the evaluation traces");
   app.add_option("--csv", csv_path, "write the rows here")->type_name("FILE.csv");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
@@ -118,9 +125,11 @@ int main(int argc, char** argv) {
     int meets = 0, designs = 0;
     for (std::uint32_t seed = seed_begin; designs < static_cast<int>(count); ++seed) {
       if (sim::designSplit(seed) != wanted) continue;
-      ++designs;
       const auto started = std::chrono::steady_clock::now();
       const sim::StabiliserDesign design = sim::generateDesign(seed);
+      if (!classes.empty() && std::find(classes.begin(), classes.end(), sim::designClass(design)) == classes.end())
+        continue;
+      ++designs;
       std::vector<StabiliserFitRecording> training, choice, evaluation, oracle;
       for (std::uint32_t m = 101; m <= 109; ++m) {
         const sim::DesignTrace trace = sim::simulateDesignTrace(seed, m, trace_options);
@@ -168,6 +177,10 @@ int main(int argc, char** argv) {
       std::printf("%-6u %-12s %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.1f%% %6.1f%% %6.1f%% %s (%.0f s)\n", seed,
                   cls.c_str(), none, kept, chain, generic, generic_map, generic_layer, oracle_rms, closed(kept), closed(chain),
                   closed(oracle_rms), selection.candidates[selection.kept].name.c_str(), seconds);
+      if (list_candidates)
+        for (const auto& c : selection.candidates)
+          std::printf("       %s %-70s choice %.4f px, evaluation %.1f%%\n", &c == &selection.candidates[selection.kept] ? "*" : " ",
+                      c.name.c_str(), c.held_out.rms_px, closed(rmsOf(c.parameters)));
       if (describe) {
         std::string tags;
         for (const std::string& tag : sim::designFeatures(design)) tags += " " + tag;

@@ -67,6 +67,7 @@ LinearDynamicsBasis::LinearDynamicsBasis(const LinearDynamicsBasisSpec& spec, do
   ad_ = e.topLeftCorner(n, n);
   bd_ = e.topRightCorner(n, 1);
   state_ = Eigen::VectorXd::Zero(3 * n);
+  next_ = Eigen::VectorXd::Zero(n);
 }
 
 void LinearDynamicsBasis::reset() { state_.setZero(); }
@@ -75,9 +76,11 @@ const Eigen::VectorXd& LinearDynamicsBasis::advance(const Eigen::Vector3d& rate_
   const int n = spec_.order;
   for (int axis = 0; axis < 3; ++axis) {
     auto x = state_.segment(axis * n, n);
-    // Ad is lower triangular: the product into a temporary keeps the update exact.
-    const Eigen::VectorXd next = ad_.triangularView<Eigen::Lower>() * x + bd_ * rate_rad_s(axis);
-    x = next;
+    // Ad is lower triangular: the product into a scratch vector (kept, so a step allocates
+    // nothing) keeps the update exact.
+    next_.noalias() = ad_.triangularView<Eigen::Lower>() * x;
+    next_ += bd_ * rate_rad_s(axis);
+    x = next_;
   }
   return state_;
 }

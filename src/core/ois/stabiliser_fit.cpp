@@ -29,16 +29,18 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // The parameters a refinement frees: the fitted parameters (core/ois/stabiliser_stage.h), named
 // and bounded there, of the stages being fitted, in the stages' order: the chain's (centring,
 // stroke, actuator) always, and those named (stage names or tokens: "pan_detection",
-// "excursion_centring", "actuator_coupling"). Entry j reads and writes its parameter on the stage's
-// own values in a model; a write is held in the parameter's bounds (a parameter that ends on one
-// is reported by reviewStabiliserFit).
+// "excursion_centring", "actuator_coupling"); with `model`, only the stages it has (a composition
+// without the centring, around a linear-dynamics stage). Entry j reads and writes its parameter on
+// the stage's own values in a model; a write is held in the parameter's bounds (a parameter that
+// ends on one is reported by reviewStabiliserFit).
 class FreeParameters {
  public:
-  explicit FreeParameters(std::vector<std::string> stages = {}) {
+  explicit FreeParameters(std::vector<std::string> stages = {}, const StabiliserModel* model = nullptr) {
     for (std::string& stage : stages) stage = stageOfToken(stage);
     for (const char* chain : {"centring", "stroke", "actuator"}) stages.push_back(chain);
     for (const StabiliserStage& stage : stabiliserStages()) {
       if (std::find(stages.begin(), stages.end(), stage.name) == stages.end()) continue;
+      if (model && !model->has(stage.name)) continue;
       for (const FittedStabiliserParameter& parameter : stage.fitted)
         entries_.push_back({stage.name, &parameter});
     }
@@ -154,6 +156,37 @@ StabiliserModel levenbergMarquardt(StabiliserModel start, const FreeParameters& 
   }
   if (final_cost) *final_cost = report.final_cost;  // the solver's cost is huberCost's
   return unpack(report.values);
+}
+
+// Step 2 of a composition with the linear-dynamics stage (refitStabiliserStages): block coordinate
+// descent from `model` (its coefficients from step 1). Each round the solver moves the other
+// stages' parameters (`packing`) with the coefficients held, then the coefficients are solved
+// again in closed form with the rest held; a block's step is kept only when it lowers the Huber
+// cost, and the rounds stop when one lowers it by less than 0.1 %.
+//
+// Why not the coefficients as solver parameters: 2 x 3N of them (96 for 16 functions per axis)
+// would cost a run of the chain each per Jacobian, where the closed form costs one run per column
+// for both rows, and the cost is quadratic in them inside the stroke: the closed form is their
+// exact minimiser there, the solver would take several iterations to reach it.
+StabiliserModel refitWithLinearDynamics(StabiliserModel model, const FreeParameters& packing,
+                                        const std::vector<StabiliserFitRecording>& recordings,
+                                        const StabiliserFitOptions& options, double* final_cost,
+                                        std::vector<double>* rms_history) {
+  constexpr int kRounds = 3;
+  double cost = stabiliserFitCost(model, recordings, options);
+  const int iterations = std::max(1, options.iterations / kRounds);
+  for (int round = 0; round < kRounds; ++round) {
+    const double round_start = cost;
+    double moved_cost = 0.0;
+    StabiliserModel moved = levenbergMarquardt(model, packing, recordings, options, iterations, &moved_cost, rms_history);
+    if (moved_cost < cost) model = std::move(moved), cost = moved_cost;
+    StabiliserModel solved = solveLinearDynamicsCoefficients(model, recordings, options);
+    const double solved_cost = stabiliserFitCost(solved, recordings, options);
+    if (solved_cost < cost) model = std::move(solved), cost = solved_cost;
+    if (!(cost < (1.0 - 1e-3) * round_start)) break;
+  }
+  *final_cost = cost;
+  return model;
 }
 
 // The residual bank's features at time t: the leaky integrals of the pan/tilt rate, advanced
@@ -819,7 +852,18 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
                                           const StabiliserFitOptions& options) {
   const std::string problem = options.validate();
   if (!problem.empty()) throw std::invalid_argument("refitStabiliserStages: " + problem);
+  const bool linear_dynamics =
+      std::any_of(stages.begin(), stages.end(),
+                  [](const std::string& token) { return stageOfToken(token) == "linear_dynamics"; });
   StabiliserModel start = fitted.physicalChain();
+  if (linear_dynamics) {
+    // Only the listed stages: the linear stage stands in for what the others do not name. Pan
+    // detection is the fit's choice wherever there is a centring for it to release.
+    std::vector<std::string> kept = stages;
+    const bool centring = std::find(stages.begin(), stages.end(), "centring") != stages.end();
+    if (centring && start.get<PanDetectionValues>().pan_detection_rate_rad_s > 0.0) kept.push_back("pan_detection");
+    start = start.only(kept);
+  }
   // Each stage a refit starts: as listed (its variant) or left out.
   for (const StabiliserStage& stage : stabiliserStages()) {
     if (!stage.start) continue;
@@ -832,12 +876,23 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
   }
   std::vector<std::string> free = stages;
   for (const std::string& token : stages) stabiliserStage(stageOfToken(token));  // known names
-  if (start.get<PanDetectionValues>().pan_detection_rate_rad_s > 0.0) free.push_back("pan_detection");
-  const FreeParameters packing(free);
+  if (start.has("pan_detection") && start.get<PanDetectionValues>().pan_detection_rate_rad_s > 0.0)
+    free.push_back("pan_detection");
+  const FreeParameters packing(free, &start);
   StabiliserFitResult result;
   const Residuals initial = residualsOf(start, recordings, options);
   if (initial.used == 0)
     throw std::invalid_argument("refitStabiliserStages: no usable observation");
+  // Step 1 of a composition with the linear stage: its coefficients in closed form, the rest held
+  // (kept only when they lower the cost: beside a fitted centring the start is a fit already).
+  if (linear_dynamics) {
+    double start_cost = huberCost(initial.values, options.huber_px);
+    for (int solve = 0; solve < 2; ++solve) {
+      StabiliserModel solved = solveLinearDynamicsCoefficients(start, recordings, options);
+      const double cost = stabiliserFitCost(solved, recordings, options);
+      if (cost < start_cost) start = std::move(solved), start_cost = cost;
+    }
+  }
   // The variant moves the stroke's meaning (where the integrator stops), so the stroke is scanned
   // again around the fitted one before every parameter is refined.
   double cost = huberCost(initial.values, options.huber_px);
@@ -856,8 +911,27 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
     start = scanned;
   }
   double refined_cost = 0.0;
-  const StabiliserModel refined = levenbergMarquardt(
-      start, packing, recordings, options, options.iterations, &refined_cost, &result.rms_history);
+  StabiliserModel refined = start;
+  if (!linear_dynamics) {
+    refined = levenbergMarquardt(start, packing, recordings, options, options.iterations, &refined_cost,
+                                 &result.rms_history);
+  } else {
+    refined = refitWithLinearDynamics(start, packing, recordings, options, &refined_cost, &result.rms_history);
+    // Its own linear filter of the rate: no residual bank on top.
+    const Residuals residuals = residualsOf(refined, recordings, options);
+    std::ostringstream line;
+    line << "structure:";
+    for (const std::string& token : stabiliserComposition(refined)) line << " " << token;
+    line << " (two-step fit), cost " << refined_cost;
+    result.log.push_back(line.str());
+    result.parameters = refined;
+    result.observations_used = residuals.used;
+    result.observations_skipped = residuals.skipped;
+    result.rms_physical_px = result.rms_px =
+        weightedRms(residuals.values, Eigen::VectorXd::Ones(residuals.values.size()));
+    result.review = reviewStabiliserFit(result.parameters, options.target);
+    return result;
+  }
   std::ostringstream line;
   const auto& stroke = refined.get<StrokeValues>();
   const auto& actuator = refined.get<ActuatorValues>();

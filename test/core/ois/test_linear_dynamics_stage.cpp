@@ -139,7 +139,7 @@ TEST(LinearDynamicsStage, StandsInForACentringChainInsideTheStroke) {
   const StabiliserScore score = scoreStabiliser(fitted, {recording}, options);
   EXPECT_LT(score.rms_px, 0.02 * score.rms_without_model_px) << score.rms_px;
   EXPECT_EQ(stabiliserComposition(fitted),
-            (std::vector<std::string>{"linear_dynamics", "stroke", "actuator"}));
+            (std::vector<std::string>{"linear_dynamics:1hz_x6", "stroke", "actuator"}));
   // Another stage around it is refused (it would not be linear in the coefficients).
   EXPECT_THROW(fitLinearDynamics(chain(), {"linear_dynamics", "learned_residual"}, basis(),
                                  {recording}, options),
@@ -180,6 +180,69 @@ TEST(LinearDynamicsStage, AModelFileOfItLoadsAndPredictsAsSaved) {
     EXPECT_NE(std::string(e.what()).find("no_such_stage"), std::string::npos);
   }
   std::remove(path.c_str());
+}
+
+// The known linear dynamics through a soft stroke the shake meets (60 % of its largest command).
+StabiliserModel knownLinearDynamicsThroughASoftStroke() {
+  StabiliserModel truth = knownLinearDynamics();
+  LensShiftPredictor predictor(truth, kFocalPx);
+  Eigen::Vector2d largest = Eigen::Vector2d::Zero();
+  for (const CameraRateSample& sample : shake().rates) {
+    predictor.addRate(sample);
+    largest = largest.cwiseMax(predictor.lensShiftAt(sample.stamp_s).cwiseAbs());
+  }
+  StrokeValues& stroke = truth.get<StrokeValues>();
+  stroke.soft_stroke = true;
+  stroke.stroke_x_deg = std::atan(0.6 * largest.x() / kFocalPx) * 180.0 / 3.14159265358979;
+  stroke.stroke_y_deg = std::atan(0.6 * largest.y() / kFocalPx) * 180.0 / 3.14159265358979;
+  return truth;
+}
+
+TEST(LinearDynamicsStage, TheTwoStepFitFindsTheStrokeAroundIt) {
+  // Step 1 alone (the coefficients in closed form through the fitted chain's far stroke) cannot
+  // explain a lens the stroke squashes; step 2 (the solver on the stroke and actuator, the
+  // coefficients solved again between its rounds) finds the stroke and the coefficients together.
+  const StabiliserModel truth = knownLinearDynamicsThroughASoftStroke();
+  const StabiliserFitRecording recording = observed(truth);
+  StabiliserFitOptions options;
+  const std::vector<std::string> stages = {"linear_dynamics:1hz_x6", "stroke:soft", "actuator"};
+  StabiliserModel step_one = chain().only(stages);
+  step_one.get<StrokeValues>().soft_stroke = true;
+  stabiliserStage("linear_dynamics").start(*step_one.values("linear_dynamics"), "1hz_x6");
+  for (int solve = 0; solve < 2; ++solve)
+    step_one = solveLinearDynamicsCoefficients(step_one, {recording}, options);
+  const StabiliserScore one = scoreStabiliser(step_one, {recording}, options);
+
+  const StabiliserFitResult joint = refitStabiliserStages(chain(), stages, {recording}, options);
+  const StabiliserScore both = scoreStabiliser(joint.parameters, {recording}, options);
+  EXPECT_EQ(stabiliserComposition(joint.parameters), stages);
+  EXPECT_LT(both.rms_px, 0.3 * one.rms_px) << both.rms_px << " px after step 2, " << one.rms_px
+                                           << " px after step 1";
+  EXPECT_LT(both.rms_px, 0.03 * both.rms_without_model_px) << both.rms_px;
+  const double stroke_x = joint.parameters.get<StrokeValues>().stroke_x_deg;
+  EXPECT_NEAR(stroke_x, truth.get<StrokeValues>().stroke_x_deg, 0.2 * truth.get<StrokeValues>().stroke_x_deg);
+}
+
+TEST(LinearDynamicsStage, ItsBasisIsItsTokensVariant) {
+  StabiliserModel p = chain().only({"linear_dynamics", "stroke"});
+  const StabiliserStage& stage = stabiliserStage("linear_dynamics");
+  stage.start(*p.values("linear_dynamics"), "0.5+20hz_x12");
+  const LinearDynamicsValues& linear = p.get<LinearDynamicsValues>();
+  EXPECT_EQ(linear.basis.pole_hz, 0.5);
+  EXPECT_EQ(linear.basis.second_pole_hz, 20.0);
+  EXPECT_EQ(linear.basis.order, 12);
+  EXPECT_EQ(linear.coefficients.cols(), 36);
+  EXPECT_EQ(stabiliserComposition(p), (std::vector<std::string>{"linear_dynamics:0.5+20hz_x12", "stroke"}));
+  for (const char* bad : {"1hz", "hz_x8", "1hz_x", "1hz_x8 ", "-1hz_x8", "1+hz_x8", "1hz_x0"}) {
+    try {
+      stage.start(*p.values("linear_dynamics"), bad);
+      ADD_FAILURE() << "the variant '" << bad << "' was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+    }
+  }
+  stage.start(*p.values("linear_dynamics"), nullptr);  // left out
+  EXPECT_EQ(stabiliserComposition(p), (std::vector<std::string>{"stroke"}));
 }
 
 }  // namespace

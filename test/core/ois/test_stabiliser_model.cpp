@@ -688,9 +688,9 @@ TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
     std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
                 c.training.rms_px, c.held_out.rms_px);
   std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, the six structural variants, rate filter, nonlinear, both, the two linear-dynamics
+  // physical, the six structural variants, rate filter, nonlinear, both, the five linear-dynamics
   // rows: the nonlinear set is what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 12u);
+  ASSERT_EQ(selection.candidates.size(), 15u);
   EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
   EXPECT_NE(selection.candidates[4].name.find("actuator coupling"), std::string::npos);
   EXPECT_NE(selection.candidates[5].name.find("soft stroke"), std::string::npos);

@@ -70,6 +70,7 @@ class LinearDynamicsBasis {
   Eigen::MatrixXd a_, ad_;
   Eigen::VectorXd b_, bd_;
   Eigen::VectorXd state_;
+  Eigen::VectorXd next_;  // scratch of advance(), one axis' next state
 };
 
 // The basis run over a gyro stream the way LensShiftPredictor runs its chain: internal steps of

@@ -18,7 +18,8 @@
 //    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
 //    or estimator the chain does not name; and both (excursion_rate_v1);
 //  - a linear filter of free order of the three gyro axes (the linear_dynamics stage) instead of
-//    the centring, before the fitted stroke (with or without its actuator), fitted in closed form.
+//    the centring or beside it, composed with the stroke (hard or soft), the actuator and the
+//    excursion-dependent re-centring, fitted in two steps (refitStabiliserStages).
 // Pure C++/Eigen: no ROS.
 #pragma once
 
@@ -70,8 +71,8 @@ struct ModelCandidate {
 //  - another stage or a stroke variant: the chain refitted with it (refitStabiliserStages, which
 //    fits its own linear bank and keeps it where it helps);
 //  - learned_residual:SET: that feature set ridge-fitted on top of the physical fit;
-//  - linear_dynamics: its coefficients in closed form, the stages around it held
-//    (fitLinearDynamics).
+//  - linear_dynamics:BASIS (with or without other stages and variants): the listed chain in two
+//    steps, the coefficients in closed form, then the whole chain jointly (refitStabiliserStages).
 // Pan detection is the fit's choice for every row, so a row never names it.
 struct StabiliserCandidateDescription {
   // What it adds to the chain, for its name ("anti-windup integrator"); "" for the chain itself.
@@ -83,13 +84,16 @@ struct StabiliserCandidateDescription {
 
   // The learned residual's feature set ("" when the row has none).
   std::string featureSet() const;
-  // A refit of the chain with a stage or variant more.
+  // A refit of the chain with a stage or variant more (the linear-dynamics stage aside: it is
+  // linearDynamics(); a row with both is refitted as one with the linear stage).
   bool structural() const;
+  // The linear-dynamics stage among its stages: fitted in two steps (refitStabiliserStages).
   bool linearDynamics() const;
 };
 
 // The candidate table, simplest first: the chain, its linear bank, the six structural variants,
-// the three learned feature sets (the names and what each adds: docs/stabiliser_model.md).
+// the three learned feature sets, the five compositions with the linear-dynamics stage (the names
+// and what each adds: docs/stabiliser_model.md).
 const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptions();
 
 // A model's place in the table's simplicity order, read from its parameters: 0 for "no lens

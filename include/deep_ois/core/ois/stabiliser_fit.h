@@ -142,11 +142,36 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
 // parameters free (the stroke scanned again around them, pan detection and stroke shape kept), then
 // its linear residual bank as fitStabiliser fits it. The training RMS and the review are filled;
 // rms_without_model_px and the timing check are not (they do not depend on the composition).
+//
+// With a linear-dynamics stage among `stages` ("linear_dynamics:1hz_x8", its basis as the variant)
+// the model has only the listed stages (and the fit's pan detection when the centring is listed),
+// and the fit has two steps (docs/stabiliser_model.md, "The fit's two steps"): first its
+// coefficients in closed form with the rest of the chain held (solveLinearDynamicsCoefficients from
+// zero, twice: the second solve sees where the first one's lens meets the stroke), then the whole
+// chain jointly by block coordinate descent: the solver moves the other stages' parameters with
+// the coefficients held, the coefficients are solved again in closed form with the others held,
+// and so on while the cost falls (each block's step is kept only when it lowers the cost). No
+// linear residual bank is fitted on top (the stage is a linear filter of the rate already).
 // Throws std::invalid_argument as fitStabiliser, and for an unknown stage or variant.
 StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
                                           const std::vector<std::string>& stages,
                                           const std::vector<StabiliserFitRecording>& recordings,
                                           const StabiliserFitOptions& options);
+
+// The linear-dynamics stage's coefficients (stages/linear_dynamics_stage.cpp) solved in closed form
+// with every other stage of `model` held: the lens motion is linearised in the coefficients about
+// their current values (one run of the chain per coefficient column, a small probe added to both
+// rows), and each image axis' row is the package's robust ridge regression
+// (RobustRidgeRegression: `ridge` relative to each column's energy, Huber weights from the
+// current residual as options.huber_px) on motion - lens(C) + J C. Exact when the chain is linear
+// in the coefficients (inside the stroke); through a stroke the lens that meets the end stop has
+// no slope, so those motions drop out of the solve. Returns `model` with the solved coefficients
+// (unchanged when the solve is not finite); the caller keeps them only if they lower its cost.
+// Throws std::invalid_argument when the model has no active linear-dynamics stage or fewer usable
+// lens motions than coefficients.
+StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
+                                                const std::vector<StabiliserFitRecording>& recordings,
+                                                const StabiliserFitOptions& options, double ridge = 1e-5);
 
 // A model's RMS lens-motion residual on recordings (pixels, weighted by the observations'
 // weights) beside that of no lens motion (motion 0), over the observations the model predicts.

@@ -13,7 +13,11 @@
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
@@ -35,7 +39,9 @@ class LinearDynamicsRunner final : public StabiliserStageRunner {
         focal_px_(context.focal_px) {}
   void reset(StabiliserSignal&) override { basis_.reset(); }
   void advance(StabiliserSignal& signal) override {
-    signal.raw_command_px += focal_px_ * (coefficients_ * basis_.advance(signal.rate_rad_s));
+    Eigen::Vector2d added;
+    added.noalias() = coefficients_ * basis_.advance(signal.rate_rad_s);  // no allocation per step
+    signal.raw_command_px += focal_px_ * added;
     signal.command_px = signal.lens_px = signal.raw_command_px;
   }
 
@@ -44,6 +50,43 @@ class LinearDynamicsRunner final : public StabiliserStageRunner {
   Eigen::MatrixXd coefficients_;  // 2 x 3 order, focal units per basis state
   double focal_px_;
 };
+
+// The basis as a token's variant: "1hz_x8" (Laguerre, 1 Hz, 8 functions per axis), "1+10hz_x16"
+// (two poles alternating).
+std::string basisVariant(const LinearDynamicsBasisSpec& basis) {
+  std::ostringstream variant;
+  variant << basis.pole_hz;
+  if (basis.second_pole_hz > 0.0) variant << "+" << basis.second_pole_hz;
+  variant << "hz_x" << basis.order;
+  return variant.str();
+}
+
+LinearDynamicsBasisSpec basisOfVariant(const std::string& variant) {
+  LinearDynamicsBasisSpec basis;
+  if (variant.empty()) return basis;  // the default basis
+  std::istringstream in(variant);
+  char plus = 0;
+  std::string rest;
+  bool good = static_cast<bool>(in >> basis.pole_hz);
+  if (good && in.peek() == '+') good = static_cast<bool>(in >> plus >> basis.second_pole_hz);
+  good = good && static_cast<bool>(std::getline(in, rest));
+  if (good && rest.rfind("hz_x", 0) == 0) {
+    std::size_t used = 0;
+    try {
+      basis.order = std::stoi(rest.substr(4), &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    good = used > 0 && 4 + used == rest.size();
+  } else {
+    good = false;
+  }
+  const std::string problem = good ? basis.validate(1e-3) : std::string("malformed");
+  if (!problem.empty())
+    throw std::invalid_argument("linear_dynamics: variant '" + variant + "' is not a basis such as "
+                                "'1hz_x8' or '1+10hz_x16' (" + problem + ")");
+  return basis;
+}
 
 }  // namespace
 
@@ -116,9 +159,19 @@ const StabiliserStage& linearDynamicsStage() {
       },
       [](const StageValues& own) {
         const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
-        return std::string(p.active() ? "linear_dynamics" : "");
+        return p.active() ? "linear_dynamics:" + basisVariant(p.basis) : std::string();
       },
-      nullptr};
+      // Started by a refit (refitStabiliserStages): the variant names the basis, the coefficients
+      // start at zero (the refit's first step solves them in closed form).
+      [](StageValues& own, const char* variant) {
+        LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
+        if (!variant) {
+          p = LinearDynamicsValues();
+          return;
+        }
+        p.basis = basisOfVariant(variant);
+        p.coefficients = Eigen::MatrixXd::Zero(2, 3 * p.basis.order);
+      }};
   return stage;
 }
 
@@ -154,10 +207,12 @@ StabiliserModel fitLinearDynamics(const StabiliserModel& base,
                                        const LinearDynamicsBasisSpec& basis,
                                        const std::vector<StabiliserFitRecording>& recordings,
                                        const StabiliserFitOptions& options, double ridge) {
-  if (std::find(stages.begin(), stages.end(), "linear_dynamics") == stages.end())
+  if (std::none_of(stages.begin(), stages.end(),
+                   [](const std::string& token) { return stageOfToken(token) == "linear_dynamics"; }))
     throw std::invalid_argument("fitLinearDynamics: the stages must include linear_dynamics");
-  for (const std::string& name : stages)
-    if (name != "linear_dynamics" && name != "stroke" && name != "actuator")
+  for (const std::string& token : stages)
+    if (const std::string name = stageOfToken(token);
+        name != "linear_dynamics" && name != "stroke" && name != "actuator")
       throw std::invalid_argument("fitLinearDynamics: the chain around linear_dynamics must be "
                                   "linear inside the stroke (stroke, actuator), not '" + name + "'");
   const long n = 3L * basis.order;
@@ -231,6 +286,81 @@ StabiliserModel fitLinearDynamics(const StabiliserModel& base,
   if (kept >= 2 * n) coefficients = fitLinearDynamicsCoefficients(states, targets, inside, ridge);
   model.get<LinearDynamicsValues>().coefficients = coefficients;
   return model;
+}
+
+}  // namespace deep_ois
+
+namespace deep_ois {
+
+StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
+                                                const std::vector<StabiliserFitRecording>& recordings,
+                                                const StabiliserFitOptions& options, double ridge) {
+  const LinearDynamicsValues* own = model.find<LinearDynamicsValues>();
+  if (!own || !own->active())
+    throw std::invalid_argument("solveLinearDynamicsCoefficients: the model has no linear_dynamics "
+                                "stage with coefficients (start it with its basis)");
+  const Eigen::MatrixXd current = own->coefficients;
+  const long n = current.cols();
+  // The lens at each observation's ends for the current coefficients, and for each coefficient
+  // column moved by a probe (both rows at once: each image axis answers its own row; a coupling
+  // between the axes, a circular stroke, is left to the caller's acceptance test).
+  auto lensOver = [&](const StabiliserModel& m) {
+    std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lens;
+    for (const StabiliserFitRecording& recording : recordings) {
+      const auto here = lensAtObservations(m, recording, options);
+      lens.insert(lens.end(), here.begin(), here.end());
+    }
+    return lens;
+  };
+  const auto base = lensOver(model);
+  std::vector<const LensMotionObservation*> observations;
+  for (const StabiliserFitRecording& recording : recordings)
+    for (const LensMotionObservation& o : recording.observations) observations.push_back(&o);
+  const long m = static_cast<long>(observations.size());
+  // Relative to the coefficients' scale (focal units per basis state: 1e-3 to 1), small enough that
+  // the probe crosses the stroke's end stop on almost no sample.
+  constexpr double kProbe = 1e-6;
+  Eigen::MatrixXd along_x(m, n), along_y(m, n);
+  StabiliserModel probe = model;
+  for (long j = 0; j < n; ++j) {
+    Eigen::MatrixXd& probed = probe.get<LinearDynamicsValues>().coefficients;
+    probed = current;
+    probed.col(j).array() += kProbe;
+    const auto lens = lensOver(probe);
+    for (long i = 0; i < m; ++i) {
+      const std::size_t k = static_cast<std::size_t>(i);
+      const Eigen::Vector2d moved = (lens[k].second - lens[k].first) - (base[k].second - base[k].first);
+      along_x(i, j) = moved.x() / kProbe;
+      along_y(i, j) = moved.y() / kProbe;
+    }
+  }
+  // Per image axis: its row of coefficients by the package's robust ridge regression on the
+  // linearised lens motion, motion - lens(C) + J C = J C', Huber-weighted by the current residual.
+  RobustRidgeRegression per_axis[2] = {RobustRidgeRegression(n, 1, RobustLoss::huber(options.huber_px)),
+                                       RobustRidgeRegression(n, 1, RobustLoss::huber(options.huber_px))};
+  for (long i = 0; i < m; ++i) {
+    const std::size_t k = static_cast<std::size_t>(i);
+    const Eigen::Vector2d predicted = base[k].second - base[k].first;
+    if (!predicted.allFinite() || !along_x.row(i).allFinite() || !along_y.row(i).allFinite()) continue;
+    const LensMotionObservation& o = *observations[k];
+    const Eigen::Vector2d residual = o.motion_px - predicted;
+    for (int axis = 0; axis < 2; ++axis) {
+      const Eigen::RowVectorXd features = axis == 0 ? along_x.row(i) : along_y.row(i);
+      const double target = residual(axis) + features.dot(current.row(axis));
+      per_axis[axis].add(features.transpose(), Eigen::VectorXd::Constant(1, target),
+                         std::max(0.0, o.weight), residual.norm());
+    }
+  }
+  if (per_axis[0].count() < static_cast<std::size_t>(n))
+    throw std::invalid_argument("solveLinearDynamicsCoefficients: fewer usable lens motions than coefficients");
+  StabiliserModel solved = model;
+  Eigen::MatrixXd& coefficients = solved.get<LinearDynamicsValues>().coefficients;
+  for (int axis = 0; axis < 2; ++axis) {
+    Eigen::MatrixXd row;  // n x 1
+    if (!per_axis[axis].solve(ridge, &row)) return model;
+    coefficients.row(axis) = row.col(0).transpose();
+  }
+  return solved;
 }
 
 }  // namespace deep_ois
