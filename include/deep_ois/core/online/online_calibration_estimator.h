@@ -28,7 +28,9 @@
 //  - Each swap remembers the state before the fit that offered it: when the caller's per-pair
 //    check undoes the swap, rewindBeforeSwap() returns the estimator there.
 //  - The calibration in use is a line too (apply_drift_rate): its offset, its drift rate and the
-//    camera stamp where the offset holds; whoever applies it takes the line at each frame.
+//    camera stamp where the offset holds; whoever applies it takes the line at each frame. The
+//    rate is applied only when the clock model tells it from zero (applied_rate_sigmas), else the
+//    offset is a constant carried along the line.
 //  - A candidate (the filtered estimate after a fit) waits for `held_out_s` of pairs after its
 //    window and is scored there against the calibration in use: the mean track residual over the
 //    tracks that either explains (within `outlier_px`). It replaces the calibration in use only when
