@@ -178,6 +178,7 @@ double g_jump_window_s = deep_ois::OnlineCalibrationOptions().jump_window_s;
 deep_ois::ClockModelOptions g_clock = deep_ois::OnlineCalibrationOptions().clock;
 double g_refine_offset_s = deep_ois::OnlineCalibrationOptions().refine_offset_s;
 bool g_apply_drift_rate = deep_ois::OnlineCalibrationOptions().apply_drift_rate;
+double g_applied_rate_sigmas = deep_ois::OnlineCalibrationOptions().applied_rate_sigmas;
 
 deep_ois::OnlineCalibrationOptions onlineOptions(bool ois, bool mount_known) {
   deep_ois::OnlineCalibrationOptions options;
@@ -188,6 +189,7 @@ deep_ois::OnlineCalibrationOptions onlineOptions(bool ois, bool mount_known) {
   options.clock = g_clock;
   options.refine_offset_s = g_refine_offset_s;
   options.apply_drift_rate = g_apply_drift_rate;
+  options.applied_rate_sigmas = g_applied_rate_sigmas;
   options.lens_shift = ois ? deep_ois::LensShiftHandling::kPerFrameShift : deep_ois::LensShiftHandling::kNone;
   options.estimate_rotation = !mount_known;
   return options;
@@ -318,6 +320,11 @@ int main(int argc, char** argv) {
        "the clock model's drift-rate random walk, s/s per sqrt(s) (clock.rate_random_walk_per_sqrt_s)"},
       {"--systematic-sigma", &g_clock.systematic_sigma_s,
        "the windows' persistent error added to the reported 1-sigma, s (clock.systematic_sigma_s)"},
+      {"--systematic-rate-sigma", &g_clock.systematic_rate_sigma,
+       "the windows' persistent error seen as a drift rate, added to the rate's 1-sigma, s/s "
+       "(clock.systematic_rate_sigma)"},
+      {"--applied-rate-sigmas", &g_applied_rate_sigmas,
+       "the drift rate is applied only beyond this many of its 1-sigma (applied_rate_sigmas; 0: always)"},
       {"--refine-offset", &g_refine_offset_s,
        "an offset this far (s) from the one in use is applied when no worse (refine_offset_s)"}};
   for (const auto& [flag, value, description] : clock_flags) {

@@ -28,8 +28,10 @@ std::string ClockModelOptions::validate() const {
     why << "suspect_sigmas must be in (0, jump_sigmas] (got " << suspect_sigmas << ")";
   } else if (!(noise_memory >= 1.0) || !std::isfinite(noise_memory)) {
     why << "noise_memory must be at least 1 window (got " << noise_memory << ")";
-  } else if (!(systematic_sigma_s >= 0.0) || !std::isfinite(systematic_sigma_s)) {
-    why << "systematic_sigma_s must be finite and >= 0 (got " << systematic_sigma_s << ")";
+  } else if (!(systematic_sigma_s >= 0.0) || !std::isfinite(systematic_sigma_s) || !(systematic_rate_sigma >= 0.0) ||
+             !std::isfinite(systematic_rate_sigma)) {
+    why << "systematic_sigma_s and systematic_rate_sigma must be finite and >= 0 (got " << systematic_sigma_s << ", "
+        << systematic_rate_sigma << ")";
   } else if (!(min_noise_scale > 0.0 && min_noise_scale <= 1.0) || !(max_noise_scale >= 1.0) ||
              !std::isfinite(max_noise_scale)) {
     why << "min_noise_scale must be in (0, 1] and max_noise_scale at least 1 (got " << min_noise_scale << ", "
@@ -73,6 +75,10 @@ double ClockOffsetFilter::sigmaAt(double stamp_s) const {
   Eigen::Matrix2d covariance;
   predict(stamp_s, &state, &covariance);
   return std::sqrt(std::max(covariance(0, 0), 0.0) + options_.systematic_sigma_s * options_.systematic_sigma_s);
+}
+
+double ClockOffsetFilter::rateSigma() const {
+  return std::sqrt(std::max(covariance_(1, 1), 0.0) + options_.systematic_rate_sigma * options_.systematic_rate_sigma);
 }
 
 void ClockOffsetFilter::restart(const ClockMeasurement& measurement, bool keep_rate) {

@@ -83,6 +83,8 @@ std::string OnlineCalibrationOptions::validate() const {
              !std::isfinite(hold_readout_below_sigma_s)) {
     why << "refine_offset_s and hold_readout_below_sigma_s must be finite and >= 0 (got " << refine_offset_s << ", "
         << hold_readout_below_sigma_s << ")";
+  } else if (!(applied_rate_sigmas >= 0.0) || !std::isfinite(applied_rate_sigmas)) {
+    why << "applied_rate_sigmas must be finite and >= 0 (got " << applied_rate_sigmas << ")";
   } else if (readout_every < 1) {
     why << "readout_every must be at least 1 (got " << readout_every << ")";
   } else if (!(max_offset_sigma_s > 0.0) || !(max_readout_sigma_s > 0.0) || !(max_bias_sigma_rad_s > 0.0) ||
@@ -551,7 +553,8 @@ void OnlineCalibrationEstimator::fit() {
   // The offset carried along the line to the newest pair.
   estimate.time_offset_s = clock_.offsetAt(end_s);
   estimate.time_offset_sigma_s = clock_.sigmaAt(end_s);
-  estimate.time_offset_rate = options_.apply_drift_rate ? clock_.rate() : 0.0;
+  const bool rate_told = std::abs(clock_.rate()) > options_.applied_rate_sigmas * clock_.rateSigma();
+  estimate.time_offset_rate = options_.apply_drift_rate && rate_told ? clock_.rate() : 0.0;
   estimate.time_offset_reference_s = end_s;
   status_.offset_noise_scale = clock_.noiseScale();
   status_.window_correlation = clock_.windowCorrelation();
@@ -655,7 +658,7 @@ void OnlineCalibrationEstimator::scoreCandidate() {
   }
   // The candidate's offset is the filter's at its window's end.
   CameraImuCalibration scored = candidate_;
-  if (options_.apply_drift_rate) {
+  if (candidate_.time_offset_rate != 0.0) {
     // A line (the filter's drift rate): scored with its offset at each held-out pair, applied
     // as the same line referred to the newest pair.
     candidate_.time_offset_s = candidate_.timeOffsetAt(last_pair_stamp_s_);

@@ -97,6 +97,8 @@ std::string OnlineLearningOptions::validate() const {
   else if (!(refit_every_s > 0.0)) why << "refit_every_s must be positive (got " << refit_every_s << ")";
   else if (!(still_rate_rad_s >= 0.0)) why << "still_rate_rad_s must not be negative";
   else if (!(cpu_share > 0.0 && cpu_share <= 1.0)) why << "cpu_share must be in (0, 1] (got " << cpu_share << ")";
+  else if (!(max_clock_drift_rate >= 0.0) || !std::isfinite(max_clock_drift_rate))
+    why << "max_clock_drift_rate must be finite and >= 0 (got " << max_clock_drift_rate << ")";
   else if (max_queued_pairs < 1) why << "max_queued_pairs must be at least 1";
   else if (tracking_width_px < 64) why << "tracking_width_px must be at least 64 (got " << tracking_width_px << ")";
   if (!why.str().empty()) return why.str();
@@ -383,13 +385,15 @@ void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
     learning = options_.learning;
     timeline = timeline_;
   }
-  // ---- The window: consecutive pairs of one camera and one timeline. ----
+  // ---- The window: consecutive pairs of one camera, one timeline and one clock. ----
+  // The offset may move along a drifting clock's line (microseconds a pair), not by a step.
+  const double offset_step_s = std::abs(pair.timing.time_offset_s - window_last_offset_s_);
   const bool chains = !window_stamps_s_.empty() && window_timeline_ == timeline &&
-                      pair.stamp_a_s == window_stamps_s_.back() && window_camera_.K().isApprox(pair.camera.K()) &&
+                      pair.stamp_a_s == window_last_stamp_s_ && window_camera_.K().isApprox(pair.camera.K()) &&
                       window_camera_.width() == pair.camera.width() &&
                       window_timing_.patch_count == pair.timing.patch_count &&
                       window_timing_.readout_time_s == pair.timing.readout_time_s &&
-                      window_timing_.time_offset_s == pair.timing.time_offset_s;
+                      offset_step_s <= options_.max_clock_drift_rate * (pair.stamp_b_s - pair.stamp_a_s);
   if (!chains) {
     if (window_timeline_ == timeline) closeWindow();
     window_stamps_s_.clear();
@@ -415,7 +419,10 @@ void OnlineStabiliserLearner::process(OnlineFramePair& pair) {
   observation.frame_b = observation.frame_a + 1;
   observation.rotations = pair.rotations;
   observation.matches = std::move(pair.matches);
-  window_stamps_s_.push_back(pair.stamp_b_s);
+  // Frame b on the window's timing: the IMU time this pair's rotations were integrated at.
+  window_stamps_s_.push_back(pair.stamp_b_s + pair.timing.time_offset_s - window_timing_.time_offset_s);
+  window_last_stamp_s_ = pair.stamp_b_s;
+  window_last_offset_s_ = pair.timing.time_offset_s;
   window_pairs_.push_back(std::move(observation));
   if (window_stamps_s_.back() - window_stamps_s_.front() >= options_.window_s) closeWindow();
 }

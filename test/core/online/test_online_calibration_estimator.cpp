@@ -178,7 +178,7 @@ TEST(OnlineCalibrationEstimator, TracksADriftingOffset) {
   const sim::SyntheticTrackRecording recording = sim::makeSyntheticTrackRecording(handHeldCamera(false), options);
   OnlineCalibrationOptions online = unbudgeted();
   online.estimate_rotation = false;
-  online.apply_drift_rate = true;  // off by default in the live pipeline (the header says why)
+  online.apply_drift_rate = true;  // the default, said here: this test is about the line
   OnlineCalibrationEstimator estimator(online, recording.camera, truthAt(recording, 0.0));
   double worst_estimate_ms = 0.0, worst_in_use_ms = 0.0;
   replay(recording, estimator, [&](double t) {

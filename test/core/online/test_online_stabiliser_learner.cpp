@@ -64,10 +64,13 @@ Eigen::Matrix3d turnBetween(double t_a, double t_b, double amplitude) {
 }
 
 // `seconds` of pairs from a camera whose stabiliser is `truth` (lens never moves when gain is 0).
+// With `offset_rate` (s/s) the camera clock drifts: each pair is made and stamped as the gyro flow
+// does with a drifting calibration applied (its offset the line's at frame b, IMU time = camera
+// stamp + that offset), so every pair carries a slightly different time offset.
 std::vector<OnlineFramePair> makePairs(const StabiliserModel& truth, double seconds, double amplitude,
-                                       unsigned seed, double start_s = 0.0) {
+                                       unsigned seed, double start_s = 0.0, double offset_rate = 0.0) {
   const CameraModel camera = testCamera();
-  const RollingShutterConfig rs = timing();
+  RollingShutterConfig rs = timing();
   LensShiftPredictor lens(truth, camera.K()(0, 0), 1e-3, seconds + 3.0);
   std::vector<CameraRateSample> rates;
   for (double t = start_s; t < start_s + seconds + 1.2; t += kImuPeriod) {
@@ -82,6 +85,7 @@ std::vector<OnlineFramePair> makePairs(const StabiliserModel& truth, double seco
     OnlineFramePair pair;
     pair.stamp_a_s = stamp_a;
     pair.stamp_b_s = stamp_a + kFramePeriod;
+    rs.time_offset_s = offset_rate * (pair.stamp_b_s - start_s);
     pair.timing = rs;
     pair.camera = camera;
     std::vector<Eigen::Vector2d> s_a, s_b;
@@ -173,6 +177,42 @@ TEST(OnlineStabiliserLearner, SwapsToAFitThatIsBetterOnTheHeldOutWindow) {
   EXPECT_NEAR(model->parameters.get<CentringValues>().gain(1, 0), -1.0, 0.1);
   EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
   EXPECT_EQ(status.windows_still, 0u);
+}
+
+// A drifting clock followed by the online calibration's line (apply_drift_rate): the gyro flow gives
+// every pair another time offset (3 ms a minute: ~2 us a pair). The windows still chain (the pairs
+// are moved onto one IMU timeline) and the learner fits as on a steady clock.
+TEST(OnlineStabiliserLearner, WindowsChainAcrossADriftingTimeOffset) {
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 11.0;
+  OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
+  std::vector<OnlineFramePair> pairs = makePairs(ideal(), 13.0, 1.0, 1, 0.0, 3e-3 / 60.0);
+  ASSERT_NE(pairs.front().timing.time_offset_s, pairs.back().timing.time_offset_s);
+  feed(learner, std::move(pairs));
+  const OnlineLearningStatus status = learner.status();
+  EXPECT_GE(status.windows_kept, 5u) << status.last_problem;
+  EXPECT_EQ(status.fits, 1u) << status.last_problem;
+  EXPECT_EQ(status.swaps, 1u) << status.last_choice;
+  // The fitted model explains the held-out lens motions as on a steady clock (its parameters are
+  // not compared: with 10 iterations the fit's optimum moves with a nanosecond of offset).
+  const auto model = learner.model();
+  EXPECT_EQ(model->name.rfind("fit on", 0), 0u) << model->name << ": " << model->reason;
+  EXPECT_LT(model->held_out_rms_px, 0.2 * model->held_out_rms_without_px) << model->reason;
+}
+
+// Applied calibration steps (the online calibration's refinements: 0.15 ms, far faster than any
+// clock drifts) end the window being built: the pairs before a step were integrated on the other
+// timing. With a step every 0.5 s no window reaches its 2 s; on one timing the same pairs make two.
+TEST(OnlineStabiliserLearner, AppliedOffsetStepsEndTheWindow) {
+  for (const bool steps : {false, true}) {
+    OnlineStabiliserLearner learner(testOptions(), {{"generic", wrongPrior()}}, 0);
+    std::vector<OnlineFramePair> pairs = makePairs(ideal(), 5.5, 1.0, 3);
+    for (OnlineFramePair& pair : pairs)
+      if (steps) pair.timing.time_offset_s = 0.15e-3 * std::floor(pair.stamp_a_s / 0.5);
+    feed(learner, std::move(pairs));
+    const OnlineLearningStatus status = learner.status();
+    EXPECT_EQ(status.windows_kept, steps ? 0u : 2u) << (steps ? "with" : "without") << " steps";
+  }
 }
 
 // A stabiliser the chain cannot name (an integrator held at a small stroke: anti-windup). The first

@@ -58,6 +58,10 @@ struct ClockModelOptions {
   // reported 1-sigma (sigmaAt), not to the filter's own covariance.
   // 0.12 ms brings the estimate's 1-sigma coverage on the drift runs of seed 1 from 49 % to 66 %.
   double systematic_sigma_s = 0.12e-3;
+  // The same shared error seen as a drift rate (s/s): windows off alike by ~0.12 ms for 10-20 s
+  // make a line lean by ~10 us/s on a steady clock (benchmark_online_calibration, jump, seed 1: a
+  // learned 17-24 us/s against a true 0). Added in quadrature to the rate's 1-sigma (rateSigma).
+  double systematic_rate_sigma = 1e-5;
   std::string validate() const;  // empty when usable, else a sentence naming the bad field
 };
 
@@ -91,6 +95,8 @@ class ClockOffsetFilter {
   double offsetAt(double stamp_s) const;
   double sigmaAt(double stamp_s) const;  // the reported 1-sigma of offsetAt (floor included), seconds
   double rate() const { return state_(1); }
+  // The drift rate's 1-sigma (s/s): the filter's, with systematic_rate_sigma in quadrature.
+  double rateSigma() const;
   // The learned scale of the windows' reported 1-sigma (>= 1).
   double noiseScale() const { return noise_scale_; }
   // The learned correlation of consecutive windows' errors (0 until learned).

@@ -28,7 +28,9 @@
 //  - Each swap remembers the state before the fit that offered it: when the caller's per-pair
 //    check undoes the swap, rewindBeforeSwap() returns the estimator there.
 //  - The calibration in use is a line too (apply_drift_rate): its offset, its drift rate and the
-//    camera stamp where the offset holds; whoever applies it takes the line at each frame.
+//    camera stamp where the offset holds; whoever applies it takes the line at each frame. The
+//    rate is applied only when the clock model tells it from zero (applied_rate_sigmas), else the
+//    offset is a constant carried along the line.
 //  - A candidate (the filtered estimate after a fit) waits for `held_out_s` of pairs after its
 //    window and is scored there against the calibration in use: the mean track residual over the
 //    tracks that either explains (within `outlier_px`). It replaces the calibration in use only when
@@ -112,11 +114,14 @@ struct OnlineCalibrationOptions {
   // time_offset_rate): the offset applied to a frame is the line at its stamp, so a drifting clock
   // is followed between swaps instead of being left behind until the next one. false: a constant
   // offset, carried ahead by the rate when it is applied (half an interval ahead of the drift).
-  // Off by default: the gyro flow then gives every frame another offset (a new calibration epoch a
-  // frame), and the online stabiliser learner, whose windows are runs of pairs under one timing,
-  // never closes a window: in a 30-minute soak with it on the learner never fitted
-  // (docs/results/reliability.md). On until windows tolerate an offset moving along a line.
-  bool apply_drift_rate = false;
+  // The gyro flow then gives every frame another offset (a new calibration epoch a frame); the
+  // online stabiliser learner's windows chain across it (OnlineLearningOptions::max_clock_drift_rate).
+  bool apply_drift_rate = true;
+  // The drift rate is applied only when the clock model tells it from zero: beyond this many of
+  // its 1-sigma (ClockOffsetFilter::rateSigma, the windows' shared error included). A rate within
+  // it is the windows' shared error as often as a drift: the offset is then applied as a constant,
+  // carried along the line as with apply_drift_rate false. 0 = the rate whenever apply_drift_rate.
+  double applied_rate_sigmas = 1.0;
   // The offset and the readout slide together along a ridge in a window of a few seconds (a
   // later readout and an earlier offset explain the same tracks; about -0.7 ms of offset per ms
   // of readout on the benchmark cameras), so a window measuring both measures the offset ~2x

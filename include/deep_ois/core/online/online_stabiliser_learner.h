@@ -77,6 +77,12 @@ struct OnlineLearningOptions {
   double cpu_share = 0.3;            // of one core, tracking and fitting together, on average
   // The clock the budget accrues on, seconds (empty: wall time). A replay gives its replay time.
   std::function<double()> budget_clock;
+  // A window chains consecutive pairs whose time offset (camera -> IMU) moves by at most this rate
+  // between them, s/s: a drifting clock followed along a line (the online calibration's
+  // apply_drift_rate moves the offset by microseconds a pair). The window's frames are moved onto
+  // its first pair's timing by their offset's change, so each frame keeps its own IMU time. A
+  // faster change is an applied calibration step: the window being built ends there.
+  double max_clock_drift_rate = 1e-3;
   // Pairs waiting for the tracking thread (each holds its two frames until tracked).
   std::size_t max_queued_pairs = 10;
   // The tracker: the live pipeline's (core/vision/feature_tracker.h), within the CPU budget.
@@ -285,8 +291,11 @@ class OnlineStabiliserLearner {
   double fit_held_at_s_ = 0.0;      // ...at this budget clock time
   double started_s_ = 0.0;
 
-  // Tracking thread only: the window being built.
+  // Tracking thread only: the window being built. Its frames' stamps on the timing of its first
+  // pair (camera stamp + the pair's offset - the first pair's offset: the same IMU time).
   std::vector<double> window_stamps_s_;
+  double window_last_stamp_s_ = 0.0;   // the newest frame's own camera stamp (the next pair's frame a)
+  double window_last_offset_s_ = 0.0;  // the time offset of the newest pair
   std::vector<LensShiftPairObservation> window_pairs_;
   CameraModel window_camera_;
   RollingShutterConfig window_timing_;
