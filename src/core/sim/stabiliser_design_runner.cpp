@@ -135,22 +135,19 @@ LensShiftGrid runChain(const StabiliserModel& model, double focal_px, double sta
   StabiliserChain chain(stabiliserRunners(model, {focal_px, h}));
   chain.reset();
   StabiliserSignal& signal = chain.signal();
-  auto gyroNoise = [&]() -> Eigen::Vector2d {
+  // One sensor's noise over a step: x drawn before y.
+  auto draw = [&](double scale) -> Eigen::Vector2d {
     const double nx = gaussian(*noise);
     const double ny = gaussian(*noise);
-    return gyro_noise_rad_s * Eigen::Vector2d(nx, ny);
+    return scale * Eigen::Vector2d(nx, ny);
   };
-  Eigen::Vector2d previous_noise = noise && start_sample ? gyroNoise() : Eigen::Vector2d::Zero();
+  Eigen::Vector2d previous_noise = noise && start_sample ? draw(gyro_noise_rad_s) : Eigen::Vector2d::Zero();
   std::vector<Eigen::Vector2d> shifts(static_cast<std::size_t>(steps) + 1, Eigen::Vector2d::Zero());
   Eigen::Vector3d w = angular_velocity_rad_s(start_s);
   for (int j = 0; j < steps; ++j) {
-    if (noise && hall_noise_px > 0.0) {
-      const double nx = gaussian(*noise);
-      const double ny = gaussian(*noise);
-      signal.hall_noise_px = hall_noise_px * Eigen::Vector2d(nx, ny);
-    }
+    if (noise && hall_noise_px > 0.0) signal.hall_noise_px = draw(hall_noise_px);
     if (noise) {
-      signal.gyro_noise_rad_s = gyroNoise();
+      signal.gyro_noise_rad_s = draw(gyro_noise_rad_s);
       signal.gyro_noise_mid_rad_s = 0.5 * (previous_noise + signal.gyro_noise_rad_s);
       previous_noise = signal.gyro_noise_rad_s;
     }

@@ -288,10 +288,6 @@ StabiliserModel fitLinearDynamics(const StabiliserModel& base,
   return model;
 }
 
-}  // namespace deep_ois
-
-namespace deep_ois {
-
 StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
                                                 const std::vector<StabiliserFitRecording>& recordings,
                                                 const StabiliserFitOptions& options, double ridge) {
