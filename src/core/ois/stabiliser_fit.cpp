@@ -884,21 +884,21 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
   if (initial.used == 0)
     throw std::invalid_argument("refitStabiliserStages: no usable observation");
   // Step 1 of a composition with the linear stage: its coefficients in closed form, the rest held
-  // (kept only when they lower the cost: beside a fitted centring the start is a fit already).
+  // (kept only when they lower the cost: beside a fitted centring the start is a fit already). A
+  // second solve re-linearises the stroke about the first one's lens (a Gauss-Newton step).
+  double cost = huberCost(initial.values, options.huber_px);
   if (linear_dynamics) {
-    double start_cost = huberCost(initial.values, options.huber_px);
     for (int solve = 0; solve < 2; ++solve) {
       StabiliserModel solved = solveLinearDynamicsCoefficients(start, recordings, options);
-      const double cost = stabiliserFitCost(solved, recordings, options);
-      if (cost < start_cost) start = std::move(solved), start_cost = cost;
+      const double solved_cost = stabiliserFitCost(solved, recordings, options);
+      if (solved_cost < cost) start = std::move(solved), cost = solved_cost;
     }
   }
   // The variant moves the stroke's meaning (where the integrator stops), so the stroke is scanned
-  // again around the fitted one before every parameter is refined.
-  double cost = huberCost(initial.values, options.huber_px);
+  // again around the fitted one before every parameter is refined (`cost` is the start's).
   for (int axis = 0; axis < 2; ++axis) {
     StabiliserModel scanned = start;
-    for (double factor : {0.7, 0.85, 1.0, 1.15, 1.3}) {
+    for (double factor : {0.7, 0.85, 1.15, 1.3}) {
       StabiliserModel candidate = start;
       StrokeValues& limits = candidate.get<StrokeValues>();
       double& stroke = axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg;
@@ -911,19 +911,16 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
     start = scanned;
   }
   double refined_cost = 0.0;
-  StabiliserModel refined = start;
-  if (!linear_dynamics) {
-    refined = levenbergMarquardt(start, packing, recordings, options, options.iterations, &refined_cost,
-                                 &result.rms_history);
-  } else {
-    refined = refitWithLinearDynamics(start, packing, recordings, options, &refined_cost, &result.rms_history);
-    // Its own linear filter of the rate: no residual bank on top.
-    const Residuals residuals = residualsOf(refined, recordings, options);
+  if (linear_dynamics) {
+    // Step 2; the stage is its own linear filter of the rate: no residual bank on top.
+    const StabiliserModel refined =
+        refitWithLinearDynamics(start, packing, recordings, options, &refined_cost, &result.rms_history);
     std::ostringstream line;
     line << "structure:";
     for (const std::string& token : stabiliserComposition(refined)) line << " " << token;
     line << " (two-step fit), cost " << refined_cost;
     result.log.push_back(line.str());
+    const Residuals residuals = residualsOf(refined, recordings, options);
     result.parameters = refined;
     result.observations_used = residuals.used;
     result.observations_skipped = residuals.skipped;
@@ -932,6 +929,8 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
     result.review = reviewStabiliserFit(result.parameters, options.target);
     return result;
   }
+  const StabiliserModel refined = levenbergMarquardt(start, packing, recordings, options, options.iterations,
+                                                     &refined_cost, &result.rms_history);
   std::ostringstream line;
   const auto& stroke = refined.get<StrokeValues>();
   const auto& actuator = refined.get<ActuatorValues>();

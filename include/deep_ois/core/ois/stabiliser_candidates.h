@@ -43,19 +43,6 @@ StabiliserModel fitNonlinearResidual(const StabiliserModel& base,
                                           const std::string& feature_set = "excursion_v1",
                                           double ridge = 1e-4);
 
-// `base`'s stroke and actuator (as `stages` lists them: linear_dynamics and any of stroke,
-// actuator) with a linear-dynamics stage of `basis` before them (stages/linear_dynamics_stage.cpp):
-// its coefficients fitted in closed form, the other stages held, in two steps: a ridge least
-// squares (`ridge` relative to each basis function's energy) on every usable lens motion, then
-// again on those whose fitted lens stays inside 80 % of the stroke (Huber-weighted as
-// options.huber_px). Returns a model whose stages are `stages`. Throws std::invalid_argument for
-// another stage in `stages` or when fewer lens motions than coefficients are usable.
-StabiliserModel fitLinearDynamics(const StabiliserModel& base,
-                                       const std::vector<std::string>& stages,
-                                       const LinearDynamicsBasisSpec& basis,
-                                       const std::vector<StabiliserFitRecording>& recordings,
-                                       const StabiliserFitOptions& options, double ridge = 1e-6);
-
 // A stabiliser model with a name for messages ("fit", "no lens motion", "generic", ...).
 struct ModelCandidate {
   std::string name;

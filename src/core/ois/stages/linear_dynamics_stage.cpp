@@ -4,13 +4,12 @@
 // alpha-beta intended-motion estimator, a velocity loop, a second-order centring, all linear
 // filters of the gyro inside the stroke. Written before the stroke (and the actuator, when the
 // model has one), so the stroke limits what it commands. Fitted in closed form (a ridge least
-// squares) with the rest of the chain held: fitLinearDynamics below.
+// squares) with the rest of the chain held: solveLinearDynamicsCoefficients below.
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -22,7 +21,6 @@
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "deep_ois/core/ois/stages/linear_dynamics.h"
-#include "deep_ois/core/ois/stages/stroke.h"
 #include "stabiliser_file_fields.h"
 #include "stage_numerics.h"
 
@@ -193,100 +191,7 @@ std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lensAtObservations(
   return lens;
 }
 
-// Whether a lens position (px) is inside `fraction` of the stroke (its shape's).
-bool insideStroke(const Eigen::Vector2d& lens_px, const Eigen::Vector2d& stroke_px, bool circular,
-                  double fraction) {
-  const Eigen::Vector2d e = lens_px.cwiseQuotient(stroke_px).cwiseAbs();
-  return circular ? e.norm() <= fraction : e.maxCoeff() <= fraction;
-}
-
 }  // namespace
-
-StabiliserModel fitLinearDynamics(const StabiliserModel& base,
-                                       const std::vector<std::string>& stages,
-                                       const LinearDynamicsBasisSpec& basis,
-                                       const std::vector<StabiliserFitRecording>& recordings,
-                                       const StabiliserFitOptions& options, double ridge) {
-  if (std::none_of(stages.begin(), stages.end(),
-                   [](const std::string& token) { return stageOfToken(token) == "linear_dynamics"; }))
-    throw std::invalid_argument("fitLinearDynamics: the stages must include linear_dynamics");
-  for (const std::string& token : stages)
-    if (const std::string name = stageOfToken(token);
-        name != "linear_dynamics" && name != "stroke" && name != "actuator")
-      throw std::invalid_argument("fitLinearDynamics: the chain around linear_dynamics must be "
-                                  "linear inside the stroke (stroke, actuator), not '" + name + "'");
-  const long n = 3L * basis.order;
-  StabiliserModel model = base.physicalChain().only(stages);
-  model.get<LinearDynamicsValues>().basis = basis;
-  // Where the chain is linear: inside the fitted chain's stroke.
-  const StrokeValues* base_stroke = base.find<StrokeValues>();
-  const StrokeValues stroke = base_stroke ? *base_stroke : StrokeValues();
-  // The chain without the stroke is linear in the coefficients: its lens for a coefficient matrix
-  // with `probe` in column j of both rows is probe times the j-th regressor. The probe is small so
-  // that the actuator's end stop (at the stroke) is never met.
-  StabiliserModel probe = model;
-  probe.remove("stroke");
-  constexpr double kProbe = 1e-6;
-  // Per observation (all recordings, in order): the x lens of each column at t_a and t_b.
-  std::vector<const LensMotionObservation*> observations;
-  std::vector<Eigen::Vector2d> stroke_px;
-  for (const StabiliserFitRecording& recording : recordings)
-    for (const LensMotionObservation& o : recording.observations) {
-      observations.push_back(&o);
-      stroke_px.push_back(strokePx(stroke, recording.focal_px));
-    }
-  const long m = static_cast<long>(observations.size());
-  Eigen::MatrixXd at_a(m, n), at_b(m, n);
-  for (long j = 0; j < n; ++j) {
-    Eigen::MatrixXd& probed = probe.get<LinearDynamicsValues>().coefficients;
-    probed = Eigen::MatrixXd::Zero(2, n);
-    probed.col(j).setConstant(kProbe);
-    long i = 0;
-    for (const StabiliserFitRecording& recording : recordings)
-      for (const auto& [a, b] : lensAtObservations(probe, recording, options)) {
-        at_a(i, j) = a.x() / kProbe;
-        at_b(i++, j) = b.x() / kProbe;
-      }
-  }
-  // Usable rows: covered (the predictor answers every column alike).
-  std::vector<long> rows;
-  for (long i = 0; i < m; ++i)
-    if (std::isfinite(at_a(i, 0)) && std::isfinite(at_b(i, 0))) rows.push_back(i);
-  if (rows.size() < static_cast<std::size_t>(n))
-    throw std::invalid_argument("fitLinearDynamics: fewer usable lens motions than coefficients");
-  // Each axis' lens depends on its own row of coefficients only, through the same chain (the
-  // actuator's axes share their dynamics): one regressor matrix (the x responses) for both rows.
-  const long used = static_cast<long>(rows.size());
-  Eigen::MatrixXd states(used, n), targets(used, 2);
-  Eigen::VectorXd weights(used);
-  for (long r = 0; r < used; ++r) {
-    const long i = rows[static_cast<std::size_t>(r)];
-    states.row(r) = at_b.row(i) - at_a.row(i);
-    targets.row(r) = observations[static_cast<std::size_t>(i)]->motion_px.transpose();
-    weights(r) = std::max(0.0, observations[static_cast<std::size_t>(i)]->weight);
-  }
-  // First step: every usable motion; second: only where the fitted lens stays inside 80 % of the
-  // stroke at both ends (where the chain is linear: the best linear approximation), Huber-weighted
-  // by the first step's residual.
-  Eigen::MatrixXd coefficients = fitLinearDynamicsCoefficients(states, targets, weights, ridge);
-  Eigen::VectorXd inside = weights;
-  long kept = 0;
-  for (long r = 0; r < used; ++r) {
-    const long i = rows[static_cast<std::size_t>(r)];
-    const Eigen::Vector2d lens_a = coefficients * at_a.row(i).transpose();
-    const Eigen::Vector2d lens_b = coefficients * at_b.row(i).transpose();
-    const double residual =
-        (targets.row(r).transpose() - coefficients * states.row(r).transpose()).norm();
-    const Eigen::Vector2d& stroke_limit = stroke_px[static_cast<std::size_t>(i)];
-    const bool linear = insideStroke(lens_a, stroke_limit, stroke.circular_stroke, 0.8) &&
-                        insideStroke(lens_b, stroke_limit, stroke.circular_stroke, 0.8);
-    inside(r) *= !linear ? 0.0 : residual <= options.huber_px ? 1.0 : options.huber_px / residual;
-    if (inside(r) > 0.0) ++kept;
-  }
-  if (kept >= 2 * n) coefficients = fitLinearDynamicsCoefficients(states, targets, inside, ridge);
-  model.get<LinearDynamicsValues>().coefficients = coefficients;
-  return model;
-}
 
 StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
                                                 const std::vector<StabiliserFitRecording>& recordings,
