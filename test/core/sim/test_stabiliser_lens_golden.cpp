@@ -23,6 +23,7 @@
 
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/simulator_config.h"
 #include "deep_ois/core/sim/stabiliser_design_runner.h"
@@ -213,6 +214,32 @@ TEST(StabiliserLensGolden, AGeneratedDesignSavedAsAModelFilePredictsItsOwnLens) 
                              "design " + std::to_string(seed) + " (" + designClass(design) + ")");
   }
   EXPECT_EQ(taken.size(), designClasses().size());
+}
+
+// A design file written before the gyro loop's `sampling` (it said `averaged: true|false`) loads as
+// the same sampling and predicts the simulator's lens as the file written now does.
+TEST(StabiliserLensGolden, ADesignFileWithTheOldAveragedKeyLoadsAsItsSampling) {
+  const int steps = static_cast<int>(std::lround(kDurationS * kDesignPhysicsRateHz));
+  const double h = 1.0 / kDesignPhysicsRateHz;
+  std::map<std::string, int> seen;
+  for (std::uint32_t seed = 0; seed < 60 && seen.size() < 2; ++seed) {
+    const StabiliserDesign design = generateDesign(seed);
+    const StabiliserModel model = designModel(design);
+    const std::string sampling = model.get<GyroLoopValues>().sampling;
+    if (sampling == "middle" || seen[sampling]++ > 0) continue;  // one averaged, one latest
+    StabiliserModelFile file;
+    file.name = "design " + std::to_string(seed);
+    file.parameters = model;
+    std::string text = file.toYaml();
+    const std::string now = "sampling: " + sampling;
+    ASSERT_NE(text.find(now), std::string::npos) << text;
+    text.replace(text.find(now), now.size(), sampling == "averaged" ? "averaged: true" : "averaged: false");
+    const StabiliserModel loaded = StabiliserModelFile::fromYaml(text).parameters;
+    EXPECT_EQ(loaded.get<GyroLoopValues>().sampling, sampling);
+    const LensShiftGrid simulated = runDesign(design, kFocalPx, kStartS, steps, angularVelocity, nullptr);
+    expectPredictsItsOwnLens(loaded, simulated, h, steps, "design " + std::to_string(seed) + " (old key)");
+  }
+  EXPECT_EQ(seen.size(), 2u);
 }
 
 TEST(StabiliserLensGolden, CommittedModules) {

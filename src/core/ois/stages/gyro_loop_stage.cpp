@@ -90,7 +90,17 @@ const StabiliserStage& gyroLoopStage() {
         stabiliser_file_fields::writeValueMap(out, "gyro_loop", fields(v));
       },
       [](const YAML::Node& s, StageValues& own) {
-        return stabiliser_file_fields::readValueMap(s, "gyro_loop", fields(valuesAs<GyroLoopValues>(own)));
+        GyroLoopValues& v = valuesAs<GyroLoopValues>(own);
+        // Files written before `sampling` said `averaged: true|false` (the newest sample when
+        // false): read as the same sampling, so they predict as they did.
+        const YAML::Node loop = s["gyro_loop"];
+        if (loop && loop.IsMap() && loop["averaged"] && !loop["sampling"]) {
+          YAML::Node converted = YAML::Clone(s);
+          const bool averaged = stabiliser_file_fields::required<bool>(loop, "averaged");
+          converted["gyro_loop"]["sampling"] = averaged ? "averaged" : "latest";
+          return stabiliser_file_fields::readValueMap(converted, "gyro_loop", fields(v));
+        }
+        return stabiliser_file_fields::readValueMap(s, "gyro_loop", fields(v));
       },
       [](const StageValues& own, const StabiliserModel&) {
         std::ostringstream why;
