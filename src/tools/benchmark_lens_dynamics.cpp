@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
   std::string network_path, split = "held_out", csv_path;
   std::uint32_t seed_begin = 0, count = 40;
   Settings settings;
-  bool chain_candidates = true, describe = false, list_candidates = false;
+  bool chain_candidates = true, residuals = true, describe = false, list_candidates = false;
   deep_ois::ToolCommandLine command_line("benchmark_lens_dynamics", kDescription);
   CLI::App& app = command_line.app();
   app.add_option("--network", network_path, "the lens dynamics network (none: the chain alone)")
@@ -82,6 +82,11 @@ int main(int argc, char** argv) {
   command_line.addNumber("--noise", settings.noise_px, "lens-motion measurement noise, px (per axis)");
   app.add_option("--chain-candidates", chain_candidates,
                  "also fit the chain's structural and learned-residual candidates (slower)")
+      ->capture_default_str();
+  app.add_option("--residuals", residuals,
+                 "also fit the residual stages: the linear bank of leaky rate integrals "
+                 "(linear_residual) and the learned residuals (learned_residual); false measures the "
+                 "candidates without them")
       ->capture_default_str();
   std::vector<std::string> classes;
   app.add_option("--classes", classes, "only designs of these classes, comma-separated (default: all)")
@@ -114,9 +119,10 @@ int main(int argc, char** argv) {
                                              settings.patches};
     deep_ois::StabiliserFitOptions fit_options;
     fit_options.check_timing = false;
+    if (!residuals) fit_options.residual_time_constants_s.clear();
     deep_ois::StabiliserCandidateKinds kinds;
     kinds.structural = chain_candidates;
-    kinds.learned_features = chain_candidates;
+    kinds.learned_features = chain_candidates && residuals;
     kinds.lens_dynamics = network;
     std::printf("%-6s %-12s %8s %8s %8s %8s %8s %8s %8s %7s %7s %7s %s\n", "design", "class", "none px",
                 "kept px", "chain px", "generic", "+map", "+layer", "oracle", "kept %", "chain %", "oracle %", "kept");
