@@ -5,11 +5,9 @@
 #   1. renders 6 + 1 training recordings of 5 s (RE camera, seeds 3000-3006; 3006 held out for the
 #      candidate choice) and one evaluation sequence per category (RE, LT, LL, MF, seed 4000,
 #      70 pairs each), with OIS driven by the design (`ois: {design_seed: N}`);
-#   2. trains two per-camera models from the images (ground truth cached, so the second is only
-#      the fit): with the shipped generic learned lens dynamics among the candidates (the default)
-#      and without it (`--lens-dynamics none`: the chain and its hand-written mechanisms);
+#   2. trains the per-camera model from the images (train_stabiliser, ground truth cached);
 #   3. runs `evaluate` with the non-OIS twins (rendered once: without OIS a design changes
-#      nothing), the shipped generic stabiliser model, both per-camera models and the design's
+#      nothing), the shipped generic stabiliser model, the per-camera model and the design's
 #      oracle (its own controller on the camera's gyro);
 #   4. prints one table row per design: Avg geometry distance capped / uncapped and the gap to the
 #      twin closed, capped / uncapped, of each row.
@@ -47,8 +45,8 @@ avg() {
 table="$out/table.md"
 if [ ! -s "$table" ]; then
   {
-    printf '| design | class | twin | OIS gyro | generic model | per-camera, chain only | per-camera, with learned dynamics | oracle | gap closed: generic | chain only | with learned dynamics | oracle | kept candidate |\n'
-    printf '|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n'
+    printf '| design | class | twin | OIS gyro | generic model | per-camera | oracle | gap closed: generic | per-camera | oracle | kept candidate |\n'
+    printf '|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n'
   } >"$table"
 fi
 status=0
@@ -68,29 +66,26 @@ for seed in "$@"; do
   done
   class=$(sed -n 's/.*generated design [0-9]* (\([^,]*\),.*/\1/p' "$dir/train/RE_3000.bag.log")
   train=("$dir"/train/RE_300[0-5].bag)
-  for variant in learned chain; do
-    model="$dir/model_$variant.yaml"
-    [ -s "$model" ] && continue
-    dynamics=()
-    [ "$variant" = chain ] && dynamics=(--lens-dynamics none)
+  model="$dir/model.yaml"
+  if [ ! -s "$model" ]; then
     # Exit status 3: the model was written with warnings (implausible parameters): kept and scored
     # (leaving the design out would flatter the figures), the warning said in the table.
     rc=0
     rosrun deep_ois train_stabiliser --bags "${train[@]}" --held-out "$dir/train/RE_3006.bag" \
       --gyro-config "$out/gyro_flow.yaml" --cache "$out/cache/design_$seed" --out "$model" \
-      --no-progress "${dynamics[@]}" >"$dir/train_$variant.log" 2>&1 || rc=$?
+      --no-progress >"$dir/train.log" 2>&1 || rc=$?
     if [ "$rc" -ne 0 ] && ! { [ "$rc" -eq 3 ] && [ -s "$model" ]; }; then
       rm -f "$model"
-      echo "generated_design_benchmark: design $seed: train_stabiliser ($variant) failed, see $dir/train_$variant.log" >&2
+      echo "generated_design_benchmark: design $seed: train_stabiliser failed, see $dir/train.log" >&2
       status=1
-      continue 2
+      continue
     fi
-  done
+  fi
   report="$dir/report/evaluation.md"
   if [ ! -s "$report" ]; then
     rosrun deep_ois evaluate --bags "$dir"/eval/*.bag --gyro-config "$out/gyro_flow.yaml" --no-model \
       --no-image-baselines --no-ground-truth --ghost-pairs 0 --out "$dir/report" \
-      --stabiliser "$repo/models/stabiliser_generic.yaml" "$dir/model_chain.yaml" "$dir/model_learned.yaml" \
+      --stabiliser "$repo/models/stabiliser_generic.yaml" "$model" \
       --oracle "$overlay" >"$dir/evaluate.log" 2>&1 || {
       echo "generated_design_benchmark: design $seed: evaluate failed, see $dir/evaluate.log" >&2
       status=1
@@ -100,14 +95,11 @@ for seed in "$@"; do
   log="$dir/evaluate.log"
   both() { echo "$(avg "$log" "$1" 1) / $(avg "$log" "$1" 2)"; }
   generic="stabiliser model, stabiliser_generic.yaml"
-  chain="stabiliser model, model_chain.yaml"
-  learned="stabiliser model, model_learned.yaml"
+  camera="stabiliser model, model.yaml"
   oracle="oracle, overlay.yaml controller on the camera gyro"
-  kept=$(awk -F'|' '$5 ~ /kept/ { gsub(/^ +| +$/, "", $2); print $2; exit }' "$dir/train_learned.log")
-  for variant in chain learned; do
-    grep -q "^WARNING: implausible" "$dir/train_$variant.log" && kept="$kept (warning: $variant model implausible)"
-  done
-  row="| $seed | $class | $(both "gyro, non-OIS camera") | $(both "gyro, OIS camera (uncompensated)") | $(both "$generic") | $(both "$chain") | $(both "$learned") | $(both "$oracle") | $(gap "$log" "$generic") | $(gap "$log" "$chain") | $(gap "$log" "$learned") | $(gap "$log" "$oracle") | $kept |"
+  kept=$(awk -F'|' '$5 ~ /kept/ { gsub(/^ +| +$/, "", $2); print $2; exit }' "$dir/train.log")
+  grep -q "^WARNING: implausible" "$dir/train.log" && kept="$kept (warning: model implausible)"
+  row="| $seed | $class | $(both "gyro, non-OIS camera") | $(both "gyro, OIS camera (uncompensated)") | $(both "$generic") | $(both "$camera") | $(both "$oracle") | $(gap "$log" "$generic") | $(gap "$log" "$camera") | $(gap "$log" "$oracle") | $kept |"
   grep -q "^| $seed |" "$table" || echo "$row" >>"$table"
   echo "design $seed ($class): $(( $(date +%s) - started )) s: $row"
 done
@@ -122,18 +114,17 @@ def pair(cell):
 groups = collections.defaultdict(list)
 for r in rows:
     r = [c.strip() for c in r]
-    g = {k: pair(r[i]) for k, i in (("generic", 8), ("chain", 9), ("learned", 10), ("oracle", 11))}
+    g = {k: pair(r[i]) for k, i in (("generic", 7), ("camera", 8), ("oracle", 9))}
     groups[r[1]].append(g)
     groups["all"].append(g)
-print("| class | designs | generic | chain only | with learned dynamics | oracle | meet the bar: chain | learned | median points below the oracle: chain | learned |")
-print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+print("| class | designs | generic | per-camera | oracle | per-camera meets the bar | median points below the oracle |")
+print("|---|---:|---:|---:|---:|---:|---:|")
 med = lambda gs, k, j: statistics.median(g[k][j] for g in gs)
 bar = lambda g, k: g[k][0] >= 95.0 or g[k][0] >= g["oracle"][0] - 3.0
 for name in sorted(groups, key=lambda n: (n == "all", n)):
     gs = groups[name]
-    cells = ["%.1f / %.1f %%" % (med(gs, k, 0), med(gs, k, 1)) for k in ("generic", "chain", "learned", "oracle")]
-    below = lambda k: statistics.median(g["oracle"][0] - g[k][0] for g in gs)
-    print("| %s | %d | %s | %d | %d | %.1f | %.1f |" % (name, len(gs), " | ".join(cells),
-          sum(bar(g, "chain") for g in gs), sum(bar(g, "learned") for g in gs), below("chain"), below("learned")))
+    cells = ["%.1f / %.1f %%" % (med(gs, k, 0), med(gs, k, 1)) for k in ("generic", "camera", "oracle")]
+    below = statistics.median(g["oracle"][0] - g["camera"][0] for g in gs)
+    print("| %s | %d | %s | %d | %.1f |" % (name, len(gs), " | ".join(cells), sum(bar(g, "camera") for g in gs), below))
 PY
 exit $status

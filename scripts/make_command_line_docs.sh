@@ -8,7 +8,7 @@ bin="$build_dir/devel/lib/deep_ois"
 out="$repo/docs/command_line_tools.md"
 # The tools in the order a user meets them; the list must match DEEP_OIS_TOOLS in CMakeLists.txt.
 tools=(simulate sim_contact_sheet convert_recording annotate_pairs calibrate make_calibration_configs
-  calibration_benchmark train_stabiliser pretrain_lens_model benchmark_lens_dynamics benchmark_solver
+  calibration_benchmark train_stabiliser benchmark_lens_dynamics benchmark_solver
   benchmark_linear_dynamics lens_log_fit predict_lens
   fundamental_mixtures train evaluate
   evaluate_fundamental_mixtures evaluate_lens_shift_ground_truth gyro_flow_summary bag_static_transforms

@@ -42,7 +42,6 @@ set(NUMERIC_benchmark_lens_dynamics "--count;4.5")
 set(NUMERIC_benchmark_linear_dynamics "--count;4.5")
 set(NUMERIC_benchmark_fusion "--max-pairs;-3")
 set(NUMERIC_benchmark_solver "--count;4.5")
-set(NUMERIC_pretrain_lens_model "--iterations;10x")
 set(NUMERIC_deprecated_launch_argument "")
 
 set(failures "")

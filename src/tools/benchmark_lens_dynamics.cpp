@@ -1,6 +1,6 @@
 // Benchmarks the stabiliser model on generated stabiliser designs at the level of the lens: per
-// design, train_stabiliser's fit and candidate choice (the physical chain, its learned variants and
-// the generic lens dynamics adapted to the design) on 6 training traces, the choice on a 7th, then
+// design, train_stabiliser's fit and candidate choice (the physical chain, its variants and the
+// compositions with the linear-dynamics stage) on 6 training traces, the choice on a 7th, then
 // the lens-motion error on 2 evaluation traces, beside no lens motion (the plain gyro) and the
 // design's own controller on the camera's gyro (the oracle). No image is rendered: the lens motions
 // are the simulator's truth plus the images' measurement noise, so it runs over many designs in
@@ -11,13 +11,11 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
-#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "deep_ois/core/common/so3_and_statistics.h"
-#include "deep_ois/core/ois/lens_dynamics_adaptation.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/design_traces.h"
@@ -64,15 +62,12 @@ constexpr char kDescription[] =
     "row per design and a summary per class; --csv writes the rows.";
 
 int main(int argc, char** argv) {
-  std::string network_path, split = "held_out", csv_path;
+  std::string split = "held_out", csv_path;
   std::uint32_t seed_begin = 0, count = 40;
   Settings settings;
-  bool chain_candidates = true, describe = false, list_candidates = false;
+  bool chain_candidates = true, residuals = true, describe = false, list_candidates = false;
   deep_ois::ToolCommandLine command_line("benchmark_lens_dynamics", kDescription);
   CLI::App& app = command_line.app();
-  app.add_option("--network", network_path, "the lens dynamics network (none: the chain alone)")
-      ->required()
-      ->type_name("FILE.yaml|none");
   app.add_option("--split", split, "which designs: the generator's held-out seeds (seed % 5 == 0) "
                                    "or its training split")
       ->check(deep_ois::oneOf({"held_out", "training"}))
@@ -82,6 +77,11 @@ int main(int argc, char** argv) {
   command_line.addNumber("--noise", settings.noise_px, "lens-motion measurement noise, px (per axis)");
   app.add_option("--chain-candidates", chain_candidates,
                  "also fit the chain's structural and learned-residual candidates (slower)")
+      ->capture_default_str();
+  app.add_option("--residuals", residuals,
+                 "also fit the residual stages: the linear bank of leaky rate integrals "
+                 "(linear_residual) and the learned residuals (learned_residual); false measures the "
+                 "candidates without them")
       ->capture_default_str();
   std::vector<std::string> classes;
   app.add_option("--classes", classes, "only designs of these classes, comma-separated (default: all)")
@@ -95,16 +95,11 @@ int main(int argc, char** argv) {
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
   try {
-    std::shared_ptr<const deep_ois::LensDynamicsNetwork> network;
-    if (network_path != "none")
-      network = std::make_shared<const deep_ois::LensDynamicsNetwork>(
-          deep_ois::LensDynamicsNetwork::load(network_path));
     std::ofstream csv;
     if (!csv_path.empty()) {
       csv.open(csv_path);
       if (!csv) throw std::runtime_error("cannot write " + csv_path);
-      csv << "design_seed,class,none_px,kept_px,kept,chain_px,generic_px,generic_map_px,generic_layer_px,oracle_px,"
-             "closed_kept,closed_chain,closed_generic,closed_oracle,seconds\n";
+      csv << "design_seed,class,none_px,kept_px,kept,oracle_px,closed_kept,closed_oracle,seconds\n";
     }
     const sim::DesignSplit wanted = split == "held_out" ? sim::DesignSplit::kHeldOut : sim::DesignSplit::kTraining;
     sim::DesignTraceOptions trace_options;
@@ -114,12 +109,12 @@ int main(int argc, char** argv) {
                                              settings.patches};
     deep_ois::StabiliserFitOptions fit_options;
     fit_options.check_timing = false;
+    if (!residuals) fit_options.residual_time_constants_s.clear();
     deep_ois::StabiliserCandidateKinds kinds;
     kinds.structural = chain_candidates;
-    kinds.learned_features = chain_candidates;
-    kinds.lens_dynamics = network;
-    std::printf("%-6s %-12s %8s %8s %8s %8s %8s %8s %8s %7s %7s %7s %s\n", "design", "class", "none px",
-                "kept px", "chain px", "generic", "+map", "+layer", "oracle", "kept %", "chain %", "oracle %", "kept");
+    kinds.learned_features = chain_candidates && residuals;
+    std::printf("%-6s %-12s %8s %8s %8s %7s %7s %s\n", "design", "class", "none px", "kept px", "oracle",
+                "kept %", "oracle %", "kept");
     std::map<std::string, std::vector<double>> kept_by_class, oracle_by_class;
     std::vector<double> kept_all, oracle_all, gap_to_oracle;
     int meets = 0, designs = 0;
@@ -144,14 +139,6 @@ int main(int argc, char** argv) {
       const deep_ois::StabiliserFitResult fit = deep_ois::fitStabiliser(training, fit_options);
       const deep_ois::StabiliserSelection selection =
           deep_ois::selectStabiliser(fit, training, choice, fit_options, {}, kinds);
-      // The chain's own choice (the generic candidates left out), for comparison.
-      std::size_t chain_kept = 0;
-      double chain_best = INFINITY;
-      for (std::size_t k = 0; k < selection.candidates.size(); ++k) {
-        if (selection.candidates[k].name.rfind("generic", 0) == 0) continue;
-        const double v = selection.candidates[k].held_out.rms_px;
-        if (v < chain_best) chain_best = v, chain_kept = k;
-      }
       std::vector<std::vector<Eigen::Vector2d>> oracle_motion;
       for (const auto& r : oracle) {
         std::vector<Eigen::Vector2d> m;
@@ -163,20 +150,13 @@ int main(int argc, char** argv) {
       };
       const double none = rmsOf(deep_ois::noLensMotion());
       const double kept = rmsOf(selection.candidates[selection.kept].parameters);
-      const double chain = rmsOf(selection.candidates[chain_kept].parameters);
-      double generic = NAN, generic_map = NAN, generic_layer = NAN;
-      for (const auto& c : selection.candidates) {
-        if (c.name == "generic lens dynamics, adapted") generic = rmsOf(c.parameters);
-        if (c.name == "generic lens dynamics, adapted + lens map") generic_map = rmsOf(c.parameters);
-        if (c.name == "generic lens dynamics, adapted + output layer refitted") generic_layer = rmsOf(c.parameters);
-      }
       const double oracle_rms = rmsAgainst(evaluation, oracle_motion);
       auto closed = [&](double v) { return 100.0 * (1.0 - v / none); };
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
       const std::string cls = sim::designClass(design);
-      std::printf("%-6u %-12s %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.1f%% %6.1f%% %6.1f%% %s (%.0f s)\n", seed,
-                  cls.c_str(), none, kept, chain, generic, generic_map, generic_layer, oracle_rms, closed(kept), closed(chain),
-                  closed(oracle_rms), selection.candidates[selection.kept].name.c_str(), seconds);
+      std::printf("%-6u %-12s %8.4f %8.4f %8.4f %6.1f%% %6.1f%% %s (%.0f s)\n", seed, cls.c_str(), none, kept,
+                  oracle_rms, closed(kept), closed(oracle_rms), selection.candidates[selection.kept].name.c_str(),
+                  seconds);
       if (list_candidates)
         for (const auto& c : selection.candidates)
           std::printf("       %s %-70s choice %.4f px, evaluation %.1f%%\n", &c == &selection.candidates[selection.kept] ? "*" : " ",
@@ -195,8 +175,7 @@ int main(int argc, char** argv) {
       if (closed(kept) >= 95.0 || closed(kept) >= closed(oracle_rms) - 3.0) ++meets;
       if (csv)
         csv << seed << "," << cls << "," << none << "," << kept << ",\"" << selection.candidates[selection.kept].name
-            << "\"," << chain << "," << generic << "," << generic_map << "," << generic_layer << "," << oracle_rms << "," << closed(kept)
-            << "," << closed(chain) << "," << closed(generic) << "," << closed(oracle_rms) << "," << seconds << "\n";
+            << "\"," << oracle_rms << "," << closed(kept) << "," << closed(oracle_rms) << "," << seconds << "\n";
     }
     std::printf("\nper class (median closed: kept / oracle):\n");
     for (const auto& [cls, values] : kept_by_class)

@@ -268,7 +268,7 @@ int main(int argc, char** argv) {
   app.add_option("--images", images, "also fit from frame-to-frame lens motions only")->capture_default_str();
   app.add_option("--soft-strokes", soft_strokes, "also try soft strokes (tanh) after the linear part")
       ->capture_default_str();
-  app.add_option("--chain", chain, "also fit the chain's candidates (benchmark_lens_dynamics --network none)")
+  app.add_option("--chain", chain, "also fit the chain's candidates (as benchmark_lens_dynamics does)")
       ->capture_default_str();
   app.add_flag("--describe", describe, "print each design's description under its row");
   app.add_option("--csv", csv_path, "write the rows here")->type_name("FILE.csv");

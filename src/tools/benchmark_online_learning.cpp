@@ -299,7 +299,6 @@ int main(int argc, char** argv) {
   std::string model_path = package.empty() ? "" : package + "/models/stabiliser_generic.yaml";
   std::string gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
   std::string plot_path, final_model_path;
-  std::string lens_dynamics_path = package.empty() ? "none" : package + "/models/lens_dynamics_generic.yaml";
   double window_s = 10.0, cpu_share = 0.3, gap_s = 1.0;
   bool no_ois = false, continue_bags = false, no_learning = false, online_calibration = false;
   double calibration_cpu_share = deep_ois::OnlineCalibrationOptions().cpu_share;
@@ -315,11 +314,6 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(deep_ois::existingFile());
   app.add_option("--plot", plot_path, "the learning curve as a PNG, its data beside it as FILE.csv")->type_name("FILE.png");
-  app.add_option("--lens-dynamics", lens_dynamics_path,
-                 "the generic lens dynamics network the learner adapts as a candidate, or none "
-                 "(the live nodelet's ~learning_lens_dynamics)")
-      ->capture_default_str()
-      ->type_name("FILE.yaml|none");
   app.add_option("--final-model", final_model_path, "writes the model in use at the end here")->type_name("FILE.yaml");
   command_line.addNumber("--window", window_s, "seconds of replay per row of the curve")->check(deep_ois::atLeast(1.0));
   command_line.addNumber("--cpu-share", cpu_share, "the learner's CPU budget, share of one core in replay time");
@@ -367,12 +361,6 @@ int main(int argc, char** argv) {
   options.show_progress = false;
 
   deep_ois::OnlineLearningOptions learning;
-  try {
-    if (auto network = deep_ois::loadLensDynamicsOption(lens_dynamics_path)) learning.useLensDynamics(network);
-  } catch (const deep_ois::LensDynamicsNetworkError& e) {
-    std::fprintf(stderr, "benchmark_online_learning: --lens-dynamics: %s\n", e.what());
-    return 2;
-  }
   learning.cpu_share = cpu_share;
   learning.learning = !no_learning;
   learning.max_queued_pairs = 100000;  // the replay keeps the queue at 10, as live

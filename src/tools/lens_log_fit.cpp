@@ -10,7 +10,6 @@
 // The gyro is used over the whole log in both folds (the stabiliser's state needs its history and
 // the gyro is always there); only the lens labels are split.
 
-#include <ros/package.h>
 
 #include <algorithm>
 #include <cmath>
@@ -233,20 +232,8 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_path, "write the first fold's kept model here")->type_name("MODEL.yaml");
   app.add_option("--plots", plots, "write PREFIX_fold<N>.csv/.png: predicted and logged lens")
       ->type_name("PREFIX");
-  const std::string package = ros::package::getPath("deep_ois");
-  std::string lens_dynamics = package.empty() ? "none" : package + "/models/lens_dynamics_generic.yaml";
-  app.add_option("--lens-dynamics", lens_dynamics,
-                 "the generic lens dynamics network adapted to the log as a candidate, or none "
-                 "(as train_stabiliser's)")
-      ->capture_default_str()
-      ->type_name("FILE.yaml|none");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
   deep_ois::StabiliserCandidateKinds kinds;
-  try {
-    kinds.lens_dynamics = deep_ois::loadLensDynamicsOption(lens_dynamics);
-  } catch (const deep_ois::LensDynamicsNetworkError& e) {
-    return command_line.usageError(std::string("--lens-dynamics: ") + e.what());
-  }
   if (!out_path.empty()) {
     try {  // now, not after the fit: a mistyped --out folder must not cost the fit
       deep_ois::StabiliserModelFile::checkSavable(out_path);

@@ -42,7 +42,6 @@
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
 #include "deep_ois/tools/support/stabiliser_training_choice.h"
 #include "deep_ois/tools/support/stabiliser_training_report.h"
-#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
 #include "deep_ois/core/ois/stages/learned_residual.h"
 
 namespace {
@@ -56,7 +55,6 @@ constexpr double kCalibrationSuspectPx = 0.5;
 struct Arguments {
   std::vector<std::string> bags, held_out_bags;
   std::string gyro_config, out_path, name, cache_dir, target = "images", forced_candidate;
-  std::string lens_dynamics;  // the generic network's file, or "none"
   deep_ois::StabiliserFitOptions fit_options;
   deep_ois::StabiliserCandidateKinds kinds;  // with the network loaded
   bool no_progress = false;
@@ -101,7 +99,6 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
   CLI::App& app = command_line.app();
   const std::string package = ros::package::getPath("deep_ois");
   args->gyro_config = package.empty() ? "" : package + "/config/gyro_flow.yaml";
-  args->lens_dynamics = package.empty() ? "none" : package + "/models/lens_dynamics_generic.yaml";
   app.add_option("--bags", args->bags, "training recordings")
       ->required()
       ->check(deep_ois::existingFile())
@@ -140,11 +137,6 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
                  "keep the candidate whose name contains this (e.g. excursion_v1) instead of the "
                  "best on the held-out recordings, for comparisons (the check against no lens "
                  "motion still applies)");
-  app.add_option("--lens-dynamics", args->lens_dynamics,
-                 "the generic lens dynamics network adapted to the camera as a candidate (its "
-                 "conditioning vector, then a lens map, then its output layer), or none")
-      ->capture_default_str()
-      ->type_name("FILE.yaml|none");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return status;
   if (args->gyro_config.empty())
     return command_line.usageError("--gyro-config: package deep_ois not found, so give the file");
@@ -153,12 +145,6 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
     return command_line.usageError("--fit-time-offset moves a lens log: it needs --target log");
   args->fit_options.target = args->lens_target;
   if (args->cache_dir.empty()) args->cache_dir = args->out_path + ".cache";
-  try {
-    args->kinds.lens_dynamics = deep_ois::loadLensDynamicsOption(args->lens_dynamics);
-  } catch (const deep_ois::LensDynamicsNetworkError& e) {
-    return command_line.usageError(std::string("--lens-dynamics: ") + e.what() +
-                                   " (or --lens-dynamics none for the chain's candidates alone)");
-  }
   return std::nullopt;
 }
 
@@ -361,19 +347,6 @@ void printReport(const Arguments& args, const deep_ois::StabiliserModelFile& mod
   if (choice.keptNoLensMotion()) {
     // The chain's other fields mean nothing at gain 0 (and the fit's bounds are not this model's).
     std::printf("Parameters: gain 0, the lens does not move (the compensation is the plain gyro).\n\n");
-  } else if (const auto* dynamics = p.find<deep_ois::LearnedLensDynamics>(); dynamics && dynamics->active()) {
-    const auto& learned = *dynamics;
-    const auto& made = learned.network->provenance;
-    std::printf("Parameters: the generic lens dynamics (the chain off): a %d-state network pretrained on %u "
-                "generated designs (seeds %u-%u of %s, %llu iterations), adapted to this camera: "
-                "conditioning [",
-                learned.network->hidden_size, made.designs, made.design_seed_begin,
-                made.design_seed_end > 0 ? made.design_seed_end - 1 : 0, made.generator.c_str(),
-                static_cast<unsigned long long>(made.iterations));
-    for (long k = 0; k < learned.conditioning.size(); ++k)
-      std::printf("%s%.3f", k ? " " : "", learned.conditioning(k));
-    std::printf("], lens map [%.3f %.3f; %.3f %.3f]\n\n", learned.output_map(0, 0), learned.output_map(0, 1),
-                learned.output_map(1, 0), learned.output_map(1, 1));
   } else {
     std::printf("%s\n", deep_ois::stabiliserParameterTable(p, stage.fit.review).c_str());
     const auto* residual = p.find<deep_ois::LearnedResidualValues>();

@@ -410,8 +410,8 @@ TEST(OnlineLearning, AReplayIsNotNewEvidence) {
   };
   pass(16.0);
   // The last fit on the first pass ends and /diagnostics says it (its figures are refreshed on
-  // its period while no pair comes): a fit with the generic lens dynamics' candidates takes
-  // seconds within the learning's CPU share, and the tracking may still have windows queued, so
+  // its period while no pair comes): a fit with the chain's candidates takes seconds within the
+  // learning's CPU share, and the tracking may still have windows queued, so
   // wait until no fit runs or waits for its budget and the learning's figures (windows, seconds
   // kept, fits) have not moved for 4 s (at most 60 s).
   std::string figures = diagnostics.get("learning data");

@@ -1,7 +1,5 @@
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 
-#include "deep_ois/core/ois/lens_dynamics_adaptation.h"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -143,9 +141,6 @@ int stabiliserComplexity(const StabiliserModel& parameters) {
   int most = 0;
   for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions())
     most = std::max(most, d.complexity);
-  // A learned network (alone or on the chain's residual) is more than any row or hand-written
-  // composition: kept only when it beats every simpler candidate by the rule's margin.
-  if (has(composition, "learned_lens_dynamics")) return most + 2;
   for (const StabiliserCandidateDescription& d : stabiliserCandidateDescriptions()) {
     // A refit keeps its bank only when the bank helps: either way it is that row.
     const bool without_bank = d.structural() || !d.featureSet().empty();
@@ -197,28 +192,6 @@ std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
       }
     } catch (const std::invalid_argument&) {
       // No usable lens motion for the refit or the residual: the simpler candidates stand.
-    }
-  }
-  // The generic learned lens dynamics, adapted to this camera: its conditioning vector, then with
-  // the map of its lens (scale and axes) as well.
-  if (kinds.lens_dynamics) {
-    LensDynamicsAdaptationOptions adaptation;
-    adaptation.iterations = kinds.lens_dynamics_iterations;
-    try {
-      adaptation.fit_output_map = false;
-      StabiliserModel adapted =
-          adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
-      candidates.push_back({"generic lens dynamics, adapted", adapted});
-      if (kinds.lens_dynamics_map) {
-        adaptation.fit_output_map = true;
-        adapted = adaptLensDynamics(kinds.lens_dynamics, training, options, adaptation).parameters;
-        candidates.push_back({"generic lens dynamics, adapted + lens map", adapted});
-      }
-      // Then its output layer refitted to the camera (a linear map from the network's state).
-      candidates.push_back({"generic lens dynamics, adapted + output layer refitted",
-                            refitLensDynamicsOutput(adapted, training, options)});
-    } catch (const std::invalid_argument&) {
-      // No usable lens motion: the simpler candidates stand.
     }
   }
   return candidates;

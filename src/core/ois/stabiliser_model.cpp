@@ -135,7 +135,6 @@ void LensShiftPredictor::reset() {
   chain_.reset();
   shifts_.clear();
   feature_history_.clear();
-  learned_history_.clear();
   ++resets_;
 }
 
@@ -155,8 +154,6 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
     clock_s_ = sample.stamp_s;
     shifts_.push_back(Eigen::Vector2d::Zero());
     if (record_features_) feature_history_.push_back(chain_.signal().features);
-    if (record_learned_ && chain_.signal().learned_state.size() > 0)
-      learned_history_.push_back(chain_.signal().learned_state);
     return true;
   }
   // Internal steps up to the new sample, the rate interpolated at each step's middle.
@@ -184,22 +181,12 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s,
     feature_history_.push_back(chain_.signal().features);
     while (feature_history_.size() > history_steps_) feature_history_.pop_front();
   }
-  if (record_learned_ && chain_.signal().learned_state.size() > 0) {
-    learned_history_.push_back(chain_.signal().learned_state);
-    while (learned_history_.size() > history_steps_) learned_history_.pop_front();
-  }
 }
 
 Eigen::VectorXd LensShiftPredictor::featuresAt(double t_s) const {
   if (feature_history_.empty()) return chain_.signal().features;
   const double last = static_cast<double>(feature_history_.size() - 1);
   return interpolateOnUniformGrid(feature_history_, last - (clock_s_ - t_s) / step_s_);
-}
-
-Eigen::VectorXd LensShiftPredictor::learnedStateAt(double t_s) const {
-  if (learned_history_.empty()) return chain_.signal().learned_state;
-  const double last = static_cast<double>(learned_history_.size() - 1);
-  return interpolateOnUniformGrid(learned_history_, last - (clock_s_ - t_s) / step_s_);
 }
 
 bool LensShiftPredictor::covers(double t_s) const {

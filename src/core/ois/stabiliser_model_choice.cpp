@@ -8,7 +8,6 @@
 
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stages/centring.h"
-#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
 #include "deep_ois/core/ois/stages/learned_residual.h"
 #include "deep_ois/core/ois/stages/linear_residual.h"
 
@@ -19,10 +18,8 @@ bool isNoLensMotion(const StabiliserModel& parameters) {
   const CentringValues* centring = parameters.find<CentringValues>();
   const LinearResidualValues* linear = parameters.find<LinearResidualValues>();
   const LearnedResidualValues* learned = parameters.find<LearnedResidualValues>();
-  const LearnedLensDynamics* dynamics = parameters.find<LearnedLensDynamics>();
   return centring && centring->gain.isZero(0.0) && (!linear || zero(linear->residual)) &&
-         (!learned || zero(learned->nonlinear_residual)) &&
-         !(dynamics && dynamics->active());  // the generic lens dynamics runs with the chain off
+         (!learned || zero(learned->nonlinear_residual));
 }
 
 void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,

@@ -54,6 +54,33 @@ std::string partialPathFor(const std::string& path) {
 using stabiliser_file_fields::optional;
 using stabiliser_file_fields::required;
 
+// A stage older files may have that this build no longer has, and that no stage of it can stand
+// in for: such a file is refused by name, never loaded without it (it would predict otherwise).
+struct RetiredStage {
+  const char* name;  // as a `stages` list named it
+  const char* key;   // its key in the `stabiliser` section
+  const char* what;  // in words, and why it went
+};
+constexpr RetiredStage kRetiredStages[] = {
+    {"learned_lens_dynamics", "learned_dynamics",
+     "the recurrent lens network pretrained on generated designs, removed because the "
+     "linear-dynamics stage explains more of the lens motion on held-out designs"},
+};
+
+// Throws StabiliserModelFileError naming the first retired stage the section has.
+void refuseRetiredStages(const YAML::Node& section) {
+  const auto named = section["stages"] ? optional<std::vector<std::string>>(section, "stages", {})
+                                       : std::vector<std::string>();
+  for (const RetiredStage& retired : kRetiredStages) {
+    if (!section[retired.key] && std::find(named.begin(), named.end(), retired.name) == named.end())
+      continue;
+    throw StabiliserModelFileError(
+        std::string("stabiliser: stage '") + retired.name + "' (field '" + retired.key + "': " +
+        retired.what + ") is no longer supported and has no successor to convert it to; retrain "
+        "the camera's model with train_stabiliser");
+  }
+}
+
 }  // namespace
 
 bool isStabiliserModelPath(const std::string& path) {
@@ -76,8 +103,7 @@ std::string StabiliserModelFile::toYaml() const {
   out << YAML::Key << "stabiliser" << YAML::Value << YAML::BeginMap;
   static const char* const kFirstFormatOrder[] = {
       "centring",          "actuator",        "stroke",           "excursion_centring",
-      "actuator_coupling", "pan_detection",   "linear_residual",  "learned_residual",
-      "learned_lens_dynamics"};
+      "actuator_coupling", "pan_detection",   "linear_residual",  "learned_residual"};
   // A stage the model has not got writes nothing, except the default chain's, whose keys the
   // first format required: those write their defaults (a model of other stages, a generated
   // design, still loads in a reader of that format).
@@ -136,6 +162,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   file.name = optional<std::string>(root, "name", "");
   if (!root["stabiliser"]) throw StabiliserModelFileError("missing section 'stabiliser'");
   const YAML::Node s = root["stabiliser"];
+  refuseRetiredStages(s);
   // Every stage the section has; a file that names its stages keeps only those (without the
   // list: the default chain and any sampled controller's stage the file has).
   StabiliserModel& p = file.parameters;

@@ -81,12 +81,6 @@ StabiliserCandidateKinds OnlineLearningOptions::onlineCandidateKinds() {
   return kinds;
 }
 
-void OnlineLearningOptions::useLensDynamics(std::shared_ptr<const LensDynamicsNetwork> network) {
-  candidate_kinds.lens_dynamics = std::move(network);
-  candidate_kinds.lens_dynamics_iterations = 5;
-  candidate_kinds.lens_dynamics_map = false;
-}
-
 std::string OnlineLearningOptions::validate() const {
   std::ostringstream why;
   if (!(window_s > 0.1)) why << "window_s must be above 0.1 s (got " << window_s << ")";

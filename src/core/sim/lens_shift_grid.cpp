@@ -13,11 +13,6 @@ LensShiftGrid::LensShiftGrid(double start_s, double rate_hz, std::vector<Eigen::
   if (!(rate_hz > 0.0)) throw std::invalid_argument("LensShiftGrid: rate_hz must be positive");
 }
 
-double LensShiftGrid::endS() const {
-  return samples_.empty() ? start_s_
-                          : start_s_ + static_cast<double>(samples_.size() - 1) / rate_hz_;
-}
-
 Eigen::Vector2d LensShiftGrid::at(double t_s) const {
   if (samples_.empty()) return Eigen::Vector2d::Zero();
   return interpolateOnUniformGrid(samples_, (t_s - start_s_) * rate_hz_);

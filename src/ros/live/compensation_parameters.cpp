@@ -56,7 +56,6 @@ CompensationParameters loadCompensationParameters(const ParameterSource& nh) {
   p.learning = nh.param("learning", p.learning);
   p.learning_key = nh.param("learning_key", p.learning_key);
   p.learning_dir = nh.param("learning_dir", p.learning_dir);
-  p.learning_lens_dynamics = nh.param("learning_lens_dynamics", p.learning_lens_dynamics);
   p.learning_cpu_share = nh.param("learning_cpu_share", p.learning_cpu_share);
   if (!(p.learning_cpu_share > 0.0 && p.learning_cpu_share <= 1.0))
     reject(nh, "learning_cpu_share", "must be in (0, 1] (a share of one core)");

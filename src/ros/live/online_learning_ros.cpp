@@ -1,7 +1,6 @@
 #include "deep_ois/ros/live/online_learning_ros.h"
 
 #include <cv_bridge/cv_bridge.h>
-#include <ros/package.h>
 #include <sensor_msgs/image_encodings.h>
 
 #include <cmath>
@@ -115,18 +114,6 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
     calibration_->startFor(onlineCalibrationPath(model_path_), gyro, !isNoLensMotion(priors.front().parameters));
     OnlineCalibrationRos* calibration = calibration_.get();
     options.on_tracked_pair = [calibration](const OnlineFramePair& pair) { calibration->onTrackedPair(pair); };
-  }
-  // The generic lens dynamics, adapted in the background like the chain's candidates (fewer
-  // iterations: each is a few passes over the buffer's gyro).
-  const std::string package = ros::package::getPath("deep_ois");
-  const std::string network_path = params_.learning_lens_dynamics.empty()
-                                       ? (package.empty() ? "" : package + "/models/lens_dynamics_generic.yaml")
-                                       : params_.learning_lens_dynamics;
-  try {
-    if (auto network = loadLensDynamicsOption(network_path)) options.useLensDynamics(network);
-  } catch (const std::exception& e) {
-    ROS_WARN_NAMED("compensation", "%s: ~learning_lens_dynamics: %s; learning without the generic lens "
-                   "dynamics", log_name_.c_str(), e.what());
   }
   options.model_file_name = "learned online for " + model_path_;
   options.camera.width = static_cast<int>(gyro.image_width);

@@ -211,11 +211,6 @@ TEST(StabiliserCandidates, AModelFileIsRankedByTheRowThatDescribesIt) {
   // Anti-windup and a learned set together: no row; after every row.
   const int last_row = stabiliserCandidateDescriptions().back().complexity;
   EXPECT_EQ(complexity("learned_excursion_rate_v1"), last_row + 1);
-  // The generic learned lens dynamics: a network, last (simpler candidates win within the margin).
-  EXPECT_EQ(stabiliserComplexity(StabiliserModelFile::load(std::string(DEEP_OIS_SOURCE_DIR) +
-                                                           "/test/ros/stabiliser_model_generic_dynamics.yaml")
-                                     .parameters),
-            last_row + 2);
 }
 
 }  // namespace

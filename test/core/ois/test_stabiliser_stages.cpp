@@ -17,7 +17,6 @@
 #include "deep_ois/core/ois/stages/actuator_coupling.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/excursion_centring.h"
-#include "deep_ois/core/ois/stages/learned_lens_dynamics.h"
 #include "deep_ois/core/ois/stages/learned_residual.h"
 #include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "deep_ois/core/ois/stages/linear_residual.h"
@@ -156,7 +155,6 @@ TEST(StabiliserStages, EachStageWritesTheKeysItDeclaresAndReadsThemBack) {
   std::set<std::string> all_keys;
   for (const StabiliserStage& stage : stabiliserStages()) {
     SCOPED_TRACE(stage.name);
-    if (std::string(stage.name) == "learned_lens_dynamics") continue;  // needs a network
     std::set<std::string> keys;
     for (const StabiliserModel& p : {everyMechanism(), soft}) {
       ASSERT_EQ(p.validate(), "");
@@ -266,7 +264,6 @@ TEST(StabiliserStages, ThePhysicalChainClearsTheResidualAndLearnedStages) {
   EXPECT_EQ(chain.get<LinearResidualValues>().residual.size(), 0);
   EXPECT_TRUE(chain.get<LearnedResidualValues>().nonlinear_features.empty());
   EXPECT_EQ(chain.get<LearnedResidualValues>().nonlinear_residual.size(), 0);
-  EXPECT_FALSE(chain.get<LearnedLensDynamics>().active());
   EXPECT_TRUE(chain.get<StrokeValues>().anti_windup);  // the chain's own mechanisms stay
   EXPECT_EQ(chain.get<ExcursionCentringValues>().excursion_centring, 1.5);
   for (const StabiliserStage& stage : stabiliserStages())

@@ -1,5 +1,5 @@
 // The stabiliser design generator (core/sim/design_generator.h), its designs' runner and oracle
-// and the pretraining traces: deterministic per seed, the oracle is the simulated lens on its own
+// and the lens-level traces: deterministic per seed, the oracle is the simulated lens on its own
 // gyro, the family covers every class and stage variant, the seeds split, parameters in range.
 #include <gtest/gtest.h>
 

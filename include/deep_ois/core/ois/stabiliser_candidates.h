@@ -27,7 +27,6 @@
 #include <string>
 #include <vector>
 
-#include "deep_ois/core/ois/lens_dynamics_network.h"
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
@@ -85,8 +84,8 @@ const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptio
 
 // A model's place in the table's simplicity order, read from its parameters: 0 for "no lens
 // motion", the complexity of the row that describes it (its structure, feature set and linear
-// bank), after every row for a composition no row describes (a hand-written file), and last for
-// a model with the learned lens dynamics (a network: the least simple). So a model from anywhere (a prior, the model in use) is ranked as the candidates are.
+// bank), and after every row for a composition no row describes (a hand-written file). So a model
+// from anywhere (a prior, the model in use) is ranked as the candidates are.
 int stabiliserComplexity(const StabiliserModel& parameters);
 
 // Which rows stabiliserCandidates builds besides the physical chain and its linear bank.
@@ -98,14 +97,6 @@ struct StabiliserCandidateKinds {
   bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
   // The linear-dynamics rows (one run of the chain per basis function and recording each).
   bool linear_dynamics = true;
-  // The generic learned lens dynamics (core/ois/lens_dynamics_network.h), pretrained on generated
-  // designs: adapted to the camera (its conditioning vector; then with a 2x2 map of its lens too),
-  // the chain off. Null: not a candidate.
-  std::shared_ptr<const LensDynamicsNetwork> lens_dynamics;
-  int lens_dynamics_iterations = 12;  // Levenberg-Marquardt iterations of each adaptation
-  // The adaptation with the lens map too (a second adaptation: about as costly as the first); the
-  // output layer is then refitted on it (one pass), else on the conditioning's.
-  bool lens_dynamics_map = true;
 };
 
 // The candidates built from a physical fit (a fitStabiliser result), one per row of the table in

@@ -149,14 +149,6 @@ class LensShiftPredictor {
   // model must name a feature set) and answers them like lensShiftAt (focal-length units).
   void recordFeatures() { record_features_ = true; }
   Eigen::VectorXd featuresAt(double t_s) const;
-  // Keeps the learned stage's state (the network's hidden vector and, with a skip path, its
-  // inputs; extrapolated between its steps as its lens is) of every retained step, and answers it like lensShiftAt: the features a refit
-  // of the network's output layer regresses on (core/ois/lens_dynamics_adaptation.h).
-  void recordLearnedState() {
-    record_learned_ = true;
-    chain_.signal().want_learned_state = true;
-  }
-  Eigen::VectorXd learnedStateAt(double t_s) const;
 
   double max_gap_s = 0.1;
 
@@ -180,8 +172,6 @@ class LensShiftPredictor {
   std::deque<Eigen::Vector2d> shifts_;  // lens shift at clock_s_ - (size - 1 - j) * step_s_
   bool record_features_ = false;
   std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
-  bool record_learned_ = false;
-  std::deque<Eigen::VectorXd> learned_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };
 

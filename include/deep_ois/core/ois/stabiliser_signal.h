@@ -59,11 +59,8 @@ struct StabiliserSignal {
   Eigen::Vector2d command_gain_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d angle_correction_rad = Eigen::Vector2d::Zero();
   Eigen::Vector2d excursion = Eigen::Vector2d::Zero();
-  // The learned residual's features (focal units; sized by its runner's reset) and the learned
-  // dynamics' state (filled only when want_learned_state), for refits of those stages.
+  // The learned residual's features (focal units; sized by its runner's reset), for its refit.
   Eigen::VectorXd features;
-  bool want_learned_state = false;
-  Eigen::VectorXd learned_state;
 };
 
 // The constants a runner is built for.
@@ -91,11 +88,9 @@ class StabiliserChain {
   explicit StabiliserChain(std::vector<std::unique_ptr<StabiliserStageRunner>> runners)
       : runners_(std::move(runners)) {}
 
-  // A stabiliser switched on; keeps the signal's want_learned_state.
+  // A stabiliser switched on.
   void reset() {
-    const bool want_learned_state = signal_.want_learned_state;
     signal_ = StabiliserSignal();
-    signal_.want_learned_state = want_learned_state;
     for (const auto& runner : runners_) runner->reset(signal_);
   }
   // One internal step from the rate at its middle and at its end (rad/s, camera frame); set the

@@ -15,7 +15,7 @@
 // The stages, in the order the signal passes them (stabiliserStages()): gyro loop, pan detection,
 // motion mode, excursion re-centring, centring (gain and corner), intended motion, linear
 // dynamics, stroke (limits, shape, soft, anti-windup), travel, actuator (bandwidth, damping, sensor
-// lag), Hall actuator, actuator coupling, linear residual, learned residual, learned lens dynamics.
+// lag), Hall actuator, actuator coupling, linear residual, learned residual.
 // The gyro loop, motion mode, intended motion, travel and Hall actuator are a sampled controller's:
 // the simulator's generated designs and camera modules are built from them
 // (core/sim/stabiliser_design_runner.h).

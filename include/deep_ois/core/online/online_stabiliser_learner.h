@@ -113,10 +113,6 @@ struct OnlineLearningOptions {
   // fewer iterations; the elliptic stroke variant stays): it runs every few seconds in the background.
   static StabiliserFitOptions onlineFitOptions();
   static StabiliserCandidateKinds onlineCandidateKinds();
-  // Offers the generic lens dynamics (core/ois/lens_dynamics_network.h) as a candidate of every
-  // fit, adapted as the live budget allows (the conditioning, then the output layer: a few seconds
-  // of a core per fit); null = the chain's candidates alone.
-  void useLensDynamics(std::shared_ptr<const LensDynamicsNetwork> network);
   std::string validate() const;
 };
 

@@ -1,6 +1,6 @@
 // The design generator: one stabiliser design (core/sim/stabiliser_design.h) per seed, structure
 // and parameters drawn from a family far wider than the learned model's hand-written chain, for
-// pretraining and measuring a generic lens model on stabilisers no one listed.
+// measuring the lens model on stabilisers no one listed.
 //
 // Seeds are split once and for all: seeds with seed % 5 == 0 (20 % of any run of consecutive
 // seeds) are held out from every decision (training, model choice, tuning) and reported apart.

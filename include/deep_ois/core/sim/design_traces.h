@@ -1,5 +1,6 @@
-// The pretraining data of a generic lens model, without rendering an image: generated stabiliser
-// designs (core/sim/design_generator.h) run over gyro traces, lens shift (pixels) per time.
+// Lens-level data of generated stabiliser designs (core/sim/design_generator.h), without rendering
+// an image: the designs run over gyro traces, lens shift (pixels) per time, for the benchmarks that
+// fit and score lens models on them (benchmark_lens_dynamics, benchmark_linear_dynamics).
 //
 // Two entry points:
 //  - designLensShifts: a design over a gyro trace you have (timestamps and the camera-frame rate):

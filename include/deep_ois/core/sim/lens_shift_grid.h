@@ -18,8 +18,6 @@ class LensShiftGrid {
   // Zero when empty.
   Eigen::Vector2d at(double t_s) const;
   bool empty() const { return samples_.empty(); }
-  double startS() const { return start_s_; }
-  double endS() const;
   const std::vector<Eigen::Vector2d>& samples() const { return samples_; }
 
  private:

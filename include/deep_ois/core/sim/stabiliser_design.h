@@ -8,7 +8,7 @@
 // them: second-order centring, alpha-beta estimators, velocity-domain loops, mode detection that
 // lets go or holds, gain schedules, asymmetric strokes, anti-windup variants, first-order and
 // stiction-bound actuators, Hall nonlinearity, a gyro misaligned about all three axes), so that a
-// learned lens model is pretrained on stabilisers no hand-written chain lists.
+// learned lens model is measured on stabilisers no hand-written chain lists.
 //
 // The chain, in the order a control step runs it:
 //   mount (gyro misalignment, noise) -> loop (rate, sampling) -> estimator (centring / intended

@@ -50,10 +50,6 @@ struct CompensationParameters {
   // ~learning_dir: where learned models are kept; empty = $ROS_HOME/deep_ois/stabilisers
   // (~/.ros/deep_ois/stabilisers).
   std::string learning_dir;
-  // ~learning_lens_dynamics: the generic lens dynamics network the learner adapts to the camera as
-  // a candidate (core/ois/lens_dynamics_network.h); empty = the package's
-  // models/lens_dynamics_generic.yaml, "none" = the chain's candidates alone.
-  std::string learning_lens_dynamics;
   double learning_cpu_share = 0.3;  // ~learning_cpu_share: of one core, tracking and fits together
   int learning_tracking_width_px = kLiveTrackingWidthPx;  // ~learning_tracking_width: frames tracked at most this wide
   double learning_buffer_s = 40.0;       // ~learning_buffer: seconds of motion-rich windows kept

@@ -20,7 +20,6 @@ const StabiliserStage& actuatorStage();
 const StabiliserStage& actuatorCouplingStage();
 const StabiliserStage& linearResidualStage();
 const StabiliserStage& learnedResidualStage();
-const StabiliserStage& learnedLensDynamicsStage();
 const StabiliserStage& gyroLoopStage();
 const StabiliserStage& motionModeStage();
 const StabiliserStage& intendedMotionStage();
@@ -43,7 +42,6 @@ const std::vector<StabiliserStage>& stabiliserStages() {
       actuatorCouplingStage(),  // the actuator's axes -> the image's
       linearResidualStage(),    // + residual of leaky rate integrals
       learnedResidualStage(),   // + residual of the chain's features
-      learnedLensDynamicsStage(),  // + a recurrent network's lens
   };
   return stages;
 }
