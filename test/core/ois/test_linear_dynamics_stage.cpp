@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/linear_dynamics_rls.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
@@ -127,6 +128,27 @@ TEST(LinearDynamicsStage, TheClosedFormFitRecoversKnownCoefficientsThroughTheAct
   }
   EXPECT_LT(rms(error), 1e-6 * rms(motion));
   EXPECT_GT(rms(motion), 0.5);  // pixels: the shake moves the lens
+}
+
+TEST(LinearDynamicsStage, TheRecursiveLeastSquaresOnItsEvidenceRecoversKnownCoefficients) {
+  // The online learner's path: the evidence (one run of the chain per coefficient column) about
+  // coefficients that are all wrong (zero), streamed into the recursive least squares with a weak
+  // prior: the chain is linear in them through the actuator, so the known ones come back.
+  const StabiliserModel truth = knownLinearDynamics();
+  const StabiliserFitRecording recording = observed(truth);
+  StabiliserModel start = truth;
+  start.get<LinearDynamicsValues>().coefficients.setZero();
+  StabiliserFitOptions options;
+  const LinearDynamicsEvidence evidence = linearDynamicsEvidence(start, {recording}, options);
+  ASSERT_GT(evidence.rows(), 1000);
+  LinearDynamicsRlsOptions rls_options;
+  rls_options.forgetting_per_s = 1.0;
+  rls_options.prior_lens_motions = 1e-3;
+  rls_options.huber_px = 1e9;
+  LinearDynamicsRls rls(start.get<LinearDynamicsValues>().coefficients, rls_options);
+  rls.add(evidence);
+  const Eigen::MatrixXd& known = truth.get<LinearDynamicsValues>().coefficients;
+  EXPECT_LT((rls.coefficients() - known).norm(), 1e-4 * known.norm()) << rls.coefficients();
 }
 
 TEST(LinearDynamicsStage, StandsInForACentringChainInsideTheStroke) {
