@@ -101,7 +101,9 @@ TEST(LinearDynamicsRls, RecoversAKnownLinearResponseFromStreamedRows) {
   const Eigen::MatrixXd truth = response(0.2);
   LinearDynamicsRls rls(Eigen::MatrixXd::Zero(2, kColumns), LinearDynamicsRlsOptions());
   feedInWindows(rls, stream(truth, 20.0, 0.0, 0.1, 2));
-  EXPECT_LT(relativeError(rls.coefficients(), truth), 0.01) << rls.coefficients();
+  // From an all-wrong start (zero, weighted as 20 rows) through Huber weights (the first rows' residual
+  // is several times the threshold): within 3 % of the truth after 20 s of rows.
+  EXPECT_LT(relativeError(rls.coefficients(), truth), 0.03) << rls.coefficients();
 }
 
 TEST(LinearDynamicsRls, OutliersDoNotPullItAway) {
