@@ -7,6 +7,7 @@
 #include <cmath>
 #include <string>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
@@ -97,6 +98,20 @@ double rms(const std::vector<Eigen::Vector2d>& v) {
   return std::sqrt(sum / static_cast<double>(n));
 }
 
+// The RMS (px) of `model`'s lens-motion error on the recording, and of the observed motion, over
+// the observations it predicts (after a 1 s warm-up).
+std::pair<double, double> predictionErrorAndMotion(const StabiliserModel& model,
+                                                   const StabiliserFitRecording& recording) {
+  const auto predicted = predictLensMotion(model, recording, 1e-3, 1.0);
+  std::vector<Eigen::Vector2d> error, motion;
+  for (std::size_t k = 0; k < predicted.size(); ++k) {
+    if (!predicted[k].allFinite()) continue;
+    error.push_back(predicted[k] - recording.observations[k].motion_px);
+    motion.push_back(recording.observations[k].motion_px);
+  }
+  return {rms(error), rms(motion)};
+}
+
 TEST(LinearDynamicsStage, TheRunnerIsTheBasisFilterTimesItsCoefficients) {
   // Without an actuator or a stroke that acts, the lens is f C x for the basis state x of the rate
   // held over each step (a constant rate: no interpolation between samples).
@@ -119,15 +134,9 @@ TEST(LinearDynamicsStage, TheClosedFormFitRecoversKnownCoefficientsThroughTheAct
       fitLinearDynamics(chain(), {"linear_dynamics", "stroke", "actuator"}, basis(), {recording},
                         options, 0.0);
   EXPECT_EQ(fitted.stageNames(), truth.stageNames());
-  const auto predicted = predictLensMotion(fitted, recording, 1e-3, 1.0);
-  std::vector<Eigen::Vector2d> error, motion;
-  for (std::size_t k = 0; k < predicted.size(); ++k) {
-    if (!predicted[k].allFinite()) continue;
-    error.push_back(predicted[k] - recording.observations[k].motion_px);
-    motion.push_back(recording.observations[k].motion_px);
-  }
-  EXPECT_LT(rms(error), 1e-6 * rms(motion));
-  EXPECT_GT(rms(motion), 0.5);  // pixels: the shake moves the lens
+  const auto [error_px, motion_px] = predictionErrorAndMotion(fitted, recording);
+  EXPECT_LT(error_px, 1e-6 * motion_px);
+  EXPECT_GT(motion_px, 0.5);  // pixels: the shake moves the lens
 }
 
 TEST(LinearDynamicsStage, TheRecursiveLeastSquaresOnItsEvidenceRecoversKnownCoefficients) {
@@ -147,14 +156,8 @@ TEST(LinearDynamicsStage, TheRecursiveLeastSquaresOnItsEvidenceRecoversKnownCoef
   rls.add(evidence);
   StabiliserModel learned = start;
   learned.get<LinearDynamicsValues>().coefficients = rls.coefficients();
-  const auto predicted = predictLensMotion(learned, recording, 1e-3, 1.0);
-  std::vector<Eigen::Vector2d> error, motion;
-  for (std::size_t k = 0; k < predicted.size(); ++k) {
-    if (!predicted[k].allFinite()) continue;
-    error.push_back(predicted[k] - recording.observations[k].motion_px);
-    motion.push_back(recording.observations[k].motion_px);
-  }
-  EXPECT_LT(rms(error), 0.02 * rms(motion)) << rls.coefficients();
+  const auto [error_px, motion_px] = predictionErrorAndMotion(learned, recording);
+  EXPECT_LT(error_px, 0.02 * motion_px) << rls.coefficients();
 }
 
 TEST(LinearDynamicsStage, StandsInForACentringChainInsideTheStroke) {
