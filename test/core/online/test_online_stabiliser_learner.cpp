@@ -378,6 +378,9 @@ TEST(OnlineStabiliserLearner, ASwapToTheRecursiveLeastSquaresModelPassesThePerPa
     EXPECT_GT(status.rls_windows, 0u);
     EXPECT_GT(status.rls_lens_motions, 1000u);
     ASSERT_EQ(status.rls_swaps, 1u) << status.last_choice;
+    std::printf("RLS: %zu windows, %zu lens motions, %.3f s CPU (%.1f us per lens motion; 12 coefficients per axis)\n",
+                status.rls_windows, status.rls_lens_motions, status.rls_cpu_s,
+                1e6 * status.rls_cpu_s / static_cast<double>(status.rls_lens_motions));
     const auto trial = learner.model();
     EXPECT_NE(trial->name.find("recursive least squares"), std::string::npos) << trial->name;
     // Its pan and tilt coefficients moved from the prior's half to the camera's (the roll rate of
