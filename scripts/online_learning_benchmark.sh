@@ -5,12 +5,16 @@
 # generic model. Long (minutes, a few GB of bags): a benchmark, never run in CI.
 #
 #   online_learning_benchmark.sh OUTDIR [--modules "pan_release phone_main ..."] [--overlay FILE.yaml ...]
-#       [--seeds "6002"] [--duration 60] [--no-ois "pan_release ..."] [--cpu-share 0.3]
+#       [--designs "0 5 10"] [--seeds "6002"] [--duration 60] [--no-ois "pan_release ..."] [--cpu-share 0.3]
 #       [-- BENCHMARK_ARGS...]
 #
-# --modules   modules of config/simulator/modules (default: all of them)
+# --modules   modules of config/simulator/modules (default: all of them, unless --overlay or
+#             --designs is given)
 # --overlay   a stabiliser design outside the repository (a simulator module overlay), run after
 #             the modules and reported under its file name (repeatable)
+# --designs   generated stabiliser designs by seed (the simulator's `ois: {design_seed: N}`), run
+#             after those and reported as design_<seed> with their split: seed % 5 == 0 is the
+#             generator's held-out split (never used for a decision), the others training
 # --seeds     one recording per seed, replayed one after the other through one learner (more than
 #             one: --continue-bags, the stamps of each next recording follow the previous one)
 # --no-ois    modules whose non-OIS twin is also replayed as the camera (scored against the gyro)
@@ -26,12 +30,13 @@ source "$repo/scripts/ros_env.sh"
 if [ $# -lt 1 ] || [ "${1#--}" != "$1" ]; then sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; fi
 out="$1"; shift
 config="$repo/config/simulator"
-modules=() overlays=() no_ois=() bench_args=()
+modules=() overlays=() designs=() no_ois=() bench_args=()
 seeds="6002" duration=60 cpu_share=0.3
 while [ $# -gt 0 ]; do
   case "$1" in
     --modules) read -r -a modules <<<"$2"; shift 2 ;;
     --overlay) overlays+=("$2"); shift 2 ;;
+    --designs) read -r -a designs <<<"$2"; shift 2 ;;
     --seeds) seeds="$2"; shift 2 ;;
     --duration) duration="$2"; shift 2 ;;
     --no-ois) read -r -a no_ois <<<"$2"; shift 2 ;;
@@ -40,7 +45,7 @@ while [ $# -gt 0 ]; do
     *) echo "online_learning_benchmark: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
-if [ "${#modules[@]}" -eq 0 ] && [ "${#overlays[@]}" -eq 0 ]; then
+if [ "${#modules[@]}" -eq 0 ] && [ "${#overlays[@]}" -eq 0 ] && [ "${#designs[@]}" -eq 0 ]; then
   for file in "$config"/modules/*.yaml; do modules+=("$(basename "$file" .yaml)"); done
 fi
 # name:overlay file, modules first.
@@ -54,6 +59,11 @@ for file in "${overlays[@]}"; do
   runs+=("$(basename "$file" .yaml):$file")
 done
 mkdir -p "$out/bags"
+for seed in "${designs[@]}"; do
+  [[ "$seed" =~ ^[0-9]+$ ]] || { echo "online_learning_benchmark: design seed '$seed' is not a number" >&2; exit 2; }
+  printf 'ois:\n  design_seed: %s\n' "$seed" >"$out/design_$seed.yaml"
+  runs+=("design_$seed:$out/design_$seed.yaml")
+done
 read -r -a seed_list <<<"$seeds"
 continue_args=()
 [ "${#seed_list[@]}" -gt 1 ] && continue_args=(--continue-bags)
@@ -94,7 +104,11 @@ for run in "${runs[@]}"; do
       "${bench_args[@]}" >"$report" 2>"$out/$name.log"; then
     table+=("| $name | benchmark_online_learning failed: see $out/$name.log |"); status=1; continue
   fi
-  table+=("| $name | $(cells "$report" 8) | $(cpu "$report") |")
+  split=""
+  if [[ "$name" =~ ^design_([0-9]+)$ ]]; then
+    if (( BASH_REMATCH[1] % 5 == 0 )); then split=" (held out)"; else split=" (training)"; fi
+  fi
+  table+=("| $name$split | $(cells "$report" 8) | $(cpu "$report") |")
   echo "${table[-1]}"
   for twin in "${no_ois[@]}"; do
     [ "$twin" = "$name" ] || continue

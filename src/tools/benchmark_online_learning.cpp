@@ -301,6 +301,8 @@ int main(int argc, char** argv) {
   std::string plot_path, final_model_path;
   double window_s = 10.0, cpu_share = 0.3, gap_s = 1.0;
   bool no_ois = false, continue_bags = false, no_learning = false, online_calibration = false;
+  bool no_rls = false, linear_rows = false;
+  deep_ois::LinearDynamicsRlsOptions rls;
   double calibration_cpu_share = deep_ois::OnlineCalibrationOptions().cpu_share;
   app.add_option("--bags", bags, "the camera's recordings, replayed in this order (one long one is best)")
       ->required()
@@ -323,6 +325,16 @@ int main(int argc, char** argv) {
   app.add_flag("--no-learning", no_learning,
                "the learner checks every pair (residual, fallback to the plain gyro) but fits nothing: the "
                "live pipeline with ~learning false, e.g. for the output path's latency without the learning");
+  app.add_flag("--no-rls", no_rls,
+               "the learner without its recursive least squares on the linear-dynamics stage "
+               "(~learning_rls false)");
+  app.add_flag("--linear-rows", linear_rows,
+               "the learner's fits also build the candidates with the linear-dynamics stage (off by "
+               "default: OnlineLearningOptions::candidate_kinds.linear_dynamics)");
+  command_line.addNumber("--rls-forgetting", rls.forgetting_per_s,
+                         "the recursive least squares' forgetting factor per second (~learning_rls_forgetting)");
+  command_line.addNumber("--rls-prior", rls.prior_lens_motions,
+                         "what its starting coefficients are worth, in lens motions (~learning_rls_prior)");
   app.add_flag("--continue-bags", continue_bags,
                "the --bags are one camera's session, one after the other: the learner and its check go on "
                "(not restarted per recording), the stamps of each next recording are shifted to follow "
@@ -363,6 +375,11 @@ int main(int argc, char** argv) {
   deep_ois::OnlineLearningOptions learning;
   learning.cpu_share = cpu_share;
   learning.learning = !no_learning;
+  learning.linear_dynamics_rls = !no_rls;
+  learning.rls = rls;
+  if (linear_rows) learning.candidate_kinds.linear_dynamics = true;
+  if (const std::string problem = learning.validate(); !problem.empty())
+    return command_line.usageError(problem);
   learning.max_queued_pairs = 100000;  // the replay keeps the queue at 10, as live
   auto path = std::make_shared<OnlinePath>();
   path->cpu_share = cpu_share;
@@ -479,6 +496,16 @@ int main(int argc, char** argv) {
               s.pairs_over_budget, s.fits_delayed_by_budget, path->fallback_pairs, path->pairs, s.cpu_s, path->replay_s + path->last_stamp_s - path->recording_start_s,
               100.0 * s.cpu_s / std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s), wall_s,
               s.last_problem.empty() ? "" : "; last problem: ", s.last_problem.c_str());
+  {
+    const double replay_s = std::max(1e-9, path->replay_s + path->last_stamp_s - path->recording_start_s);
+    std::printf("linear stage: recursive least squares %s (forgetting %.3f per s, prior %.0f lens motions): %zu windows, "
+                "%zu lens motions fed, CPU %.2f s (%.1f %% of a core, %.1f us per lens motion), %zu swaps to its model; "
+                "linear-dynamics rows %s: CPU %.2f s (%.1f %% of a core)\n",
+                no_rls ? "off" : "on", rls.forgetting_per_s, rls.prior_lens_motions, s.rls_windows, s.rls_lens_motions,
+                s.rls_cpu_s, 100.0 * s.rls_cpu_s / replay_s,
+                s.rls_lens_motions ? 1e6 * s.rls_cpu_s / static_cast<double>(s.rls_lens_motions) : 0.0, s.rls_swaps,
+                linear_rows ? "on" : "off", s.linear_rows_cpu_s, 100.0 * s.linear_rows_cpu_s / replay_s);
+  }
   std::printf("output path per pair (the compensator's step, the lens kept for the online calibration when on, the hand-over "
               "to the learner, the fallback read; "
               "not the benchmark's frame copy or its wait for the learner's queue): p50 %.3f ms, p95 %.3f ms, "

@@ -68,6 +68,13 @@ CompensationParameters loadCompensationParameters(const ParameterSource& nh) {
   if (!(p.learning_buffer_s >= 2.0 * p.learning_held_out_s))
     reject(nh, "learning_buffer", "must be at least twice ~learning_held_out (seconds held out and trained on)");
   if (!(p.learning_refit_every_s > 0.0)) reject(nh, "learning_refit_every", "must be > 0 seconds");
+  p.learning_rls = nh.param("learning_rls", p.learning_rls);
+  p.learning_rls_forgetting = nh.param("learning_rls_forgetting", p.learning_rls_forgetting);
+  if (!(p.learning_rls_forgetting > 0.0 && p.learning_rls_forgetting <= 1.0))
+    reject(nh, "learning_rls_forgetting", "must be in (0, 1] (the weight left to a lens motion one second old)");
+  p.learning_rls_prior = nh.param("learning_rls_prior", p.learning_rls_prior);
+  if (!(p.learning_rls_prior > 0.0) || !std::isfinite(p.learning_rls_prior))
+    reject(nh, "learning_rls_prior", "must be > 0 lens motions");
   p.learning_confirm_pairs = nh.param("learning_confirm_pairs", p.learning_confirm_pairs);
   if (p.learning_confirm_pairs < 1) reject(nh, "learning_confirm_pairs", "must be at least 1 pair");
   p.learning_test_write_pause_s = nh.param("learning_test_write_pause", p.learning_test_write_pause_s);

@@ -104,6 +104,9 @@ void OnlineLearningRos::startFor(const GyroFlow& gyro) {
   options.held_out_s = params_.learning_held_out_s;
   options.min_training_s = params_.learning_held_out_s;
   options.refit_every_s = params_.learning_refit_every_s;
+  options.linear_dynamics_rls = params_.learning_rls;
+  options.rls.forgetting_per_s = params_.learning_rls_forgetting;
+  options.rls.prior_lens_motions = params_.learning_rls_prior;
   options.confirmation.pairs = static_cast<std::size_t>(params_.learning_confirm_pairs);
   options.write.test_pause_s = params_.learning_test_write_pause_s;
   options.model_path = model_path_;

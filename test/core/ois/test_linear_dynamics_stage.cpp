@@ -7,9 +7,11 @@
 #include <cmath>
 #include <string>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/linear_dynamics_rls.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
@@ -108,6 +110,20 @@ double rms(const std::vector<Eigen::Vector2d>& v) {
   return std::sqrt(sum / static_cast<double>(n));
 }
 
+// The RMS (px) of `model`'s lens-motion error on the recording, and of the observed motion, over
+// the observations it predicts (after a 1 s warm-up).
+std::pair<double, double> predictionErrorAndMotion(const StabiliserModel& model,
+                                                   const StabiliserFitRecording& recording) {
+  const auto predicted = predictLensMotion(model, recording, 1e-3, 1.0);
+  std::vector<Eigen::Vector2d> error, motion;
+  for (std::size_t k = 0; k < predicted.size(); ++k) {
+    if (!predicted[k].allFinite()) continue;
+    error.push_back(predicted[k] - recording.observations[k].motion_px);
+    motion.push_back(recording.observations[k].motion_px);
+  }
+  return {rms(error), rms(motion)};
+}
+
 TEST(LinearDynamicsStage, TheRunnerIsTheBasisFilterTimesItsCoefficients) {
   // Without an actuator or a stroke that acts, the lens is f C x for the basis state x of the rate
   // held over each step (a constant rate: no interpolation between samples).
@@ -127,15 +143,30 @@ TEST(LinearDynamicsStage, TheClosedFormFitRecoversKnownCoefficientsThroughTheAct
   const StabiliserFitRecording recording = observed(truth);
   const StabiliserModel fitted = solvedLinearDynamics({"linear_dynamics", "stroke", "actuator"}, recording, 0.0);
   EXPECT_EQ(fitted.stageNames(), truth.stageNames());
-  const auto predicted = predictLensMotion(fitted, recording, 1e-3, 1.0);
-  std::vector<Eigen::Vector2d> error, motion;
-  for (std::size_t k = 0; k < predicted.size(); ++k) {
-    if (!predicted[k].allFinite()) continue;
-    error.push_back(predicted[k] - recording.observations[k].motion_px);
-    motion.push_back(recording.observations[k].motion_px);
-  }
-  EXPECT_LT(rms(error), 1e-6 * rms(motion));
-  EXPECT_GT(rms(motion), 0.5);  // pixels: the shake moves the lens
+  const auto [error_px, motion_px] = predictionErrorAndMotion(fitted, recording);
+  EXPECT_LT(error_px, 1e-6 * motion_px);
+  EXPECT_GT(motion_px, 0.5);  // pixels: the shake moves the lens
+}
+
+TEST(LinearDynamicsStage, TheRecursiveLeastSquaresOnItsEvidenceRecoversKnownCoefficients) {
+  // The online learner's path: the evidence (one run of the chain per coefficient column) about
+  // coefficients that are all wrong (zero), streamed into the recursive least squares with its
+  // default prior (20 lens motions towards zero, against ~4,000 rows): the chain is linear in them
+  // through the actuator, so the lens motions come back (the coefficients themselves less well:
+  // the basis' states are strongly correlated, and the covariance form loses digits on them).
+  const StabiliserModel truth = knownLinearDynamics();
+  const StabiliserFitRecording recording = observed(truth);
+  StabiliserModel start = truth;
+  start.get<LinearDynamicsValues>().coefficients.setZero();
+  StabiliserFitOptions options;
+  const LinearDynamicsEvidence evidence = linearDynamicsEvidence(start, {recording}, options);
+  ASSERT_GT(evidence.rows(), 1000);
+  LinearDynamicsRls rls(start.get<LinearDynamicsValues>().coefficients, LinearDynamicsRlsOptions());
+  rls.add(evidence);
+  StabiliserModel learned = start;
+  learned.get<LinearDynamicsValues>().coefficients = rls.coefficients();
+  const auto [error_px, motion_px] = predictionErrorAndMotion(learned, recording);
+  EXPECT_LT(error_px, 0.02 * motion_px) << rls.coefficients();
 }
 
 TEST(LinearDynamicsStage, StandsInForACentringChainInsideTheStroke) {

@@ -25,6 +25,7 @@
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stages/centring.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "deep_ois/core/ois/stages/linear_residual.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 
@@ -282,6 +283,17 @@ TEST(OnlineStabiliserLearner, UndoesASwapThatDoesWorseOnTheNextWindows) {
   }
 }
 
+// The options of a learner that fits once (when 12 s of windows are in) and writes its confirmed
+// model into `dir`, emptied first.
+OnlineLearningOptions oneFitWritingTo(const std::filesystem::path& dir) {
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  OnlineLearningOptions options = testOptions();
+  options.refit_every_s = 11.0;
+  options.model_path = (dir / "camera.yaml").string();
+  return options;
+}
+
 // Issue 33: a swap that the per-pair check finds worse than the model it replaced (the camera's lens
 // stops moving after the swap: the OIS was switched off, and the replaced model is "no lens
 // motion") is undone and never written; on a camera that stays the same the swap is confirmed after
@@ -290,11 +302,7 @@ TEST(OnlineStabiliserLearner, ASwapThePerPairCheckFindsWorseIsUndoneAndNeverWrit
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("deep_ois_trial_" + std::to_string(::getpid()));
   for (const bool ois_switched_off : {true, false}) {
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    OnlineLearningOptions options = testOptions();
-    options.refit_every_s = 11.0;  // one fit, when 12 s of windows are in
-    options.model_path = (dir / "camera.yaml").string();
+    const OnlineLearningOptions options = oneFitWritingTo(dir);
     OnlineStabiliserLearner learner(options, {{"no lens motion", noLensMotion()}, {"generic", wrongPrior()}}, 0);
     feed(learner, makePairs(ideal(), 13.0, 1.0, 31));
     ASSERT_EQ(learner.status().swaps, 1u) << learner.status().last_choice;
@@ -323,6 +331,80 @@ TEST(OnlineStabiliserLearner, ASwapThePerPairCheckFindsWorseIsUndoneAndNeverWrit
       const StabiliserModelFile written = StabiliserModelFile::load(options.model_path);
       EXPECT_NEAR(written.parameters.get<CentringValues>().gain(0, 1), model->parameters.get<CentringValues>().gain(0, 1), 1e-9);
       EXPECT_EQ(status.saves, 1u);
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A stabiliser that is a linear filter of its gyro no chain names: ideal()'s centring written on a
+// Laguerre basis (1 Hz, 4 functions per axis: function 1 is the 1 Hz high-passed angle), plus
+// terms the chain and its learned residuals (pan and tilt rates only) cannot have: on function 2,
+// and from the roll rate, inside a stroke the shake never meets (the lens linear in the
+// coefficients). `scale` multiplies the coefficients.
+StabiliserModel linearStabiliser(double scale) {
+  const StabiliserModel chain = ideal();
+  StabiliserModel p = chain.only({"linear_dynamics", "stroke", "actuator"});
+  p.get<StrokeValues>().stroke_x_deg = p.get<StrokeValues>().stroke_y_deg = 10.0;
+  LinearDynamicsValues& linear = p.get<LinearDynamicsValues>();
+  linear.basis.pole_hz = 1.0;
+  linear.basis.order = 4;
+  linear.coefficients = Eigen::MatrixXd::Zero(2, 12);
+  const double per_state = 1.0 / std::sqrt(2.0 * 2.0 * M_PI * linear.basis.pole_hz);
+  const Eigen::Matrix2d& gain = chain.get<CentringValues>().gain;
+  linear.coefficients(0, 4) = scale * gain(0, 1) * per_state;  // lens x from the y rate's function 1
+  linear.coefficients(1, 0) = scale * gain(1, 0) * per_state;  // lens y from the x rate's function 1
+  linear.coefficients(0, 5) = 0.5 * linear.coefficients(0, 4);
+  linear.coefficients(1, 1) = 0.5 * linear.coefficients(1, 0);
+  linear.coefficients(0, 8) = 2.0 * linear.coefficients(0, 4);  // lens x from the roll rate
+  return p;
+}
+
+// Item 6 of issue 38: the recursive least squares on the linear stage, started from a prior with
+// that stage whose coefficients are half the camera's, is fed the training windows and its model
+// wins the choice; the swap to it is a trial like any other: undone and never written when the
+// per-pair check finds it worse than the model it replaced (the OIS switched off after it),
+// confirmed and written (its coefficients in the file) on a camera that stays the same.
+TEST(OnlineStabiliserLearner, ASwapToTheRecursiveLeastSquaresModelPassesThePerPairCheckOrIsUndone) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("deep_ois_rls_trial_" + std::to_string(::getpid()));
+  for (const bool ois_switched_off : {true, false}) {
+    const OnlineLearningOptions options = oneFitWritingTo(dir);
+    ASSERT_TRUE(options.linear_dynamics_rls);  // on by default
+    OnlineStabiliserLearner learner(
+        options, {{"no lens motion", noLensMotion()}, {"generic linear", linearStabiliser(0.5)}}, 0);
+    feed(learner, makePairs(linearStabiliser(1.0), 13.0, 1.0, 41));
+    OnlineLearningStatus status = learner.status();
+    ASSERT_EQ(status.swaps, 1u) << status.last_choice;
+    EXPECT_GT(status.rls_windows, 0u);
+    EXPECT_GT(status.rls_lens_motions, 1000u);
+    ASSERT_EQ(status.rls_swaps, 1u) << status.last_choice;
+    std::printf("RLS: %zu windows, %zu lens motions, %.3f s CPU (%.1f us per lens motion; 12 coefficients per axis)\n",
+                status.rls_windows, status.rls_lens_motions, status.rls_cpu_s,
+                1e6 * status.rls_cpu_s / static_cast<double>(status.rls_lens_motions));
+    const auto trial = learner.model();
+    EXPECT_NE(trial->name.find("recursive least squares"), std::string::npos) << trial->name;
+    // Its pan and tilt coefficients moved from the prior's half to the camera's (the roll rate of
+    // the shake is one sine: its four functions are not separately identifiable, only their sum).
+    const Eigen::MatrixXd& learned = trial->parameters.get<LinearDynamicsValues>().coefficients;
+    const Eigen::MatrixXd truth = linearStabiliser(1.0).get<LinearDynamicsValues>().coefficients;
+    EXPECT_LT((learned.leftCols(8) - truth.leftCols(8)).norm(), 0.05 * truth.leftCols(8).norm()) << learned;
+    EXPECT_FALSE(std::filesystem::exists(options.model_path)) << "written before its confirmation";
+    feed(learner, makePairs(ois_switched_off ? noLensMotion() : linearStabiliser(1.0), 3.0, 1.0, 42, 14.0));
+    status = learner.status();
+    const auto model = learner.model();
+    if (ois_switched_off) {
+      EXPECT_EQ(status.swaps_undone_by_pairs, 1u) << status.confirmation;
+      EXPECT_EQ(status.swaps_confirmed, 0u);
+      EXPECT_TRUE(isNoLensMotion(model->parameters)) << model->name << ": " << model->reason;
+      EXPECT_FALSE(std::filesystem::exists(options.model_path)) << "a rejected swap was written";
+    } else {
+      EXPECT_EQ(status.swaps_confirmed, 1u) << status.confirmation;
+      EXPECT_EQ(model->name, trial->name);
+      ASSERT_TRUE(std::filesystem::exists(options.model_path));
+      const StabiliserModelFile written = StabiliserModelFile::load(options.model_path);
+      const LinearDynamicsValues* saved = written.parameters.find<LinearDynamicsValues>();
+      ASSERT_NE(saved, nullptr);
+      EXPECT_LT((saved->coefficients - learned).norm(), 1e-4 * learned.norm());
     }
   }
   std::filesystem::remove_all(dir);

@@ -29,6 +29,13 @@
 // pair skipped inside one would cut it). The destructor stops both (it waits for a fit in progress
 // to end).
 //
+// The linear-dynamics stage is adapted two ways: the solver refits the whole chain with it (the
+// candidate table's linear-dynamics rows, from the second fit on, when candidate_kinds asks for
+// them: off by default for their CPU), and a recursive least squares
+// with forgetting (core/ois/linear_dynamics_rls.h) follows its coefficients with the rest of its
+// chain held, fed the training windows at each fit; its model is one more candidate, kept only
+// through the choice and the per-pair check's trial (OnlineLearningOptions::linear_dynamics_rls).
+//
 // A still camera learns nothing and loses nothing: a window whose gyro barely moves is not kept
 // (its lens motion says nothing about the stabiliser), and without new data no fit runs. Pure
 // C++/Eigen/OpenCV: no ROS.
@@ -40,6 +47,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -52,6 +60,7 @@
 #include "deep_ois/core/camera/camera_model.h"
 #include "deep_ois/core/ground_truth/lens_shift_ground_truth.h"
 #include "deep_ois/core/gyro/rolling_shutter_homographies.h"
+#include "deep_ois/core/ois/linear_dynamics_rls.h"
 #include "deep_ois/core/ois/stabiliser_compensator.h"
 #include "deep_ois/core/ois/stabiliser_fit.h"
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
@@ -91,7 +100,19 @@ struct OnlineLearningOptions {
   KltOptions klt = liveTrackingKlt();
   StabiliserFitOptions fit = onlineFitOptions();
   // The candidates built from each fit besides the chain (train_stabiliser's, stabiliser_candidates.h).
+  // The linear-dynamics rows (kinds.linear_dynamics, off by default) are built from the second
+  // fit on, as the structural variants.
   StabiliserCandidateKinds candidate_kinds = onlineCandidateKinds();
+  // Recursive least squares with forgetting on the linear-dynamics stage's coefficients
+  // (core/ois/linear_dynamics_rls.h), the rest of its chain held. It starts from the model in use or
+  // a prior with that stage (else from the first fit's linear-dynamics candidate), is fed at each
+  // fit the training windows it has not seen yet (never the held-out ones the choice scores on),
+  // and its model is one more candidate of the choice: kept only through the choice and the
+  // per-pair check's trial, as every swap. After each fit the best-scored linear-dynamics
+  // candidate of the solver (the whole chain refitted) replaces its chain and coefficients, its
+  // confidence kept. false: off.
+  bool linear_dynamics_rls = true;
+  LinearDynamicsRlsOptions rls;
   LensShiftOptions lens;             // patch count and readout come from each pair's timing
   StabiliserChoiceOptions choice;
   CompensationCheckOptions check;
@@ -179,6 +200,11 @@ struct OnlineLearningStatus {
   std::string confirmation;  // the swap on trial and its pairs so far, or the last verdict
   double buffered_s = 0.0;
   double cpu_s = 0.0;       // thread CPU time spent, seconds (the tracking elsewhere included)
+  // Of which (fit thread): the recursive least squares on the linear stage (its evidence: a run of
+  // the chain per coefficient column over each window fed), and the fits' linear-dynamics rows.
+  double rls_cpu_s = 0.0, linear_rows_cpu_s = 0.0;
+  std::size_t rls_windows = 0, rls_lens_motions = 0;  // fed to the recursive least squares
+  std::size_t rls_swaps = 0;  // swaps to its model (each a trial of the per-pair check as any swap)
   double tracking_elsewhere_cpu_s = 0.0;  // of which the tracking of pairs handed over tracked
   double wall_s = 0.0;      // since the start
   std::string last_choice;  // the last fit's choice sentence
@@ -312,6 +338,17 @@ class OnlineStabiliserLearner {
   Eigen::Matrix3d shadow_K_ = Eigen::Matrix3d::Zero();
   std::unique_ptr<StabiliserCompensator> shadow_trial_model_, shadow_replaced_model_;
   std::vector<std::pair<double, double>> learned_spans_s_;
+
+  // Fit thread only: the recursive least squares on the linear stage, the chain its coefficients go
+  // in, and the end (IMU clock) of the newest window it was fed or the solver fitted it on.
+  std::unique_ptr<LinearDynamicsRls> rls_;
+  StabiliserModel rls_chain_;
+  double rls_fed_until_s_ = -std::numeric_limits<double>::infinity();
+  // Fit thread: feeds the training windows not fed yet; its candidate (none without an RLS).
+  std::optional<ModelCandidate> feedRls(const std::vector<std::shared_ptr<const Window>>& training);
+  // Fit thread: the solver's best-scored linear-dynamics candidate becomes the RLS's start.
+  void rebaseRls(const std::vector<ModelCandidate>& candidates, const StabiliserChoice& choice,
+                 std::size_t rls_candidate, double trained_until_s);
 
   std::thread tracking_thread_, fit_thread_;
 };

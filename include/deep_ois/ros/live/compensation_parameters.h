@@ -55,6 +55,12 @@ struct CompensationParameters {
   double learning_buffer_s = 40.0;       // ~learning_buffer: seconds of motion-rich windows kept
   double learning_held_out_s = 6.0;      // ~learning_held_out: newest seconds the swap is decided on
   double learning_refit_every_s = 4.0;   // ~learning_refit_every: new seconds between fits
+  // ~learning_rls: recursive least squares with forgetting on the linear-dynamics stage's
+  // coefficients between the fits (core/ois/linear_dynamics_rls.h); its forgetting factor per
+  // second (~learning_rls_forgetting) and its start's worth in lens motions (~learning_rls_prior).
+  bool learning_rls = true;
+  double learning_rls_forgetting = 0.98;
+  double learning_rls_prior = 20.0;
   // ~learning_confirm_pairs: usable pairs the per-pair check scores a swap on before it is
   // confirmed (and written) or undone
   int learning_confirm_pairs = 60;

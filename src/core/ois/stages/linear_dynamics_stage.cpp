@@ -18,6 +18,7 @@
 
 #include "deep_ois/core/common/nonlinear_least_squares.h"
 #include "deep_ois/core/ois/linear_dynamics_basis.h"
+#include "deep_ois/core/ois/linear_dynamics_rls.h"
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "deep_ois/core/ois/stages/linear_dynamics.h"
@@ -193,12 +194,12 @@ std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> lensAtObservations(
 
 }  // namespace
 
-StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
-                                                const std::vector<StabiliserFitRecording>& recordings,
-                                                const StabiliserFitOptions& options, double ridge) {
+LinearDynamicsEvidence linearDynamicsEvidence(const StabiliserModel& model,
+                                              const std::vector<StabiliserFitRecording>& recordings,
+                                              const StabiliserFitOptions& options) {
   const LinearDynamicsValues* own = model.find<LinearDynamicsValues>();
   if (!own || !own->active())
-    throw std::invalid_argument("solveLinearDynamicsCoefficients: the model has no linear_dynamics "
+    throw std::invalid_argument("linearDynamicsEvidence: the model has no linear_dynamics "
                                 "stage with coefficients (start it with its basis)");
   const Eigen::MatrixXd current = own->coefficients;
   const long n = current.cols();
@@ -235,23 +236,55 @@ StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
       along_y(i, j) = moved.y() / kProbe;
     }
   }
-  // Per image axis: its row of coefficients by the package's robust ridge regression on the
-  // linearised lens motion, motion - lens(C) + J C = J C', Huber-weighted by the current residual.
-  RobustRidgeRegression per_axis[2] = {RobustRidgeRegression(n, 1, RobustLoss::huber(options.huber_px)),
-                                       RobustRidgeRegression(n, 1, RobustLoss::huber(options.huber_px))};
+  // The usable rows: the linearised lens motion, motion - lens(C) + J C = J C'.
+  std::vector<long> rows;
   for (long i = 0; i < m; ++i) {
     const std::size_t k = static_cast<std::size_t>(i);
     const Eigen::Vector2d predicted = base[k].second - base[k].first;
-    if (!predicted.allFinite() || !along_x.row(i).allFinite() || !along_y.row(i).allFinite()) continue;
-    const LensMotionObservation& o = *observations[k];
-    const Eigen::Vector2d residual = o.motion_px - predicted;
-    for (int axis = 0; axis < 2; ++axis) {
-      const Eigen::RowVectorXd features = axis == 0 ? along_x.row(i) : along_y.row(i);
-      const double target = residual(axis) + features.dot(current.row(axis));
-      per_axis[axis].add(features.transpose(), Eigen::VectorXd::Constant(1, target),
-                         std::max(0.0, o.weight), residual.norm());
-    }
+    if (predicted.allFinite() && along_x.row(i).allFinite() && along_y.row(i).allFinite()) rows.push_back(i);
   }
+  const long used = static_cast<long>(rows.size());
+  LinearDynamicsEvidence evidence;
+  evidence.along_x.resize(used, n);
+  evidence.along_y.resize(used, n);
+  evidence.targets.resize(used, 2);
+  evidence.weights.resize(used);
+  evidence.residual_px.resize(used);
+  evidence.stamps_s.resize(used);
+  for (long r = 0; r < used; ++r) {
+    const long i = rows[static_cast<std::size_t>(r)];
+    const std::size_t k = static_cast<std::size_t>(i);
+    const LensMotionObservation& o = *observations[k];
+    const Eigen::Vector2d residual = o.motion_px - (base[k].second - base[k].first);
+    evidence.along_x.row(r) = along_x.row(i);
+    evidence.along_y.row(r) = along_y.row(i);
+    evidence.targets(r, 0) = residual.x() + along_x.row(i).dot(current.row(0));
+    evidence.targets(r, 1) = residual.y() + along_y.row(i).dot(current.row(1));
+    evidence.weights(r) = std::max(0.0, o.weight);
+    evidence.residual_px(r) = residual.norm();
+    evidence.stamps_s(r) = o.t_b_s;
+  }
+  return evidence;
+}
+
+StabiliserModel solveLinearDynamicsCoefficients(const StabiliserModel& model,
+                                                const std::vector<StabiliserFitRecording>& recordings,
+                                                const StabiliserFitOptions& options, double ridge) {
+  if (!model.find<LinearDynamicsValues>() || !model.find<LinearDynamicsValues>()->active())
+    throw std::invalid_argument("solveLinearDynamicsCoefficients: the model has no linear_dynamics "
+                                "stage with coefficients (start it with its basis)");
+  const LinearDynamicsEvidence evidence = linearDynamicsEvidence(model, recordings, options);
+  const long n = evidence.along_x.cols();
+  // Per image axis: its row of coefficients by the package's robust ridge regression on the
+  // linearised lens motion, Huber-weighted by the current residual.
+  RobustRidgeRegression per_axis[2] = {RobustRidgeRegression(n, 1, RobustLoss::huber(options.huber_px)),
+                                       RobustRidgeRegression(n, 1, RobustLoss::huber(options.huber_px))};
+  for (long r = 0; r < evidence.rows(); ++r)
+    for (int axis = 0; axis < 2; ++axis) {
+      const Eigen::RowVectorXd features = axis == 0 ? evidence.along_x.row(r) : evidence.along_y.row(r);
+      per_axis[axis].add(features.transpose(), Eigen::VectorXd::Constant(1, evidence.targets(r, axis)),
+                         evidence.weights(r), evidence.residual_px(r));
+    }
   if (per_axis[0].count() < static_cast<std::size_t>(n))
     throw std::invalid_argument("solveLinearDynamicsCoefficients: fewer usable lens motions than coefficients");
   StabiliserModel solved = model;
