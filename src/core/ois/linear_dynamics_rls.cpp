@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "deep_ois/core/common/nonlinear_least_squares.h"
+
 namespace deep_ois {
 
 std::string LinearDynamicsRlsOptions::validate() const {
@@ -74,6 +76,7 @@ void LinearDynamicsRls::add(const LinearDynamicsEvidence& evidence) {
   std::stable_sort(order.begin(), order.end(),
                    [&](long a, long b) { return evidence.stamps_s(a) < evidence.stamps_s(b); });
   const double log_forgetting = std::log(options_.forgetting_per_s);
+  const RobustLoss huber = RobustLoss::huber(options_.huber_px);  // the solver's loss
   Eigen::VectorXd gain(n);
   for (const long i : order) {
     const double w = evidence.weights(i);
@@ -92,8 +95,7 @@ void LinearDynamicsRls::add(const LinearDynamicsEvidence& evidence) {
     Eigen::Vector2d residual;
     residual(0) = evidence.targets(i, 0) - evidence.along_x.row(i).dot(coefficients_.row(0));
     residual(1) = evidence.targets(i, 1) - evidence.along_y.row(i).dot(coefficients_.row(1));
-    const double norm = residual.norm();
-    const double robust = norm <= options_.huber_px ? w : w * options_.huber_px / norm;
+    const double robust = w * huber.weight(residual.squaredNorm());
     for (int axis = 0; axis < 2; ++axis) {
       Eigen::MatrixXd& p = p_[axis];
       if (grow > 1.0 && p.trace() * grow <= p0_trace_[axis]) p *= grow;

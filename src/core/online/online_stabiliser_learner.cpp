@@ -25,6 +25,12 @@ struct OnlineStabiliserLearner::Window {
 
 namespace {
 
+// Whether the model has a linear-dynamics stage with coefficients (what the RLS adapts).
+bool hasLinearDynamics(const StabiliserModel& model) {
+  const LinearDynamicsValues* linear = model.find<LinearDynamicsValues>();
+  return linear && linear->active();
+}
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // A window shorter than this (pairs stopped chaining early) is too short for its trajectory's
 // smoothness prior to hold: dropped.
@@ -140,10 +146,9 @@ OnlineStabiliserLearner::OnlineStabiliserLearner(OnlineLearningOptions options,
     std::vector<const StabiliserModel*> starts = {&priors_[initial].parameters};
     for (const auto& prior : priors_) starts.push_back(&prior.parameters);
     for (const StabiliserModel* start : starts) {
-      const LinearDynamicsValues* linear = start->find<LinearDynamicsValues>();
-      if (!linear || !linear->active()) continue;
+      if (!hasLinearDynamics(*start)) continue;
       rls_chain_ = *start;
-      rls_ = std::make_unique<LinearDynamicsRls>(linear->coefficients, options_.rls);
+      rls_ = std::make_unique<LinearDynamicsRls>(start->get<LinearDynamicsValues>().coefficients, options_.rls);
       break;
     }
   }
@@ -603,15 +608,6 @@ void OnlineStabiliserLearner::fitLoop() {
     if (status_.state == "fitting") status_.state = options_.learning ? "collecting" : "off";
   }
 }
-
-namespace {
-
-bool hasLinearDynamics(const StabiliserModel& model) {
-  const LinearDynamicsValues* linear = model.find<LinearDynamicsValues>();
-  return linear && linear->active();
-}
-
-}  // namespace
 
 std::optional<ModelCandidate> OnlineStabiliserLearner::feedRls(
     const std::vector<std::shared_ptr<const Window>>& training) {
