@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
   std::string split = "held_out", csv_path;
   std::uint32_t seed_begin = 0, count = 40;
   Settings settings;
-  bool chain_candidates = true, residuals = true, describe = false, list_candidates = false;
+  bool chain_candidates = true, describe = false, list_candidates = false;
   deep_ois::ToolCommandLine command_line("benchmark_lens_dynamics", kDescription);
   CLI::App& app = command_line.app();
   app.add_option("--split", split, "which designs: the generator's held-out seeds (seed % 5 == 0) "
@@ -76,12 +76,7 @@ int main(int argc, char** argv) {
   command_line.addNumber("--count", count, "designs of the split from --seed-begin on");
   command_line.addNumber("--noise", settings.noise_px, "lens-motion measurement noise, px (per axis)");
   app.add_option("--chain-candidates", chain_candidates,
-                 "also fit the chain's structural and learned-residual candidates (slower)")
-      ->capture_default_str();
-  app.add_option("--residuals", residuals,
-                 "also fit the residual stages: the linear bank of leaky rate integrals "
-                 "(linear_residual) and the learned residuals (learned_residual); false measures the "
-                 "candidates without them")
+                 "also fit the chain's structural candidates (slower)")
       ->capture_default_str();
   std::vector<std::string> classes;
   app.add_option("--classes", classes, "only designs of these classes, comma-separated (default: all)")
@@ -109,10 +104,8 @@ int main(int argc, char** argv) {
                                              settings.patches};
     deep_ois::StabiliserFitOptions fit_options;
     fit_options.check_timing = false;
-    if (!residuals) fit_options.residual_time_constants_s.clear();
     deep_ois::StabiliserCandidateKinds kinds;
     kinds.structural = chain_candidates;
-    kinds.learned_features = chain_candidates && residuals;
     std::printf("%-6s %-12s %8s %8s %8s %7s %7s %s\n", "design", "class", "none px", "kept px", "oracle",
                 "kept %", "oracle %", "kept");
     std::map<std::string, std::vector<double>> kept_by_class, oracle_by_class;

@@ -30,7 +30,7 @@ double cpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
 constexpr char kDescription[] =
     "Benchmarks the solver's three engines (the package's Levenberg-Marquardt, Ceres, Eigen's "
     "MINPACK) on the stabiliser fit: per generated design, fitStabiliser with each engine on the same "
-    "training traces from the same start (no residual bank, no timing check), then the final Huber "
+    "training traces from the same start (no timing check), then the final Huber "
     "cost on the training traces, the lens-motion RMS on 2 evaluation traces, the accepted steps and "
     "the CPU seconds; each engine's CPU over all designs as a ratio to the first engine's. Decide on "
     "the training split; the held-out split is for reporting apart.";
@@ -58,7 +58,6 @@ int main(int argc, char** argv) {
     trace_options.focal_px = camera.focal_px;
     deep_ois::StabiliserFitOptions options;
     options.check_timing = false;
-    options.residual_time_constants_s.clear();  // the solver's fit alone
     const deep_ois::SolverEngine engines[] = {deep_ois::SolverEngine::kLevenbergMarquardt,
                                               deep_ois::SolverEngine::kCeres,
                                               deep_ois::SolverEngine::kEigenLevenbergMarquardt};

@@ -42,7 +42,6 @@
 #include "deep_ois/tools/support/stabiliser_training_cache.h"
 #include "deep_ois/tools/support/stabiliser_training_choice.h"
 #include "deep_ois/tools/support/stabiliser_training_report.h"
-#include "deep_ois/core/ois/stages/learned_residual.h"
 
 namespace {
 
@@ -134,7 +133,7 @@ std::optional<int> parseArguments(int argc, char** argv, Arguments* args) {
       ->check(deep_ois::atLeast(0));
   app.add_flag("--no-progress", args->no_progress, "no progress bars");
   app.add_option("--candidate", args->forced_candidate,
-                 "keep the candidate whose name contains this (e.g. excursion_v1) instead of the "
+                 "keep the candidate whose name contains this (e.g. soft stroke) instead of the "
                  "best on the held-out recordings, for comparisons (the check against no lens "
                  "motion still applies)");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return status;
@@ -260,9 +259,6 @@ Findings reviewKept(const Arguments& args, const FitStage& stage,
   Findings findings;
   findings.calibration_suspect = recordings_suspect;
   if (choice.keptNoLensMotion()) return findings;
-  // The review (the chain's gain, bounds and timing check) describes the fitted chain: a kept
-  // model whose chain is switched off (the learned lens dynamics alone) has no chain to review.
-  if (deep_ois::isNoLensMotion(choice.keptParameters().physicalChain())) return findings;
   findings.on_bound = stage.fit.review.on_bound;
   findings.implausible = deep_ois::reviewStabiliserFit(choice.keptParameters(), args.lens_target).implausible;
   findings.timing = stage.fit.review.timing;
@@ -349,10 +345,6 @@ void printReport(const Arguments& args, const deep_ois::StabiliserModelFile& mod
     std::printf("Parameters: gain 0, the lens does not move (the compensation is the plain gyro).\n\n");
   } else {
     std::printf("%s\n", deep_ois::stabiliserParameterTable(p, stage.fit.review).c_str());
-    const auto* residual = p.find<deep_ois::LearnedResidualValues>();
-    const std::string features = residual ? residual->nonlinear_features : "";
-    std::printf("Nonlinear residual (learned on the chain's state): %s\n\n",
-                features.empty() ? "none" : features.c_str());
   }
   std::printf("Candidates, lens-motion RMS residual (pixels):\n\n%s\n", deep_ois::candidateTable(choice).c_str());
   std::printf("Lens motion per frame pair and row patch, RMS residual (pixels):\n\n");
@@ -449,10 +441,6 @@ int main(int argc, char** argv) {
   const deep_ois::StabiliserModel kept = choice.keptParameters();
   const deep_ois::StabiliserScore score =
       deep_ois::scoreStabiliser(kept, held_out.recordings, args.fit_options);
-  // The physical model alone (without its residual bank and learned residual), as in the training
-  // row.
-  const deep_ois::StabiliserScore physical_score =
-      deep_ois::scoreStabiliser(kept.physicalChain(), held_out.recordings, args.fit_options);
   deep_ois::StabiliserModelFile model =
       describeModel(args, stage, choice, training, training.recordings.size(), score);
   model.training.training_time_s =
@@ -467,15 +455,12 @@ int main(int argc, char** argv) {
 
   // 4. The report.
   const deep_ois::StabiliserFitResult& fit = stage.fit;
-  // The kept model's physical chain (without its residuals) on the training recordings too.
-  const deep_ois::StabiliserScore physical_training =
-      deep_ois::scoreStabiliser(kept.physicalChain(), training.recordings, args.fit_options);
   std::vector<deep_ois::LensMotionScoreRow> rows = {
       {"training", training.recordings.size(), fit.observations_used, fit.rms_without_model_px,
-       physical_training.rms_px, choice.keptTrainingRmsPx()}};
+       choice.keptTrainingRmsPx()}};
   if (!held_out.recordings.empty()) {
     rows.push_back({"held out", held_out.recordings.size(), score.observations, score.rms_without_model_px,
-                    physical_score.rms_px, score.rms_px});
+                    score.rms_px});
   }
   printReport(args, model, plot_path, stage, choice, rows, findings, gyro.lens_shift_convention.time_offset_s);
   const bool implausible = !findings.implausible.empty();

@@ -21,10 +21,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The held-out "with residual" cell of train_stabiliser's lens-motion table, pixels.
+// The held-out "with the model" cell of train_stabiliser's lens-motion table, pixels.
 double heldOutRmsPx(const std::string& report) {
   std::smatch match;
-  const std::regex row(R"(\| held out \(1 recording\) \| \d+ \| [0-9.]+ \| [0-9.]+ \| ([0-9.]+) \|)");
+  const std::regex row(R"(\| held out \(1 recording\) \| \d+ \| [0-9.]+ \| ([0-9.]+) \|)");
   if (!std::regex_search(report, match, row)) return -1.0;
   return std::stod(match[1].str());
 }

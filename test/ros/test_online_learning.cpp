@@ -27,7 +27,6 @@
 #include "deep_ois/core/ois/stabiliser_model_choice.h"
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stages/centring.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 #include "live_pipeline_rostest_helpers.h"
 
@@ -89,7 +88,6 @@ class SyntheticOisCamera {
     p.get<CentringValues>().gain *= 0.8;
     p.get<CentringValues>().highpass_corner_hz = 1.0;
     p.get<StrokeValues>().stroke_x_deg = p.get<StrokeValues>().stroke_y_deg = 2.0;
-    p.get<LinearResidualValues>().residual_time_constants_s.clear();
     return p;
   }
   Eigen::Vector3d imuRate(double t) const {

@@ -21,6 +21,19 @@ constexpr int kMaxOrder = 64;
 std::string LinearDynamicsBasisSpec::validate(double step_s) const {
   std::ostringstream why;
   const double nyquist_hz = 0.5 / step_s;
+  if (firstOrder()) {
+    if (order != static_cast<int>(time_constants_s.size()) || order > kMaxOrder) {
+      why << "order: must be the count of time_constants_s, at most " << kMaxOrder << " (got " << order
+          << " for " << time_constants_s.size() << ")";
+    }
+    for (double tau : time_constants_s) {
+      if (!(tau > 0.0) || !std::isfinite(tau)) {
+        why << "time_constants_s: must be positive and finite (got " << tau << ")";
+        break;
+      }
+    }
+    return why.str();
+  }
   if (!(pole_hz > 0.0) || !std::isfinite(pole_hz)) {
     why << "pole_hz: must be positive and finite (got " << pole_hz << ")";
   } else if (pole_hz >= nyquist_hz) {
@@ -37,6 +50,7 @@ std::string LinearDynamicsBasisSpec::validate(double step_s) const {
 }
 
 double LinearDynamicsBasisSpec::poleRadS(int k) const {
+  if (firstOrder()) return 1.0 / time_constants_s[static_cast<std::size_t>(k)];
   const bool second = second_pole_hz > 0.0 && k % 2 == 1;
   return 2.0 * kPi * (second ? second_pole_hz : pole_hz);
 }
@@ -49,6 +63,24 @@ LinearDynamicsBasis::LinearDynamicsBasis(const LinearDynamicsBasisSpec& spec, do
   const std::string problem = spec.validate(step_s);
   if (!problem.empty()) throw std::invalid_argument("linear dynamics basis: " + problem);
   const int n = spec.order;
+  state_ = Eigen::VectorXd::Zero(3 * n);
+  next_ = Eigen::VectorXd::Zero(n);
+  if (spec.firstOrder()) {
+    // Independent leaky integrals: y_k' = u - c_k y_k, c_k = 1 / tau_k, stepped exactly for a held
+    // rate as the older residual banks were (the same expressions, so a converted file predicts
+    // what it predicted).
+    a_ = Eigen::MatrixXd::Zero(n, n);
+    ad_ = Eigen::MatrixXd::Zero(n, n);
+    b_ = Eigen::VectorXd::Ones(n);
+    bd_ = Eigen::VectorXd::Zero(n);
+    for (int k = 0; k < n; ++k) {
+      const double corner_rad_s = spec.poleRadS(k);
+      a_(k, k) = -corner_rad_s;
+      ad_(k, k) = std::exp(-corner_rad_s * step_s);
+      bd_(k) = -std::expm1(-corner_rad_s * step_s) / corner_rad_s;
+    }
+    return;
+  }
   // x_k' = -p_k x_k + sqrt(2 p_k) v_k, where v_k is what reaches function k through the all-passes
   // (s - p_j) / (s + p_j) before it: v_1 = u, v_{k+1} = v_k - sqrt(2 p_k) x_k.
   a_ = Eigen::MatrixXd::Zero(n, n);
@@ -66,8 +98,6 @@ LinearDynamicsBasis::LinearDynamicsBasis(const LinearDynamicsBasisSpec& spec, do
   const Eigen::MatrixXd e = augmented.exp();
   ad_ = e.topLeftCorner(n, n);
   bd_ = e.topRightCorner(n, 1);
-  state_ = Eigen::VectorXd::Zero(3 * n);
-  next_ = Eigen::VectorXd::Zero(n);
 }
 
 void LinearDynamicsBasis::reset() { state_.setZero(); }

@@ -11,13 +11,11 @@
 #include <stdexcept>
 
 #include "deep_ois/core/common/nonlinear_least_squares.h"
-#include "deep_ois/core/ois/camera_rate_cursor.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
 #include "deep_ois/core/ois/stages/actuator.h"
 #include "deep_ois/core/ois/stages/actuator_coupling.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/excursion_centring.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
 #include "deep_ois/core/ois/stages/pan_detection.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 
@@ -189,123 +187,14 @@ StabiliserModel refitWithLinearDynamics(StabiliserModel model, const FreeParamet
   return model;
 }
 
-// The residual bank's features at time t: the leaky integrals of the pan/tilt rate, advanced
-// alongside the predictor (integrated here on the same steps, so its residual matches the model's).
-class ResidualBank {
- public:
-  ResidualBank(const std::vector<double>& time_constants_s, double step_s) : step_s_(step_s) {
-    for (double tau : time_constants_s) {
-      decay_.push_back(std::exp(-step_s / tau));
-      weight_.push_back(-std::expm1(-step_s / tau) * tau);
-    }
-  }
-  // The features at each observation's t_a and t_b for a recording, from its rates.
-  void observe(const StabiliserFitRecording& recording, double warm_up_s,
-               const StabiliserModel& physical, std::vector<Eigen::VectorXd>* feature_deltas,
-               std::vector<Eigen::Vector2d>* targets, std::vector<double>* weights) const {
-    // Physical predictions first (the bank fits what they leave).
-    std::vector<Eigen::Vector2d> predicted(recording.observations.size(),
-                                           Eigen::Vector2d::Constant(kNaN));
-    visitCoveredObservations(physical, recording, step_s_, warm_up_s,
-            [&](const LensShiftPredictor& predictor, std::size_t index) {
-              const LensMotionObservation& o = recording.observations[index];
-              predicted[index] = predictor.lensShiftAt(o.t_b_s) - predictor.lensShiftAt(o.t_a_s);
-            });
-    // Bank states on the step grid, from the first rate (same clock as the predictor).
-    const std::size_t k_count = decay_.size();
-    const double start = recording.rates.front().stamp_s;
-    const double end = recording.rates.back().stamp_s;
-    const std::size_t steps = static_cast<std::size_t>((end - start) / step_s_) + 1;
-    std::vector<Eigen::VectorXd> states(steps + 1, Eigen::VectorXd::Zero(2 * k_count));
-    CameraRateCursor rates(recording.rates);
-    for (std::size_t j = 0; j < steps; ++j) {
-      const double middle = start + (static_cast<double>(j) + 0.5) * step_s_;
-      const Eigen::Vector2d rate = rates.at(middle).head<2>();
-      Eigen::VectorXd next = states[j];
-      for (std::size_t k = 0; k < k_count; ++k) {
-        next(static_cast<long>(k)) = decay_[k] * next(static_cast<long>(k)) + weight_[k] * rate.x();
-        next(static_cast<long>(k_count + k)) =
-            decay_[k] * next(static_cast<long>(k_count + k)) + weight_[k] * rate.y();
-      }
-      states[j + 1] = next;
-    }
-    auto at = [&](double t) {
-      const double position = std::clamp((t - start) / step_s_, 0.0, static_cast<double>(steps));
-      const std::size_t j = std::min(static_cast<std::size_t>(position), steps - 1);
-      const double alpha = position - static_cast<double>(j);
-      return Eigen::VectorXd((1.0 - alpha) * states[j] + alpha * states[j + 1]);
-    };
-    for (std::size_t index = 0; index < recording.observations.size(); ++index) {
-      if (!predicted[index].allFinite()) continue;
-      const LensMotionObservation& o = recording.observations[index];
-      feature_deltas->push_back(recording.focal_px * (at(o.t_b_s) - at(o.t_a_s)));
-      targets->push_back(o.motion_px - predicted[index]);
-      weights->push_back(std::max(0.0, o.weight));
-    }
-  }
-
- private:
-  double step_s_;
-  std::vector<double> decay_, weight_;
-};
-
-// `physical` with the linear residual bank of options.residual_time_constants_s fitted (ridge
-// least squares, Huber weights) on what it leaves in `recordings`; without a bank when the options
-// name none or the solve fails.
-StabiliserModel withLinearResidual(const StabiliserModel& physical,
-                                        const std::vector<StabiliserFitRecording>& recordings,
-                                        const StabiliserFitOptions& options) {
-  StabiliserModel final_parameters = physical;
-  LinearResidualValues& bank_values = final_parameters.get<LinearResidualValues>();
-  bank_values.residual_time_constants_s.clear();
-  bank_values.residual.resize(0, 0);
-  if (!options.residual_time_constants_s.empty()) {
-    const ResidualBank bank(options.residual_time_constants_s, options.step_s);
-    std::vector<Eigen::VectorXd> deltas;
-    std::vector<Eigen::Vector2d> targets;
-    std::vector<double> weights;
-    for (const StabiliserFitRecording& recording : recordings)
-      bank.observe(recording, options.warm_up_s, physical, &deltas, &targets, &weights);
-    const long m = 2 * static_cast<long>(options.residual_time_constants_s.size());
-    // Huber weights from the physical residuals (the targets), the package's ridge convention.
-    RobustRidgeRegression regression(m, 2, RobustLoss::huber(options.huber_px));
-    for (std::size_t k = 0; k < deltas.size(); ++k)
-      regression.add(deltas[k], targets[k], weights[k], targets[k].norm());
-    Eigen::MatrixXd solution;  // m x 2
-    if (regression.solve(options.residual_ridge, &solution)) {
-      bank_values.residual_time_constants_s = options.residual_time_constants_s;
-      // The predictor multiplies by focal_px itself: the bank here already carries it.
-      bank_values.residual = solution.transpose();
-    }
-  }
-  return final_parameters;
-}
-
-// `refined` with its linear residual bank (withLinearResidual) as the fit's result: parameters,
-// observation counts and the RMS with and without the bank. The bank is dropped, and the log says
-// so, when it raises the residual (it was fitted on Huber-weighted data).
-void keepWithLinearResidual(const StabiliserModel& refined,
-                            const std::vector<StabiliserFitRecording>& recordings,
-                            const StabiliserFitOptions& options, StabiliserFitResult* result) {
-  const StabiliserModel with_bank = withLinearResidual(refined, recordings, options);
-  const Residuals physical = residualsOf(refined, recordings, options);
-  const Residuals full = residualsOf(with_bank, recordings, options);
-  auto rms = [](const Residuals& r) {
-    return weightedRms(r.values, Eigen::VectorXd::Ones(r.values.size()));
-  };
-  result->parameters = with_bank;
-  result->observations_used = full.used;
-  result->observations_skipped = full.skipped;
-  result->rms_physical_px = rms(physical);
-  result->rms_px = rms(full);
-  if (result->rms_px > result->rms_physical_px) {
-    result->parameters = refined;
-    LinearResidualValues& bank_values = result->parameters.get<LinearResidualValues>();
-    bank_values.residual_time_constants_s.clear();
-    bank_values.residual.resize(0, 0);
-    result->rms_px = result->rms_physical_px;
-    result->log.push_back("residual bank dropped: it did not lower the residual");
-  }
+// `refined` as the fit's result: parameters, observation counts and its RMS.
+void keepRefined(const StabiliserModel& refined, const std::vector<StabiliserFitRecording>& recordings,
+                 const StabiliserFitOptions& options, StabiliserFitResult* result) {
+  const Residuals residuals = residualsOf(refined, recordings, options);
+  result->parameters = refined;
+  result->observations_used = residuals.used;
+  result->observations_skipped = residuals.skipped;
+  result->rms_px = weightedRms(residuals.values, Eigen::VectorXd::Ones(residuals.values.size()));
 }
 
 // A stabiliser cancels (about) the rotation: the gain's largest singular value is near 1 (0.8-1.1
@@ -429,12 +318,9 @@ std::string StabiliserFitOptions::validate() const {
   else if (iterations < 1) why << "iterations: must be >= 1";
   else if (!(step_s > 0.0 && step_s <= 0.01)) why << "step_s: must be in (0, 0.01] s";
   else if (!(warm_up_s >= 0.0)) why << "warm_up_s: must be >= 0";
-  else if (!(residual_ridge >= 0.0)) why << "residual_ridge: must be >= 0";
   else if (!(readout_time_s >= 0.0))
     why << "readout_time_s: must be >= 0";
   else {
-    for (double tau : residual_time_constants_s)
-      if (!(tau > 0.0)) return "residual_time_constants_s: must be positive";
     for (double rate : pan_thresholds_rad_s)
       if (!(rate >= 0.0)) return "pan_thresholds_rad_s: must be >= 0 (0 = off)";
   }
@@ -633,7 +519,7 @@ StabiliserScore scoreStabiliser(const StabiliserModel& parameters,
 }
 
 StabiliserModel noLensMotion() {
-  StabiliserModel p = StabiliserModel().physicalChain();
+  StabiliserModel p = StabiliserModel();
   p.get<CentringValues>().gain.setZero();
   p.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.0;
   return p;
@@ -818,8 +704,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
     log("refined: " + describe(refined, refined_cost));
   }
 
-  // The linear residual on what the physical model leaves (ridge least squares).
-  keepWithLinearResidual(refined, recordings, options, &result);
+  keepRefined(refined, recordings, options, &result);
   tick();
 
   const Residuals none_residuals = [&] {
@@ -855,7 +740,7 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
   const bool linear_dynamics =
       std::any_of(stages.begin(), stages.end(),
                   [](const std::string& token) { return stageOfToken(token) == "linear_dynamics"; });
-  StabiliserModel start = fitted.physicalChain();
+  StabiliserModel start = fitted;
   if (linear_dynamics) {
     // Only the listed stages: the linear stage stands in for what the others do not name. Pan
     // detection is the fit's choice wherever there is a centring for it to release.
@@ -912,7 +797,7 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
   }
   double refined_cost = 0.0;
   if (linear_dynamics) {
-    // Step 2; the stage is its own linear filter of the rate: no residual bank on top.
+    // Step 2.
     const StabiliserModel refined =
         refitWithLinearDynamics(start, packing, recordings, options, &refined_cost, &result.rms_history);
     std::ostringstream line;
@@ -920,12 +805,7 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
     for (const std::string& token : stabiliserComposition(refined)) line << " " << token;
     line << " (two-step fit), cost " << refined_cost;
     result.log.push_back(line.str());
-    const Residuals residuals = residualsOf(refined, recordings, options);
-    result.parameters = refined;
-    result.observations_used = residuals.used;
-    result.observations_skipped = residuals.skipped;
-    result.rms_physical_px = result.rms_px =
-        weightedRms(residuals.values, Eigen::VectorXd::Ones(residuals.values.size()));
+    keepRefined(refined, recordings, options, &result);
     result.review = reviewStabiliserFit(result.parameters, options.target);
     return result;
   }
@@ -943,7 +823,7 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
        << actuator.actuator_natural_hz << " Hz / " << actuator.actuator_damping << ", stroke "
        << stroke.stroke_x_deg << " x " << stroke.stroke_y_deg << " deg, cost " << refined_cost;
   result.log.push_back(line.str());
-  keepWithLinearResidual(refined, recordings, options, &result);
+  keepRefined(refined, recordings, options, &result);
   result.review = reviewStabiliserFit(result.parameters, options.target);
   return result;
 }

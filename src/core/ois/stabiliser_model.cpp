@@ -98,13 +98,6 @@ StabiliserModel StabiliserModel::only(const std::vector<std::string>& stage_name
   return kept;
 }
 
-StabiliserModel StabiliserModel::physicalChain() const {
-  StabiliserModel chain = *this;
-  for (StageInstance& instance : chain.stages_)
-    if (instance.stage->clear) instance.stage->clear(*instance.values);
-  return chain;
-}
-
 std::string StabiliserModel::validate() const {
   // Each stage validates its own values (core/ois/stabiliser_stage.h); the first problem, in the
   // chain's order, is the answer.
@@ -134,7 +127,6 @@ void LensShiftPredictor::reset() {
   started_ = false;
   chain_.reset();
   shifts_.clear();
-  feature_history_.clear();
   ++resets_;
 }
 
@@ -153,7 +145,6 @@ bool LensShiftPredictor::addRate(const CameraRateSample& sample) {
     steps_ = 0;
     clock_s_ = sample.stamp_s;
     shifts_.push_back(Eigen::Vector2d::Zero());
-    if (record_features_) feature_history_.push_back(chain_.signal().features);
     return true;
   }
   // Internal steps up to the new sample, the rate interpolated at each step's middle.
@@ -177,16 +168,6 @@ void LensShiftPredictor::step(const Eigen::Vector3d& rate_rad_s,
   // From an integer step count: summing step_s_ on epoch-sized stamps would drift (ulp ~ 2e-7 s).
   clock_s_ = start_s_ + static_cast<double>(steps_) * step_s_;
   while (shifts_.size() > history_steps_) shifts_.pop_front();
-  if (record_features_) {
-    feature_history_.push_back(chain_.signal().features);
-    while (feature_history_.size() > history_steps_) feature_history_.pop_front();
-  }
-}
-
-Eigen::VectorXd LensShiftPredictor::featuresAt(double t_s) const {
-  if (feature_history_.empty()) return chain_.signal().features;
-  const double last = static_cast<double>(feature_history_.size() - 1);
-  return interpolateOnUniformGrid(feature_history_, last - (clock_s_ - t_s) / step_s_);
 }
 
 bool LensShiftPredictor::covers(double t_s) const {

@@ -8,18 +8,15 @@
 
 #include "deep_ois/core/ois/stabiliser_choice_rule.h"
 #include "deep_ois/core/ois/stages/centring.h"
-#include "deep_ois/core/ois/stages/learned_residual.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 
 namespace deep_ois {
 
 bool isNoLensMotion(const StabiliserModel& parameters) {
   auto zero = [](const Eigen::MatrixXd& m) { return m.size() == 0 || m.isZero(0.0); };
   const CentringValues* centring = parameters.find<CentringValues>();
-  const LinearResidualValues* linear = parameters.find<LinearResidualValues>();
-  const LearnedResidualValues* learned = parameters.find<LearnedResidualValues>();
-  return centring && centring->gain.isZero(0.0) && (!linear || zero(linear->residual)) &&
-         (!learned || zero(learned->nonlinear_residual));
+  const LinearDynamicsValues* linear = parameters.find<LinearDynamicsValues>();
+  return centring && centring->gain.isZero(0.0) && (!linear || zero(linear->coefficients));
 }
 
 void splitRecordingsInTime(const std::vector<StabiliserFitRecording>& recordings,

@@ -14,11 +14,13 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
 #include "deep_ois/core/camera/camera_description_yaml.h"
 #include "deep_ois/core/ois/stabiliser_stage.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "stages/stabiliser_file_fields.h"
 
 namespace deep_ois {
@@ -81,6 +83,84 @@ void refuseRetiredStages(const YAML::Node& section) {
   }
 }
 
+// The residual stages of older files, removed because the chain without them explained the lens
+// motion of held-out designs as well (benchmark_lens_dynamics --residuals false, 2026-12): both
+// added to the lens, after the chain, a linear map of leaky integrals of the pan/tilt rate,
+// y_k' = rate - y_k / tau_k. The linear bank (`residual_time_constants_s`, `residual`: 2 x 2K, the
+// K x integrals then the K y integrals) and the learned rate bank (`nonlinear_features:
+// rate_bank_v1`, `nonlinear_residual`: 2 x 18 over these nine time constants) convert exactly to a
+// linear-dynamics stage with output `lens` over first-order low-passes of those time constants.
+// The learned sets of nonlinear features (excursion_v1, excursion_rate_v1) have no successor.
+constexpr double kRateBankTimeConstantsS[] = {0.002, 0.005, 0.012, 0.03, 0.07, 0.17, 0.4, 1.0, 2.5};
+
+// Whether an older stage's keys act: the file names no stage list, or its list names the stage.
+bool listedOrDefault(const YAML::Node& section, const char* stage) {
+  if (!section["stages"]) return true;
+  const auto named = optional<std::vector<std::string>>(section, "stages", {});
+  return std::find(named.begin(), named.end(), stage) != named.end();
+}
+
+// Appends a 2 x 2K bank (the K x columns, then the K y columns, row-major in `values`) at the time
+// constants `taus` to the converted stage's time constants and coefficient columns.
+void appendBank(const std::vector<double>& taus, const std::vector<double>& values, const std::string& field,
+                std::vector<double>* all_taus, std::vector<Eigen::Vector2d>* x_columns,
+                std::vector<Eigen::Vector2d>* y_columns) {
+  const std::size_t k = taus.size();
+  if (values.size() != 4 * k)
+    throw StabiliserModelFileError("field '" + field + "' must have 2 x " + std::to_string(2 * k) + " values");
+  for (std::size_t j = 0; j < k; ++j) {
+    all_taus->push_back(taus[j]);
+    x_columns->emplace_back(values[j], values[2 * k + j]);
+    y_columns->emplace_back(values[k + j], values[2 * k + k + j]);
+  }
+}
+
+// The residual stages of an older `stabiliser` section as the linear-dynamics stage that predicts
+// the same lens (nothing when the section has none). Throws StabiliserModelFileError for a set of
+// nonlinear features (no successor) and for a file that has a linear-dynamics stage as well (one
+// stage cannot hold both).
+std::optional<LinearDynamicsValues> convertedResidualStages(const YAML::Node& section) {
+  std::vector<double> taus;
+  std::vector<Eigen::Vector2d> x_columns, y_columns;
+  if (listedOrDefault(section, "linear_residual")) {
+    appendBank(optional<std::vector<double>>(section, "residual_time_constants_s", {}),
+               optional<std::vector<double>>(section, "residual", {}), "residual", &taus, &x_columns, &y_columns);
+  }
+  const std::string features = optional<std::string>(section, "nonlinear_features", "");
+  if (!features.empty() && listedOrDefault(section, "learned_residual")) {
+    if (features == "excursion_v1" || features == "excursion_rate_v1")
+      throw StabiliserModelFileError(
+          "stabiliser: stage 'learned_residual' with nonlinear_features '" + features +
+          "' (nonlinear functions of the chain's state, removed because the chain without them "
+          "explains the lens motion of held-out designs as well) is no longer supported and has no "
+          "successor to convert it to; retrain the camera's model with train_stabiliser");
+    if (features != "rate_bank_v1")
+      throw StabiliserModelFileError("field 'nonlinear_features': unknown set '" + features + "'");
+    appendBank(std::vector<double>(std::begin(kRateBankTimeConstantsS), std::end(kRateBankTimeConstantsS)),
+               optional<std::vector<double>>(section, "nonlinear_residual", {}), "nonlinear_residual", &taus,
+               &x_columns, &y_columns);
+  }
+  if (taus.empty()) return std::nullopt;
+  if (section["linear_dynamics"])
+    throw StabiliserModelFileError(
+        "stabiliser: the file has a linear_dynamics stage and a residual bank (residual or "
+        "nonlinear_residual), which one linear_dynamics stage cannot both hold; retrain the "
+        "camera's model with train_stabiliser");
+  LinearDynamicsValues converted;
+  converted.output_to_lens = true;
+  converted.basis.time_constants_s = taus;
+  converted.basis.order = static_cast<int>(taus.size());
+  // Columns axis-major as the basis' state: the x integrals, the y integrals, the z ones (0: the
+  // banks read the pan/tilt rate only).
+  const long k = converted.basis.order;
+  converted.coefficients = Eigen::MatrixXd::Zero(2, 3 * k);
+  for (long j = 0; j < k; ++j) {
+    converted.coefficients.col(j) = x_columns[static_cast<std::size_t>(j)];
+    converted.coefficients.col(k + j) = y_columns[static_cast<std::size_t>(j)];
+  }
+  return converted;
+}
+
 }  // namespace
 
 bool isStabiliserModelPath(const std::string& path) {
@@ -102,8 +182,7 @@ std::string StabiliserModelFile::toYaml() const {
   // stage in the chain's order.
   out << YAML::Key << "stabiliser" << YAML::Value << YAML::BeginMap;
   static const char* const kFirstFormatOrder[] = {
-      "centring",          "actuator",        "stroke",           "excursion_centring",
-      "actuator_coupling", "pan_detection",   "linear_residual",  "learned_residual"};
+      "centring", "actuator", "stroke", "excursion_centring", "actuator_coupling", "pan_detection"};
   // A stage the model has not got writes nothing, except the default chain's, whose keys the
   // first format required: those write their defaults (a model of other stages, a generated
   // design, still loads in a reader of that format).
@@ -163,6 +242,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   if (!root["stabiliser"]) throw StabiliserModelFileError("missing section 'stabiliser'");
   const YAML::Node s = root["stabiliser"];
   refuseRetiredStages(s);
+  const std::optional<LinearDynamicsValues> converted = convertedResidualStages(s);
   // Every stage the section has; a file that names its stages keeps only those (without the
   // list: the default chain and any sampled controller's stage the file has).
   StabiliserModel& p = file.parameters;
@@ -174,6 +254,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
   if (s["stages"]) {
     const auto named = optional<std::vector<std::string>>(s, "stages", {});
     for (const std::string& name : named) {
+      if (name == "linear_residual" || name == "learned_residual") continue;  // converted above
       try {
         stabiliserStage(name);
       } catch (const std::invalid_argument& e) {
@@ -183,6 +264,7 @@ StabiliserModelFile StabiliserModelFile::fromYaml(const std::string& yaml_text) 
     for (const std::string& name : p.stageNames())
       if (std::find(named.begin(), named.end(), name) == named.end()) p.remove(name);
   }
+  if (converted) p.set(*converted);
   const std::string problem = p.validate();
   if (!problem.empty()) throw StabiliserModelFileError("stabiliser: " + problem);
   try {

@@ -657,8 +657,7 @@ void OnlineStabiliserLearner::rebaseRls(const std::vector<ModelCandidate>& candi
   const StabiliserModel& chain = candidates[best].parameters;
   const LinearDynamicsValues& linear = chain.get<LinearDynamicsValues>();
   const bool same_basis = rls_ && rls_->coefficients().cols() == linear.coefficients.cols() &&
-                          rls_chain_.get<LinearDynamicsValues>().basis.pole_hz == linear.basis.pole_hz &&
-                          rls_chain_.get<LinearDynamicsValues>().basis.second_pole_hz == linear.basis.second_pole_hz;
+                          rls_chain_.get<LinearDynamicsValues>().sameForm(linear);
   if (same_basis)
     rls_->rebase(linear.coefficients);  // the confidence in this basis' coefficients kept
   else
@@ -698,8 +697,7 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
     const std::string on = "fit on " + std::to_string(fit.observations_used) + " lens motions: ";
     // The first fit leaves out the structural variants and the linear-dynamics rows (their refits
     // cost a few times the fit): a camera far from its starting model gets a close model seconds
-    // earlier; the others come from the next fit on. The learned residuals (one pass over the data
-    // each) are always offered.
+    // earlier; the others come from the next fit on.
     StabiliserCandidateKinds kinds = options_.candidate_kinds;
     const bool first = fits_started_++ == 0;
     if (first) kinds.structural = false;
@@ -711,7 +709,7 @@ void OnlineStabiliserLearner::fitOnce(std::vector<std::shared_ptr<const Window>>
       // Built apart to measure their CPU: the rows with the linear stage alone.
       const double cpu_start = threadCpuNow();
       StabiliserCandidateKinds linear_only;
-      linear_only.structural = linear_only.learned_features = false;
+      linear_only.structural = false;
       linear_only.structural_iterations = kinds.structural_iterations;
       for (ModelCandidate& built : stabiliserCandidates(fit, training, options_.fit, linear_only))
         if (hasLinearDynamics(built.parameters)) candidates.push_back({on + built.name, std::move(built.parameters)});

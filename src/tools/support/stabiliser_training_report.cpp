@@ -7,7 +7,7 @@
 #include "deep_ois/core/ois/stages/actuator.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/excursion_centring.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "deep_ois/core/ois/stages/pan_detection.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 
@@ -59,7 +59,7 @@ std::string stabiliserParameterTable(const StabiliserModel& model,
   const StrokeValues& stroke = model.get<StrokeValues>();
   const PanDetectionValues& pan = model.get<PanDetectionValues>();
   const ExcursionCentringValues* excursion = model.find<ExcursionCentringValues>();
-  const LinearResidualValues* bank = model.find<LinearResidualValues>();
+  const LinearDynamicsValues* linear = model.find<LinearDynamicsValues>();
   const Eigen::Matrix2d& gain = centring.gain;
   std::string out = "| parameter | value |\n|---|---|\n";
   out += printfText("| gain | [%.3f %.3f; %.3f %.3f] |\n", gain(0, 0), gain(0, 1), gain(1, 0), gain(1, 1));
@@ -85,21 +85,22 @@ std::string stabiliserParameterTable(const StabiliserModel& model,
                     printfText("%.2f", pan.pan_release_corner_hz) + " Hz" + bound("pan_release_corner_hz")
               : std::string("off")) +
          " |\n";
-  out += "| residual bank | " +
-         countOf(bank ? bank->residual_time_constants_s.size() : 0, "time constant", "time constants") +
-         " |\n";
+  if (linear && linear->active())
+    out += "| linear dynamics | " + countOf(static_cast<std::size_t>(linear->basis.order), "function", "functions") +
+           " per gyro axis (" + (linear->basis.firstOrder() ? "first-order low-passes" : "Laguerre") + "), into the " +
+           (linear->output_to_lens ? "lens" : "raw command") + " |\n";
   return out;
 }
 
 std::string lensMotionTable(const std::vector<LensMotionScoreRow>& rows) {
   std::string out =
-      "| data | lens motions | without a lens model | physical model | with residual |\n"
-      "|---|---:|---:|---:|---:|\n";
+      "| data | lens motions | without a lens model | with the model |\n"
+      "|---|---:|---:|---:|\n";
   auto cell = [](double value) { return std::isfinite(value) ? printfText("%.3f", value) : "n/a"; };
   for (const LensMotionScoreRow& row : rows) {
     out += "| " + row.data + " (" + countOf(row.recordings, "recording", "recordings") + ") | " +
            std::to_string(row.observations) + " | " + cell(row.without_model_px) + " | " +
-           cell(row.physical_px) + " | " + cell(row.with_residual_px) + " |\n";
+           cell(row.model_px) + " |\n";
   }
   return out;
 }

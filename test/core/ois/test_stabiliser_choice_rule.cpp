@@ -16,8 +16,7 @@
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stages/actuator.h"
 #include "deep_ois/core/ois/stages/centring.h"
-#include "deep_ois/core/ois/stages/learned_residual.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
@@ -102,16 +101,18 @@ TEST(StabiliserChoiceRule, KeepsTheSimplestWithinTheMarginThenNoLensMotionThenTh
 }
 
 // The online learner's choice (chooseStabiliserModel) and train_stabiliser's (selectStabiliser)
-// are one rule: a learned residual that is within 1 % of the chain on the held-out data is not
-// kept by either. Before the rule was shared, the online learner took the lowest RMS whatever its
+// are one rule: a linear-dynamics stage beside the chain that is within 1 % of the chain on the
+// held-out data is not kept by either. Before the rule was shared, the online learner took the lowest RMS whatever its
 // complexity (only its incumbent needed a 5 % margin).
 TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMargin) {
   const StabiliserModel simple = chain();
-  // The same chain with a learned residual whose lens motion is 0.005 px RMS: the truth below, so
-  // about 0.5 % better than the chain on 0.05 px of noise.
+  // The same chain with a linear-dynamics stage (the "centring + linear dynamics" row) whose lens
+  // motion is 0.005 px RMS: the truth below, so about 0.5 % better than the chain on 0.05 px of
+  // noise.
   StabiliserModel learned = simple;
-  learned.get<LearnedResidualValues>().nonlinear_features = "rate_bank_v1";
-  learned.get<LearnedResidualValues>().nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.01);
+  LinearDynamicsValues linear;  // the default basis: Laguerre, 1 Hz, 8 functions per axis
+  linear.coefficients = Eigen::MatrixXd::Constant(2, 3 * linear.basis.order, 0.01);
+  learned.set(linear);
   StabiliserFitRecording held_out = shakeRecording(5.0);
   const auto chain_motion = predictLensMotion(simple, held_out, 1e-3, 0.0);
   const auto learned_motion = predictLensMotion(learned, held_out, 1e-3, 0.0);
@@ -119,7 +120,7 @@ TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMarg
   for (std::size_t k = 0; k < chain_motion.size(); ++k)
     sum += (learned_motion[k] - chain_motion[k]).squaredNorm();
   const double scale = 0.005 / std::sqrt(sum / static_cast<double>(chain_motion.size()));
-  learned.get<LearnedResidualValues>().nonlinear_residual *= scale;
+  learned.get<LinearDynamicsValues>().coefficients *= scale;
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.05 / std::sqrt(2.0));
   const auto truth = predictLensMotion(learned, held_out, 1e-3, 0.0);
@@ -129,7 +130,7 @@ TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMarg
   StabiliserModel wrong = simple;  // the model in use: a gain far off
   wrong.get<CentringValues>().gain *= 0.5;
   const StabiliserChoice choice = chooseStabiliserModel(
-      {{"in use", wrong}, {"fit: physical", simple}, {"fit: physical + learned rate filter", learned}}, 0,
+      {{"in use", wrong}, {"fit: physical", simple}, {"fit: centring + linear dynamics", learned}}, 0,
       {held_out});
   std::printf("[ figures  ] %s\n", choice.reason.c_str());
   ASSERT_LT(choice.scores[2].rms_px, choice.scores[1].rms_px);          // the learned one is lower,
@@ -138,17 +139,17 @@ TEST(StabiliserChoiceRule, TheOnlineLearnerKeepsTheSimplerCandidateWithinTheMarg
   EXPECT_TRUE(choice.replaced_incumbent);
   // train_stabiliser's rule, the same scores, no incumbent: the same candidate.
   const StabiliserChoice offline = chooseStabiliserModel(
-      {{"fit: physical", simple}, {"fit: physical + learned rate filter", learned}}, kNoIncumbent, {held_out});
+      {{"fit: physical", simple}, {"fit: centring + linear dynamics", learned}}, kNoIncumbent, {held_out});
   EXPECT_EQ(offline.chosen, 0u) << offline.reason;
   EXPECT_FALSE(offline.replaced_incumbent);
 }
 
 TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
   const auto& table = stabiliserCandidateDescriptions();
-  ASSERT_EQ(table.size(), 16u);
+  ASSERT_EQ(table.size(), 12u);
   for (std::size_t k = 1; k < table.size(); ++k) EXPECT_LT(table[k - 1].complexity, table[k].complexity);
-  // Fitted on a recording of the chain with a linear bank: one candidate per row, in the table's
-  // order, each named after its row and ranked as its row.
+  // Fitted on a recording of the chain: one candidate per row, in the table's order, each named
+  // after its row and ranked as its row.
   StabiliserFitRecording recording = shakeRecording(4.0);
   const auto motion = predictLensMotion(chain(), recording, 1e-3, 0.0);
   for (std::size_t k = 0; k < motion.size(); ++k) recording.observations[k].motion_px = motion[k];
@@ -156,8 +157,6 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
   options.iterations = 2;
   StabiliserFitResult fit;
   fit.parameters = chain();
-  fit.parameters.get<LinearResidualValues>().residual_time_constants_s = {0.02, 0.3};
-  fit.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
   const std::vector<ModelCandidate> candidates = stabiliserCandidates(fit, {recording}, options);
   ASSERT_EQ(candidates.size(), table.size());
   EXPECT_EQ(candidates[0].name, "physical");
@@ -166,18 +165,13 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
     if (k > 0) {
       EXPECT_NE(candidates[k].name.find(table[k].name), std::string::npos);
     }
-    const std::string feature_set = table[k].featureSet();
-    if (!feature_set.empty()) {
-      EXPECT_NE(candidates[k].name.find("(" + feature_set + ")"), std::string::npos);
-    }
     auto listed = [&](const char* token) {
       return std::find(table[k].stages.begin(), table[k].stages.end(), token) != table[k].stages.end();
     };
     EXPECT_EQ(candidates[k].parameters.get<StrokeValues>().anti_windup, listed("stroke:anti_windup"));
     EXPECT_EQ(candidates[k].parameters.get<StrokeValues>().soft_stroke, listed("stroke:soft"));
-    // (The linear-dynamics rows have no learned residual stage at all.)
-    const auto* learned = candidates[k].parameters.find<LearnedResidualValues>();
-    EXPECT_EQ(learned ? learned->nonlinear_features : std::string(), feature_set);
+    const auto* linear = candidates[k].parameters.find<LinearDynamicsValues>();
+    EXPECT_EQ(linear && linear->active(), table[k].linearDynamics());
     // Ranked as its row; a refit whose coupling stayed at 0 is the simpler chain it equals.
     if (listed("actuator_coupling")) {
       EXPECT_LE(stabiliserComplexity(candidates[k].parameters), table[k].complexity);
@@ -189,8 +183,10 @@ TEST(StabiliserCandidates, AreBuiltFromTheTableSimplestFirst) {
   StabiliserCandidateKinds kinds;
   kinds.structural = false;
   const std::vector<ModelCandidate> quick = stabiliserCandidates(fit, {recording}, options, kinds);
-  ASSERT_EQ(quick.size(), 7u);
-  EXPECT_NE(quick[2].name.find("rate_bank_v1"), std::string::npos);
+  // The chain, and the linear-dynamics rows without a structural stage or variant.
+  ASSERT_EQ(quick.size(), 3u);
+  EXPECT_EQ(quick[1].name, "linear dynamics + stroke");
+  EXPECT_EQ(quick[2].name, "centring + linear dynamics");
 }
 
 // A model from anywhere (a file, a prior) is ranked by the row that describes it: the committed
@@ -203,14 +199,20 @@ TEST(StabiliserCandidates, AModelFileIsRankedByTheRowThatDescribesIt) {
   EXPECT_EQ(complexity("no_lens_motion"), 0);
   EXPECT_EQ(complexity("physical_box_stroke"), 1);
   EXPECT_EQ(complexity("physical_pan_detection"), 1);
-  EXPECT_EQ(complexity("linear_residual"), 2);
-  EXPECT_EQ(complexity("anti_windup"), 3);  // a refit that dropped its bank: the same row
-  EXPECT_EQ(complexity("actuator_coupling"), 6);
-  EXPECT_EQ(complexity("soft_stroke_excursion_centring"), 8);
-  EXPECT_EQ(complexity("learned_excursion_v1"), 10);
-  // Anti-windup and a learned set together: no row; after every row.
+  // An older file's residual bank, converted to a linear filter added to the lens: the chain's row.
+  EXPECT_EQ(complexity("linear_residual"), 1);
+  EXPECT_EQ(complexity("learned_rate_bank_v1"), 1);
+  EXPECT_EQ(complexity("anti_windup"), 2);
+  EXPECT_EQ(complexity("actuator_coupling"), 5);
+  EXPECT_EQ(complexity("soft_stroke_excursion_centring"), 7);
+  // A basis no row names: after every row.
+  StabiliserModel other = StabiliserModelFile::load(dir + "anti_windup.yaml").parameters;
+  LinearDynamicsValues linear;
+  linear.basis.order = 3;
+  linear.coefficients = Eigen::MatrixXd::Constant(2, 9, 0.01);
+  other.set(linear);
   const int last_row = stabiliserCandidateDescriptions().back().complexity;
-  EXPECT_EQ(complexity("learned_excursion_rate_v1"), last_row + 1);
+  EXPECT_EQ(stabiliserComplexity(other), last_row + 1);
 }
 
 }  // namespace

@@ -30,8 +30,7 @@
 #include "deep_ois/core/ois/stages/actuator_coupling.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/excursion_centring.h"
-#include "deep_ois/core/ois/stages/learned_residual.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "deep_ois/core/ois/stages/pan_detection.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 #include "known_stabiliser.h"
@@ -169,8 +168,8 @@ TEST(StabiliserFit, RecoversAKnownStabiliserFromNoisyLensMotion) {
   options.try_circular_stroke = false;
   options.iterations = 20;
   const StabiliserFitResult fit = fitStabiliser(training, options);
-  std::printf("fit: rms without model %.3f px, physical %.3f px, with residual %.3f px\n",
-              fit.rms_without_model_px, fit.rms_physical_px, fit.rms_px);
+  std::printf("fit: rms without model %.3f px, with the model %.3f px\n", fit.rms_without_model_px,
+              fit.rms_px);
   EXPECT_GT(fit.rms_without_model_px, 0.5);
   EXPECT_LT(fit.rms_px, 0.1);  // the noise (0.05 px per axis) and little more
   EXPECT_NEAR(fit.parameters.get<CentringValues>().gain(0, 1), 0.9, 0.05);
@@ -447,8 +446,6 @@ TEST(StabiliserModelFile, RoundTripsEveryFieldAndNamesABadOne) {
   file.parameters = knownStabiliser();
   file.parameters.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
   file.parameters.get<StrokeValues>().circular_stroke = true;
-  file.parameters.get<LinearResidualValues>().residual_time_constants_s = {0.01, 0.1};
-  file.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   file.training.target = "gyro-anchored lens shift (images)";
   file.training.data_files = {"a.bag", "b.bag"};
@@ -460,7 +457,6 @@ TEST(StabiliserModelFile, RoundTripsEveryFieldAndNamesABadOne) {
   EXPECT_DOUBLE_EQ(back.parameters.get<ActuatorValues>().sensor_lag_s, 0.002);
   EXPECT_TRUE(back.parameters.get<StrokeValues>().circular_stroke);
   EXPECT_DOUBLE_EQ(back.parameters.get<PanDetectionValues>().pan_detection_rate_rad_s, 0.6);
-  EXPECT_TRUE(back.parameters.get<LinearResidualValues>().residual.isApprox(file.parameters.get<LinearResidualValues>().residual));
   EXPECT_EQ(back.camera.summary(), file.camera.summary());
   EXPECT_EQ(back.training.data_files, file.training.data_files);
   EXPECT_EQ(back.training.observations, 1234u);
@@ -588,43 +584,43 @@ TEST(StabiliserCompensator, ComposesThePredictedLensShiftsWithTheGyroRotations) 
 }
 
 
-// ---- The learned nonlinear residual and the candidate selection ----
+// ---- A linear filter added to the lens (the form older files' residual banks convert to) ----
 
-// The known chain plus a soft saturation of x's command and y pulled back by the leaky integral of
-// its excursion-weighted command (the shape of an excursion-dependent re-centring); `seed` adds
-// small terms on every feature.
-StabiliserModel withNonlinearResidual(unsigned seed) {
+// The known chain plus a linear-dynamics stage over three first-order low-passes of the rate, added
+// to the lens after the chain; `seed` draws its coefficients.
+StabiliserModel withLensLinearDynamics(unsigned seed) {
   StabiliserModel p = knownStabiliser();
-  p.get<LearnedResidualValues>().nonlinear_features = "excursion_v1";
+  LinearDynamicsValues linear;
+  linear.output_to_lens = true;
+  linear.basis.time_constants_s = {0.03, 0.15, 0.6};
+  linear.basis.order = 3;
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> coefficient(-1e-5, 1e-5);
-  p.get<LearnedResidualValues>().nonlinear_residual = Eigen::MatrixXd::NullaryExpr(2, nonlinearFeatureCount("excursion_v1"),
-                                                      [&]() { return coefficient(rng); });
-  p.get<LearnedResidualValues>().nonlinear_residual(0, 1) = 0.1;    // x: + 0.1 stroke tanh(excursion)
-  p.get<LearnedResidualValues>().nonlinear_residual(1, 18) = -0.01;  // y: - 0.01 x the 0.15 s leaky pull of y
+  std::uniform_real_distribution<double> coefficient(-0.05, 0.05);
+  linear.coefficients = Eigen::MatrixXd::NullaryExpr(2, 9, [&]() { return coefficient(rng); });
+  p.set(linear);
   return p;
 }
 
-TEST(NonlinearResidual, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
-  const StabiliserModel p = withNonlinearResidual(3);
+TEST(LensLinearDynamics, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
+  const StabiliserModel p = withLensLinearDynamics(3);
   ASSERT_EQ(p.validate(), "");
   const auto rates = shake(10.0, 3.0, 1);
   LensShiftPredictor whole(p, kFocalPx), framewise(p, kFocalPx), physical(knownStabiliser(), kFocalPx);
   for (const auto& r : rates) whole.addRate(r), physical.addRate(r);
-  double max_difference = 0.0, learned_part = 0.0;
+  double max_difference = 0.0, linear_part = 0.0;
   std::size_t k = 0;
   for (double frame_end = 10.0; k < rates.size(); frame_end += 1.0 / 30.0) {
     while (k < rates.size() && rates[k].stamp_s <= frame_end) framewise.addRate(rates[k++]);
   }
   for (double t = 12.6; t < 12.95; t += 0.01) {
     max_difference = std::max(max_difference, (framewise.lensShiftAt(t) - whole.lensShiftAt(t)).norm());
-    learned_part = std::max(learned_part, (whole.lensShiftAt(t) - physical.lensShiftAt(t)).norm());
+    linear_part = std::max(linear_part, (whole.lensShiftAt(t) - physical.lensShiftAt(t)).norm());
   }
   EXPECT_EQ(framewise.resets(), 0);
   EXPECT_LT(max_difference, 1e-12);
-  EXPECT_GT(learned_part, 0.01);  // the residual acts (it is not a no-op)
+  EXPECT_GT(linear_part, 0.01);  // the stage acts (it is not a no-op)
 
-  // A gap: centred lens, zero features, as a fresh model.
+  // A gap: centred lens, filters at rest, as a fresh model.
   CameraRateSample after{whole.newestStamp() + 0.5, Eigen::Vector3d(0.3, -0.2, 0.0)};
   EXPECT_TRUE(whole.addRate(after));
   EXPECT_EQ(whole.resets(), 1);
@@ -648,64 +644,28 @@ TEST(NonlinearResidual, CarriesItsStateFrameByFrameAndResetsOnAGapOrAJumpBack) {
   EXPECT_EQ(whole.resets(), resets);
 }
 
-TEST(NonlinearResidual, RoundTripsItsFileAndNamesABadOne) {
+TEST(LensLinearDynamics, RoundTripsItsFileAndNamesABadOne) {
   StabiliserModelFile file;
-  file.name = "nonlinear";
-  file.parameters = withNonlinearResidual(4);
-  file.parameters.get<LinearResidualValues>().residual_time_constants_s = {0.01, 0.1};
-  file.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.001);
+  file.name = "lens linear dynamics";
+  file.parameters = withLensLinearDynamics(4);
   file.camera = {640, 480, 500.0, 501.0, 319.5, 239.5, 0.03, 30.0};
   file.training.data_files = {"a.bag"};
-  const StabiliserModelFile back = StabiliserModelFile::fromYaml(file.toYaml());
-  EXPECT_EQ(back.parameters.get<LearnedResidualValues>().nonlinear_features, "excursion_v1");
-  EXPECT_TRUE(back.parameters.get<LearnedResidualValues>().nonlinear_residual.isApprox(file.parameters.get<LearnedResidualValues>().nonlinear_residual, 1e-9));
-  EXPECT_EQ(back.camera.summary(), file.camera.summary());
+  const std::string yaml = file.toYaml();
+  const StabiliserModelFile back = StabiliserModelFile::fromYaml(yaml);
+  const LinearDynamicsValues& linear = back.parameters.get<LinearDynamicsValues>();
+  EXPECT_TRUE(linear.output_to_lens);
+  EXPECT_EQ(linear.basis.time_constants_s, file.parameters.get<LinearDynamicsValues>().basis.time_constants_s);
+  EXPECT_TRUE(linear.coefficients.isApprox(file.parameters.get<LinearDynamicsValues>().coefficients, 1e-9));
   EXPECT_EQ(back.training.data_files, file.training.data_files);
   // Same predictions from the file as from memory.
   expectSamePredictions(file.parameters, back.parameters);
 
-  std::string yaml = file.toYaml();
-  yaml.replace(yaml.find("excursion_v1"), 12, "excursion_v9");
-  expectRefusedNaming(yaml, "nonlinear_features", "an unknown feature set was accepted");
-}
-
-// A stabiliser the chain alone does not describe (the chain plus a nonlinear term): given the
-// chain, the ridge fit recovers the rest and the selection keeps it on held-out data; on the plain
-// chain it keeps a simpler candidate (the learned part does not pay for itself).
-TEST(NonlinearResidual, IsFittedAndKeptOnlyWhenItPredictsHeldOutDataBetter) {
-  StabiliserFitOptions options;
-  options.pan_thresholds_rad_s = {0.0};
-  options.try_circular_stroke = false;
-  options.iterations = 15;
-  const StabiliserModel truth = withNonlinearResidual(5);
-  const std::vector<StabiliserFitRecording> training = {observe(truth, 21, 0.02), observe(truth, 22, 0.02)};
-  const std::vector<StabiliserFitRecording> held_out = {observe(truth, 23, 0.0)};
-  StabiliserFitResult fit;  // the physical chain as a converged fit would give it
-  fit.parameters = knownStabiliser();
-  const StabiliserSelection selection = selectStabiliser(fit, training, held_out, options);
-  ASSERT_GE(selection.candidates.size(), 2u);  // the linear bank is left out when it does not help
-  for (const auto& c : selection.candidates)
-    std::printf("[ figures  ] %s: training %.4f px, held out %.4f px\n", c.name.c_str(),
-                c.training.rms_px, c.held_out.rms_px);
-  std::printf("[ figures  ] %s\n", selection.reason.c_str());
-  // physical, the six structural variants, rate filter, nonlinear, both, the five linear-dynamics
-  // rows: the nonlinear set is what the truth has.
-  ASSERT_EQ(selection.candidates.size(), 15u);
-  EXPECT_NE(selection.candidates[1].name.find("anti-windup"), std::string::npos);
-  EXPECT_NE(selection.candidates[4].name.find("actuator coupling"), std::string::npos);
-  EXPECT_NE(selection.candidates[5].name.find("soft stroke"), std::string::npos);
-  EXPECT_NE(selection.candidates[8].name.find("excursion_v1"), std::string::npos);
-  EXPECT_EQ(selection.kept, 8u);  // "both" is no better: the simpler one is kept
-  EXPECT_LT(selection.candidates[8].held_out.rms_px, 0.1 * selection.candidates[0].held_out.rms_px);
-  EXPECT_LT(selection.candidates[8].held_out.rms_px, 0.5 * selection.candidates[7].held_out.rms_px);
-  EXPECT_NE(selection.reason.find("held-out"), std::string::npos);
-
-  const std::vector<StabiliserFitRecording> plain = {observe(knownStabiliser(), 31, 0.05)};
-  const StabiliserFitResult plain_fit = fitStabiliser(plain, options);
-  const StabiliserSelection plain_selection =
-      selectStabiliser(plain_fit, plain, {observe(knownStabiliser(), 32, 0.05)}, options);
-  std::printf("[ figures  ] plain chain: %s\n", plain_selection.reason.c_str());
-  EXPECT_EQ(plain_selection.candidates[plain_selection.kept].name.find("nonlinear"), std::string::npos);
+  std::string bad = yaml;
+  bad.replace(bad.find("output: lens"), 12, "output: lends");
+  expectRefusedNaming(bad, "linear_dynamics.output", "an unknown output was accepted");
+  bad = yaml;
+  bad.replace(bad.find("[0.03"), 5, "[-0.03");
+  expectRefusedNaming(bad, "time_constants_s", "a negative time constant was accepted");
 }
 
 // The chain with its integrator held at the end stop: a stabiliser driven onto its stroke and
@@ -984,13 +944,16 @@ TEST(SoftStroke, IsRefittedAndKeptWhenItPredictsHeldOutDataBetter) {
 }
 
 // The inference budget: 0.5 ms per frame pair on one core, state updates at the gyro rate
-// included. The largest feature set, fed 30 s of 400 Hz gyro as 900 frames.
-TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
+// included. The chain with a linear-dynamics stage of the largest basis a candidate has (16
+// functions per axis), fed 30 s of 400 Hz gyro as 900 frames.
+TEST(LinearDynamicsModel, StaysFarInsideTheInferenceBudget) {
   StabiliserModel p = knownStabiliser();
-  p.get<LinearResidualValues>().residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
-  p.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 10, 0.01);
-  p.get<LearnedResidualValues>().nonlinear_features = "excursion_rate_v1";
-  p.get<LearnedResidualValues>().nonlinear_residual = Eigen::MatrixXd::Constant(2, nonlinearFeatureCount(p.get<LearnedResidualValues>().nonlinear_features), 1e-3);
+  LinearDynamicsValues linear;
+  linear.basis.pole_hz = 1.0;
+  linear.basis.second_pole_hz = 10.0;
+  linear.basis.order = 16;
+  linear.coefficients = Eigen::MatrixXd::Constant(2, 48, 1e-3);
+  p.set(linear);
   p.get<StrokeValues>().anti_windup = true;  // and the structural variants (an exp and an atan per step at most)
   p.get<ExcursionCentringValues>().excursion_centring = 1.0;
   p.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, 0.1);
@@ -1006,7 +969,7 @@ TEST(NonlinearResidual, StaysFarInsideTheInferenceBudget) {
   }
   const double us_per_frame =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() / frames;
-  std::printf("[ figures  ] excursion_rate_v1 model: %.1f us per frame (30 fps, 400 Hz gyro, 8 patches)%s\n",
+  std::printf("[ figures  ] linear_dynamics 1+10 Hz x16 model: %.1f us per frame (30 fps, 400 Hz gyro, 8 patches)%s\n",
               us_per_frame, std::isfinite(sink) ? "" : " (non-finite)");
   EXPECT_LT(us_per_frame, 500.0);
 }

@@ -2,7 +2,9 @@
 // fixtures) and one of each candidate kind (test/data/stabiliser_models/, written by the code of
 // f6a09dd) must load and predict, over a fixed gyro stream, the lens shifts stored beside them in
 // <name>.golden.csv to 1e-9 px. The model class is being rebuilt (issue 32); a file a user trained
-// must keep predicting what it predicted when it was trained.
+// must keep predicting what it predicted when it was trained. Files of stages since removed
+// (the residual banks) load through the converter to the current form and are held to the
+// goldens the removed code wrote; files whose stage has no successor are refused by name.
 //
 // The golden files are regenerated only on purpose, when a change of prediction is intended:
 //   DEEP_OIS_WRITE_STABILISER_GOLDEN=1 devel/lib/deep_ois/test_core --gtest_filter='StabiliserModelFiles.*'
@@ -29,8 +31,7 @@
 #include "deep_ois/core/ois/stages/actuator_coupling.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/excursion_centring.h"
-#include "deep_ois/core/ois/stages/learned_residual.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
+#include "deep_ois/core/ois/stages/linear_dynamics.h"
 #include "deep_ois/core/ois/stages/pan_detection.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 
@@ -40,8 +41,12 @@ namespace {
 const std::string kSource = DEEP_OIS_SOURCE_DIR;
 const std::string kFixtures = kSource + "/test/data/stabiliser_models/";
 constexpr double kTolerancePx = 1e-9;
-// An old file whose stage has no successor (relative to the source folder).
-const std::string kRetiredFixture = "test/data/stabiliser_models/retired_learned_lens_dynamics.yaml";
+// Old files whose stage has no successor (relative to the source folder), and the stage each names.
+const std::vector<std::pair<std::string, std::string>> kRetiredFixtures = {
+    {"test/data/stabiliser_models/retired_learned_lens_dynamics.yaml", "learned_lens_dynamics"},
+    {"test/data/stabiliser_models/learned_excursion_v1.yaml", "learned_residual"},
+    {"test/data/stabiliser_models/learned_excursion_rate_v1.yaml", "learned_residual"},
+};
 // A model without a camera (the generic one) is run at this focal length, pixels.
 constexpr double kDefaultFocalPx = 500.0;
 
@@ -134,13 +139,14 @@ double largestDifference(const std::vector<Eigen::Vector2d>& a, const std::vecto
 }
 
 // Loads `path`, compares its prediction with the golden `name`, and checks that the stream
-// exercises what the file names: `without` (the mechanism taken out) must predict otherwise.
+// exercises what the file names: `without` (the mechanism taken out) must predict otherwise. The
+// golden of an older file (`converted`: its stages removed since) is never rewritten.
 void expectPinned(const std::string& path, const std::string& name,
-                  const std::function<void(StabiliserModel*)>& without) {
+                  const std::function<void(StabiliserModel*)>& without, bool converted = false) {
   SCOPED_TRACE(path);
   const StabiliserModelFile file = StabiliserModelFile::load(path);
   const std::vector<Eigen::Vector2d> predicted = predictPinned(file.parameters, focalOf(file));
-  if (writing()) writeGolden(name, predicted);
+  if (writing() && !converted) writeGolden(name, predicted);
   const std::vector<Eigen::Vector2d> golden = readGolden(name);
   ASSERT_GT(golden.size(), 500u);
   EXPECT_LE(largestDifference(predicted, golden), kTolerancePx)
@@ -166,8 +172,9 @@ void expectPinned(const std::string& path, const std::string& name,
 // exercise check.
 struct Fixture {
   std::string name;
-  std::function<void(StabiliserModel*)> make;     // from the plain chain below
+  std::function<void(StabiliserModel*)> make;     // from the plain chain below; null: an older file
   std::function<void(StabiliserModel*)> without;  // its mechanism out
+  bool converted() const { return !make; }
 };
 
 StabiliserModel plainChain() {
@@ -182,31 +189,8 @@ StabiliserModel plainChain() {
   return p;
 }
 
-// Deterministic coefficients of a residual (no random engine: the same numbers everywhere).
-Eigen::MatrixXd coefficients(long columns, double scale) {
-  Eigen::MatrixXd c(2, columns);
-  for (long k = 0; k < columns; ++k) {
-    c(0, k) = scale * std::sin(1.7 * k + 0.3);
-    c(1, k) = scale * std::cos(2.3 * k + 0.1);
-  }
-  return c;
-}
-
-void addLinearResidual(StabiliserModel* p) {
-  p->get<LinearResidualValues>().residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
-  p->get<LinearResidualValues>().residual = coefficients(10, 0.03);
-}
-
-void addNonlinear(StabiliserModel* p, const std::string& set) {
-  addLinearResidual(p);
-  p->get<LearnedResidualValues>().nonlinear_features = set;
-  p->get<LearnedResidualValues>().nonlinear_residual = coefficients(nonlinearFeatureCount(set), 0.05);
-}
-
-void dropNonlinear(StabiliserModel* p) {
-  p->get<LearnedResidualValues>().nonlinear_features.clear();
-  p->get<LearnedResidualValues>().nonlinear_residual.resize(0, 0);
-}
+// The linear filter an older file's residual bank converted to, switched off.
+void dropConvertedBank(StabiliserModel* p) { p->get<LinearDynamicsValues>().coefficients.setZero(); }
 
 std::vector<Fixture> fixtures() {
   return {
@@ -220,8 +204,8 @@ std::vector<Fixture> fixtures() {
          p->get<PanDetectionValues>().pan_release_corner_hz = 4.0;
        },
        [](StabiliserModel* p) { p->get<PanDetectionValues>().pan_detection_rate_rad_s = 0.0; }},
-      {"linear_residual", addLinearResidual,
-       [](StabiliserModel* p) { p->get<LinearResidualValues>().residual.setZero(); }},
+      // Written with the linear residual bank (removed since): converted on load.
+      {"linear_residual", nullptr, dropConvertedBank},
       {"anti_windup", [](StabiliserModel* p) { p->get<StrokeValues>().anti_windup = true; },
        [](StabiliserModel* p) { p->get<StrokeValues>().anti_windup = false; }},
       {"excursion_centring", [](StabiliserModel* p) { p->get<ExcursionCentringValues>().excursion_centring = 1.5; },
@@ -265,24 +249,15 @@ std::vector<Fixture> fixtures() {
          p->get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.07, 0.05);
        },
        [](StabiliserModel* p) { p->get<StrokeValues>().anti_windup = false; }},
-      {"learned_rate_bank_v1", [](StabiliserModel* p) { addNonlinear(p, "rate_bank_v1"); },
-       dropNonlinear},
-      {"learned_excursion_v1", [](StabiliserModel* p) { addNonlinear(p, "excursion_v1"); },
-       dropNonlinear},
-      {"learned_excursion_rate_v1",
-       [](StabiliserModel* p) {
-         p->get<StrokeValues>().circular_stroke = true;
-         p->get<StrokeValues>().anti_windup = true;
-         addNonlinear(p, "excursion_rate_v1");
-       },
-       dropNonlinear},
+      // The linear bank and the learned rate bank (a linear filter too): converted on load.
+      {"learned_rate_bank_v1", nullptr, dropConvertedBank},
   };
 }
 
 TEST(StabiliserModelFiles, EveryCandidateKindPredictsAsWhenItWasWritten) {
   for (const Fixture& fixture : fixtures()) {
     const std::string path = kFixtures + fixture.name + ".yaml";
-    if (writing()) {
+    if (writing() && !fixture.converted()) {
       StabiliserModelFile file;
       file.name = "test fixture: " + fixture.name + " (test/core/ois/test_stabiliser_model_files.cpp)";
       file.parameters = plainChain();
@@ -291,7 +266,7 @@ TEST(StabiliserModelFiles, EveryCandidateKindPredictsAsWhenItWasWritten) {
       file.camera = {640, 480, 510.0, 510.0, 319.5, 239.5, 0.03, 30.0};
       file.save(path);
     }
-    expectPinned(path, fixture.name, fixture.without);
+    expectPinned(path, fixture.name, fixture.without, fixture.converted());
   }
 }
 
@@ -345,7 +320,8 @@ TEST(StabiliserModelFiles, EveryFixtureSavesToTheSameBytes) {
   std::vector<std::string> paths = {kSource + "/models/stabiliser_generic.yaml",
                                     kSource + "/test/ros/stabiliser_model_learned.yaml",
                                     kFixtures + "no_lens_motion.yaml"};
-  for (const Fixture& fixture : fixtures()) paths.push_back(kFixtures + fixture.name + ".yaml");
+  for (const Fixture& fixture : fixtures())
+    if (!fixture.converted()) paths.push_back(kFixtures + fixture.name + ".yaml");
   const std::string saved = scratchPath("round_trip");
   for (const std::string& path : paths) {
     SCOPED_TRACE(path);
@@ -355,6 +331,41 @@ TEST(StabiliserModelFiles, EveryFixtureSavesToTheSameBytes) {
     EXPECT_EQ(contentsOf(saved), original);
   }
   std::remove(saved.c_str());
+}
+
+// An older file (a stage since removed, converted on load) is saved in the current form: the
+// linear-dynamics stage its residual banks became. That file predicts the old golden to 1e-9 px,
+// and saving it again gives the same bytes.
+TEST(StabiliserModelFiles, AnOlderFileIsSavedInTheCurrentFormAndPredictsAsBefore) {
+  const std::string once = scratchPath("converted_once");
+  const std::string twice = scratchPath("converted_twice");
+  for (const Fixture& fixture : fixtures()) {
+    if (!fixture.converted()) continue;
+    SCOPED_TRACE(fixture.name);
+    const std::string path = kFixtures + fixture.name + ".yaml";
+    StabiliserModelFile::load(path).save(once);
+    const std::string saved = contentsOf(once);
+    EXPECT_EQ(saved.find("residual_time_constants_s"), std::string::npos) << saved;
+    EXPECT_EQ(saved.find("nonlinear_residual"), std::string::npos) << saved;
+    EXPECT_NE(saved.find("output: lens"), std::string::npos) << saved;
+    const StabiliserModelFile reread = StabiliserModelFile::load(once);
+    EXPECT_LE(largestDifference(predictPinned(reread.parameters, focalOf(reread)), readGolden(fixture.name)),
+              kTolerancePx);
+    reread.save(twice);
+    EXPECT_EQ(contentsOf(twice), saved);
+  }
+  // A file with both a linear-dynamics stage and a residual bank cannot be one stage: refused.
+  std::string both = contentsOf(kFixtures + "linear_residual.yaml");
+  both.replace(both.find("camera:"), 7,
+               "  linear_dynamics: {pole_hz: 1, order: 1, coefficients: [0, 0, 0, 0, 0, 0]}\ncamera:");
+  try {
+    StabiliserModelFile::fromYaml(both);
+    ADD_FAILURE() << "a file with a linear-dynamics stage and a residual bank loaded";
+  } catch (const StabiliserModelFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("train_stabiliser"), std::string::npos) << e.what();
+  }
+  std::remove(once.c_str());
+  std::remove(twice.c_str());
 }
 
 // Files written by hand or by older code (other comments, fewer digits): saving them once gives
@@ -392,7 +403,9 @@ TEST(StabiliserModelFiles, EveryCommittedModelFileIsPinned) {
       const std::string text = contentsOf(entry.path().string());
       if (text.find("format: deep_ois_stabiliser_model") == std::string::npos) continue;
       const std::string relative = std::filesystem::relative(entry.path(), kSource).string();
-      if (relative == kRetiredFixture) continue;  // refused, below
+      if (std::any_of(kRetiredFixtures.begin(), kRetiredFixtures.end(),
+                      [&](const auto& retired) { return retired.first == relative; }))
+        continue;  // refused, below
       ++found;
       EXPECT_NE(std::find(pinned.begin(), pinned.end(), relative), pinned.end())
           << relative << " is a stabiliser model file without a golden prediction";
@@ -402,17 +415,20 @@ TEST(StabiliserModelFiles, EveryCommittedModelFileIsPinned) {
 }
 
 // An old file with a stage this build no longer has and that no stage can stand in for (the
-// pretrained recurrent network) is refused, naming the stage and what to do, never loaded
-// without it.
+// pretrained recurrent network; the learned residual of nonlinear features) is refused, naming
+// the stage and what to do, never loaded without it.
 TEST(StabiliserModelFiles, AFileWithARetiredStageIsRefusedByName) {
-  try {
-    StabiliserModelFile::load(kSource + "/" + kRetiredFixture);
-    ADD_FAILURE() << "a model with the retired learned_lens_dynamics stage loaded";
-  } catch (const StabiliserModelFileError& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find("learned_lens_dynamics"), std::string::npos) << message;
-    EXPECT_NE(message.find("retrain"), std::string::npos) << message;
-    EXPECT_NE(message.find("train_stabiliser"), std::string::npos) << message;
+  for (const auto& [path, stage] : kRetiredFixtures) {
+    SCOPED_TRACE(path);
+    try {
+      StabiliserModelFile::load(kSource + "/" + path);
+      ADD_FAILURE() << "a model with the retired " << stage << " stage loaded";
+    } catch (const StabiliserModelFileError& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find(stage), std::string::npos) << message;
+      EXPECT_NE(message.find("retrain"), std::string::npos) << message;
+      EXPECT_NE(message.find("train_stabiliser"), std::string::npos) << message;
+    }
   }
   // Named in a stages list only, it is refused the same way.
   const std::string text = "format: deep_ois_stabiliser_model\nformat_version: 1\nstabiliser:\n"

@@ -6,6 +6,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <string>
@@ -17,9 +18,7 @@
 #include "deep_ois/core/ois/stages/actuator_coupling.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/excursion_centring.h"
-#include "deep_ois/core/ois/stages/learned_residual.h"
 #include "deep_ois/core/ois/stages/linear_dynamics.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
 #include "deep_ois/core/ois/stages/pan_detection.h"
 #include "deep_ois/core/ois/stages/sampled_controller.h"
 #include "deep_ois/core/ois/stages/stroke.h"
@@ -45,11 +44,6 @@ StabiliserModel everyMechanism() {
   p.get<ActuatorCouplingValues>().actuator_coupling = Eigen::Vector2d(0.1, -0.08);
   p.get<PanDetectionValues>().pan_detection_rate_rad_s = 0.6;
   p.get<PanDetectionValues>().pan_release_corner_hz = 4.0;
-  p.get<LinearResidualValues>().residual_time_constants_s = {0.01, 0.1};
-  p.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4, 0.01);
-  p.get<LearnedResidualValues>().nonlinear_features = "rate_bank_v1";
-  p.get<LearnedResidualValues>().nonlinear_residual =
-      Eigen::MatrixXd::Constant(2, nonlinearFeatureCount("rate_bank_v1"), 0.02);
   LinearDynamicsValues& linear = p.get<LinearDynamicsValues>();
   linear.basis.pole_hz = 2.0;
   linear.basis.order = 2;
@@ -186,11 +180,13 @@ TEST(StabiliserStages, ValidationNamesTheStagesField) {
        "actuator_coupling"},
       {"pan_detection", [](StabiliserModel* p) { p->get<PanDetectionValues>().pan_release_corner_hz = 0.0; },
        "pan_release_corner_hz"},
-      {"linear_residual",
-       [](StabiliserModel* p) { p->get<LinearResidualValues>().residual_time_constants_s[0] = 0.0; },
-       "residual_time_constants_s"},
-      {"learned_residual", [](StabiliserModel* p) { p->get<LearnedResidualValues>().nonlinear_features = "nope"; },
-       "nonlinear_features"},
+      {"linear_dynamics",
+       [](StabiliserModel* p) {
+         LinearDynamicsValues& linear = p->get<LinearDynamicsValues>();
+         linear.basis.time_constants_s = {0.01, -0.1};
+         linear.basis.order = 2;
+       },
+       "linear_dynamics: time_constants_s"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.stage);
@@ -258,16 +254,34 @@ TEST(StabiliserStages, TheReviewNamesAParameterOnItsStagesBound) {
   EXPECT_FALSE(reviewStabiliserFit(p).onBound("pan_release_corner_hz"));
 }
 
-TEST(StabiliserStages, ThePhysicalChainClearsTheResidualAndLearnedStages) {
-  const StabiliserModel chain = everyMechanism().physicalChain();
-  EXPECT_TRUE(chain.get<LinearResidualValues>().residual_time_constants_s.empty());
-  EXPECT_EQ(chain.get<LinearResidualValues>().residual.size(), 0);
-  EXPECT_TRUE(chain.get<LearnedResidualValues>().nonlinear_features.empty());
-  EXPECT_EQ(chain.get<LearnedResidualValues>().nonlinear_residual.size(), 0);
-  EXPECT_TRUE(chain.get<StrokeValues>().anti_windup);  // the chain's own mechanisms stay
-  EXPECT_EQ(chain.get<ExcursionCentringValues>().excursion_centring, 1.5);
-  for (const StabiliserStage& stage : stabiliserStages())
-    EXPECT_EQ(stage.physical, stage.clear == nullptr) << stage.name;
+// The linear-dynamics stage over first-order low-passes, added to the lens (the form older files'
+// residual banks convert to): for a rate held from rest, each state is the leaky integral
+// tau (1 - exp(-t / tau)) of the rate, exactly at every step; the roll axis reaches nothing with
+// its coefficients at 0.
+TEST(StabiliserStages, LinearDynamicsIntoTheLensFollowsTheLeakyIntegralOfAHeldRate) {
+  StabiliserModel p(std::vector<std::string>{"linear_dynamics"});
+  LinearDynamicsValues& linear = p.get<LinearDynamicsValues>();
+  linear.output_to_lens = true;
+  linear.basis.time_constants_s = {0.05, 0.4};
+  linear.basis.order = 2;
+  linear.coefficients = Eigen::MatrixXd::Zero(2, 6);
+  linear.coefficients(0, 0) = 0.5;   // lens x: the 50 ms integral of the x rate
+  linear.coefficients(1, 3) = -0.2;  // lens y: the 0.4 s integral of the y rate
+  ASSERT_EQ(p.validate(), "");
+  const double focal_px = 500.0, step_s = 1e-3;
+  StabiliserChain chain(stabiliserRunners(p, StabiliserRunContext{focal_px, step_s}));
+  chain.reset();
+  const Eigen::Vector3d rate(0.3, -0.1, 0.7);
+  double largest_px = 0.0;
+  for (int k = 1; k <= 1000; ++k) {
+    const Eigen::Vector2d lens = chain.step(rate, rate);
+    const double t = k * step_s;
+    const Eigen::Vector2d expected(focal_px * 0.5 * 0.3 * 0.05 * (1.0 - std::exp(-t / 0.05)),
+                                   focal_px * -0.2 * -0.1 * 0.4 * (1.0 - std::exp(-t / 0.4)));
+    largest_px = std::max(largest_px, (lens - expected).cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(largest_px, 1e-9);
+  EXPECT_EQ(stabiliserComposition(p), (std::vector<std::string>{"linear_dynamics:lens_leaky_x2"}));
 }
 
 }  // namespace

@@ -26,7 +26,6 @@
 #include "deep_ois/core/ois/stabiliser_model_file.h"
 #include "deep_ois/core/ois/stages/centring.h"
 #include "deep_ois/core/ois/stages/linear_dynamics.h"
-#include "deep_ois/core/ois/stages/linear_residual.h"
 #include "deep_ois/core/ois/stages/stroke.h"
 
 namespace deep_ois {
@@ -118,11 +117,7 @@ std::vector<OnlineFramePair> makePairs(const StabiliserModel& truth, double seco
   return pairs;
 }
 
-StabiliserModel ideal() {
-  StabiliserModel p;
-  p.get<LinearResidualValues>().residual_time_constants_s.clear();
-  return p;
-}
+StabiliserModel ideal() { return StabiliserModel(); }
 
 // A generic-like prior that is wrong for the test camera: half the gain, a fast centring.
 StabiliserModel wrongPrior() {
@@ -153,7 +148,6 @@ OnlineLearningOptions testOptions() {
   o.max_queued_pairs = 100000;
   o.fit.iterations = 10;
   o.fit.pan_thresholds_rad_s = {0.0};
-  o.fit.residual_time_constants_s.clear();
   return o;
 }
 
@@ -186,6 +180,9 @@ TEST(OnlineStabiliserLearner, SwapsToAFitThatIsBetterOnTheHeldOutWindow) {
 TEST(OnlineStabiliserLearner, WindowsChainAcrossADriftingTimeOffset) {
   OnlineLearningOptions options = testOptions();
   options.refit_every_s = 11.0;
+  // The chain converged (10 iterations end it short of its optimum on this stream; the learned
+  // residuals of older builds took up what it left).
+  options.fit.iterations = 30;
   OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
   std::vector<OnlineFramePair> pairs = makePairs(ideal(), 13.0, 1.0, 1, 0.0, 3e-3 / 60.0);
   ASSERT_NE(pairs.front().timing.time_offset_s, pairs.back().timing.time_offset_s);
@@ -217,7 +214,7 @@ TEST(OnlineStabiliserLearner, AppliedOffsetStepsEndTheWindow) {
 }
 
 // A stabiliser the chain cannot name (an integrator held at a small stroke: anti-windup). The first
-// fit offers the chain and its learned residuals (the quick swap); the next ones also offer
+// fit offers the chain (the quick swap); the next ones also offer
 // train_stabiliser's structural variants, and the anti-windup chain must win on the held-out window.
 TEST(OnlineStabiliserLearner, LaterFitsOfferTheStructuralVariants) {
   OnlineLearningOptions options = testOptions();
@@ -338,7 +335,7 @@ TEST(OnlineStabiliserLearner, ASwapThePerPairCheckFindsWorseIsUndoneAndNeverWrit
 
 // A stabiliser that is a linear filter of its gyro no chain names: ideal()'s centring written on a
 // Laguerre basis (1 Hz, 4 functions per axis: function 1 is the 1 Hz high-passed angle), plus
-// terms the chain and its learned residuals (pan and tilt rates only) cannot have: on function 2,
+// terms the chain (pan and tilt rates only) cannot have: on function 2,
 // and from the roll rate, inside a stroke the shake never meets (the lens linear in the
 // coefficients). `scale` multiplies the coefficients.
 StabiliserModel linearStabiliser(double scale) {
@@ -510,7 +507,6 @@ TEST(OnlineStabiliserLearner, ChargedCpuStaysWithinTheShareFitsIncluded) {
   // The chain alone: what a fit costs does not matter here (the budget is measured), only that it
   // costs more than the tolerance; the dearer candidates would only make the test longer.
   options.candidate_kinds.structural = false;
-  options.candidate_kinds.learned_features = false;
   std::atomic<double> clock_s{0.0};
   options.budget_clock = [&clock_s] { return clock_s.load(); };
   OnlineStabiliserLearner learner(options, {{"generic", wrongPrior()}}, 0);
@@ -639,11 +635,9 @@ TEST(StabiliserModelFile, AKillDuringTheWriteLeavesTheOldFile) {
   old_model.parameters = ideal();
   old_model.save(path);
   StabiliserModelFile new_model = old_model;
-  new_model.name = "new";
+  // A large file (a long name) takes long enough to write that the kills land mid-write.
+  new_model.name = "new " + std::string(100000, 'n');
   new_model.parameters.get<CentringValues>().highpass_corner_hz = 1.5;
-  // A large file takes long enough to write that the kills land mid-write.
-  new_model.parameters.get<LinearResidualValues>().residual_time_constants_s.assign(2000, 0.1);
-  new_model.parameters.get<LinearResidualValues>().residual = Eigen::MatrixXd::Constant(2, 4000, 0.001);
   std::mt19937 rng(8);
   std::uniform_int_distribution<int> delay_us(0, 20000);
   int old_seen = 0, new_seen = 0;
@@ -658,7 +652,7 @@ TEST(StabiliserModelFile, AKillDuringTheWriteLeavesTheOldFile) {
     ::waitpid(child, nullptr, 0);
     const StabiliserModelFile read = StabiliserModelFile::load(path);  // throws on a partial file
     (read.name == "old" ? old_seen : new_seen)++;
-    ASSERT_TRUE(read.name == "old" || read.name == "new") << read.name;
+    ASSERT_TRUE(read.name == "old" || read.name == new_model.name) << read.name.substr(0, 20);
     old_model.save(path);
   }
   EXPECT_GT(old_seen + new_seen, 0);

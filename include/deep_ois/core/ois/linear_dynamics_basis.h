@@ -32,12 +32,21 @@ struct LinearDynamicsBasisSpec {
   // A second pole, Hz (0 = none: the Laguerre basis). With one, function k (from 1) has
   // pole_hz when k is odd and second_pole_hz when k is even.
   double second_pole_hz = 0.0;
+  // Non-empty: instead of the Laguerre chain, a bank of independent first-order low-passes, the
+  // leaky integrals y' = u - y / tau of the rate (state in rad), one per time constant (seconds);
+  // order is then their count. The form older model files' residual banks convert to exactly.
+  std::vector<double> time_constants_s;
 
   // Empty when usable; otherwise a sentence naming the bad field. step_s is the step the basis
   // will be discretised at (a pole above 0.5 / step_s, past the step's Nyquist rate, is refused).
   std::string validate(double step_s) const;
   // The pole of function k (0-based), rad/s.
   double poleRadS(int k) const;
+  bool firstOrder() const { return !time_constants_s.empty(); }
+  bool operator==(const LinearDynamicsBasisSpec& other) const {
+    return pole_hz == other.pole_hz && order == other.order && second_pole_hz == other.second_pole_hz &&
+           time_constants_s == other.time_constants_s;
+  }
 };
 
 class LinearDynamicsBasis {

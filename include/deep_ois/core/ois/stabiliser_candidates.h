@@ -1,22 +1,15 @@
 // Choosing a camera's stabiliser model by measurement: the physical chain fitted by
-// core/ois/stabiliser_fit.h is the prior and the fallback; learned dynamics on top of it are
+// core/ois/stabiliser_fit.h is the prior and the fallback; other compositions of stages are
 // candidates, each scored on the held-out recordings, and the best is kept.
 //
 // Candidates, described as data (stabiliserCandidateDescriptions; cheap enough for the live
 // budget: microseconds per frame at the gyro rate):
-//  - "physical": the fitted chain alone;
-//  - "physical + linear residual": plus the bank of leaky rate integrals (what fitStabiliser
-//    returns);
+//  - "physical": the fitted chain alone (what fitStabiliser returns);
 //  - the chain with a better structure, refitted (refitStabiliserStages): an integrator held at
 //    the end stop (anti-windup), a re-centring corner that grows with the excursion, both; the
 //    stroke in the actuator's own axes with a cross-coupling after the actuator (a turned or
 //    coupled mount); a soft stroke (stroke x tanh(u / stroke)) instead of an end stop, alone and
 //    with the excursion-dependent re-centring;
-//  - then, each by ridge regression on what that leaves (LearnedResidualValues::nonlinear_features):
-//    a learned higher-order linear filter of the rate (rate_bank_v1); nonlinear functions of the
-//    chain's state (excursion_v1: saturations of the command, its excursion against the stroke,
-//    leaky integrals of the excursion-weighted command), for stabilisers whose re-centring, stroke
-//    or estimator the chain does not name; and both (excursion_rate_v1);
 //  - a linear filter of free order of the three gyro axes (the linear_dynamics stage) instead of
 //    the centring or beside it, composed with the stroke (hard or soft), the actuator and the
 //    excursion-dependent re-centring, fitted in two steps (refitStabiliserStages).
@@ -33,15 +26,6 @@
 
 namespace deep_ois {
 
-// `base` plus a nonlinear residual (feature set `feature_set`) fitted by ridge regression (weight
-// `ridge` relative to each feature's energy, Huber weights as options.huber_px) on the lens
-// motion `base` leaves in `recordings`. Throws std::invalid_argument when no observation is usable.
-StabiliserModel fitNonlinearResidual(const StabiliserModel& base,
-                                          const std::vector<StabiliserFitRecording>& recordings,
-                                          const StabiliserFitOptions& options,
-                                          const std::string& feature_set = "excursion_v1",
-                                          double ridge = 1e-4);
-
 // A stabiliser model with a name for messages ("fit", "no lens motion", "generic", ...).
 struct ModelCandidate {
   std::string name;
@@ -50,13 +34,10 @@ struct ModelCandidate {
 
 // A candidate described as data: one row of the table stabiliserCandidates builds from. Its
 // composition is a list of stage tokens (core/ois/stabiliser_stage.h, stabiliserComposition), in
-// the chain's order: {"centring", "stroke:soft", "actuator", "linear_residual"}. How the row is
-// fitted follows from it:
-//  - the chain's stages only (centring, stroke, actuator, with or without linear_residual): the
-//    physical fit itself (the row with linear_residual is left out when the fit has no bank);
-//  - another stage or a stroke variant: the chain refitted with it (refitStabiliserStages, which
-//    fits its own linear bank and keeps it where it helps);
-//  - learned_residual:SET: that feature set ridge-fitted on top of the physical fit;
+// the chain's order: {"centring", "stroke:soft", "actuator"}. How the row is fitted follows from
+// it:
+//  - the chain's stages only (centring, stroke, actuator): the physical fit itself;
+//  - another stage or a stroke variant: the chain refitted with it (refitStabiliserStages);
 //  - linear_dynamics:BASIS (with or without other stages and variants): the listed chain in two
 //    steps, the coefficients in closed form, then the whole chain jointly (refitStabiliserStages).
 // Pan detection is the fit's choice for every row, so a row never names it.
@@ -68,8 +49,6 @@ struct StabiliserCandidateDescription {
   // (stabiliser_choice_rule.h). "No lens motion" is 0.
   int complexity = 0;
 
-  // The learned residual's feature set ("" when the row has none).
-  std::string featureSet() const;
   // A refit of the chain with a stage or variant more (the linear-dynamics stage aside: it is
   // linearDynamics(); a row with both is refitted as one with the linear stage).
   bool structural() const;
@@ -77,32 +56,30 @@ struct StabiliserCandidateDescription {
   bool linearDynamics() const;
 };
 
-// The candidate table, simplest first: the chain, its linear bank, the six structural variants,
-// the three learned feature sets, the five compositions with the linear-dynamics stage (the names
-// and what each adds: docs/stabiliser_model.md).
+// The candidate table, simplest first: the chain, the six structural variants, the five
+// compositions with the linear-dynamics stage (the names and what each adds:
+// docs/stabiliser_model.md).
 const std::vector<StabiliserCandidateDescription>& stabiliserCandidateDescriptions();
 
 // A model's place in the table's simplicity order, read from its parameters: 0 for "no lens
-// motion", the complexity of the row that describes it (its structure, feature set and linear
-// bank), and after every row for a composition no row describes (a hand-written file). So a model
+// motion", the complexity of the row that describes it (its stages; a linear filter added to the
+// lens, an older file's converted residual bank, aside), and after every row for a composition no row describes (a hand-written file). So a model
 // from anywhere (a prior, the model in use) is ranked as the candidates are.
 int stabiliserComplexity(const StabiliserModel& parameters);
 
-// Which rows stabiliserCandidates builds besides the physical chain and its linear bank.
+// Which rows stabiliserCandidates builds besides the physical chain.
 struct StabiliserCandidateKinds {
   bool structural = true;        // the refitted structural variants (an LM refit each)
   // Solver iterations of each structural refit (0: the fit options' iterations). The
   // refits start from the fitted chain, so fewer suffice where time counts (the online learner).
   int structural_iterations = 0;
-  bool learned_features = true;  // the ridge-fitted residuals (one pass over the data each)
   // The linear-dynamics rows (one run of the chain per basis function and recording each).
   bool linear_dynamics = true;
 };
 
 // The candidates built from a physical fit (a fitStabiliser result), one per row of the table in
-// its order (simplest first), unscored: "physical", "physical + linear residual" (when the fit has
-// a bank), then the kinds asked for. A row whose refit or residual finds no usable lens motion is
-// left out (the simpler ones stand).
+// its order (simplest first), unscored: "physical", then the kinds asked for. A row whose refit
+// finds no usable lens motion is left out (the simpler ones stand).
 std::vector<ModelCandidate> stabiliserCandidates(const StabiliserFitResult& fit,
                                                  const std::vector<StabiliserFitRecording>& training,
                                                  const StabiliserFitOptions& options,

@@ -8,8 +8,7 @@
 //
 // The fit: Levenberg-Marquardt with Huber weights over the physical parameters (gain matrix,
 // centring corner, actuator, sensor lag, stroke), the rate at which pan detection lets go chosen
-// from a grid (its hysteresis makes the cost step-like in the threshold), then a ridge fit of the
-// linear residual bank on what remains. Pure C++/Eigen: no ROS.
+// from a grid (its hysteresis makes the cost step-like in the threshold). Pure C++/Eigen: no ROS.
 #pragma once
 
 #include <Eigen/Core>
@@ -54,9 +53,6 @@ struct StabiliserFitRecording {
 };
 
 struct StabiliserFitOptions {
-  // Leaky-integral time constants of the linear residual bank (empty = no residual).
-  std::vector<double> residual_time_constants_s = {0.005, 0.02, 0.08, 0.3, 1.2};
-  double residual_ridge = 1e-3;  // ridge weight, relative to each feature's energy (RobustRidgeRegression)
   double huber_px = 0.3;         // Huber threshold on an observation's residual norm, pixels
   int iterations = 30;           // solver iterations per candidate (nonlinear_least_squares.h)
   SolverEngine solver_engine = SolverEngine::kLevenbergMarquardt;  // the minimiser under the solver
@@ -118,9 +114,8 @@ struct StabiliserFitResult {
   std::size_t observations_used = 0;
   std::size_t observations_skipped = 0;  // before the warm-up or outside the gyro stream
   // Root mean square of the observations' residual norm (pixels, weighted): with no lens model
-  // (motion 0, what the uncompensated gyro assumes), with the physical model, and with its residual.
+  // (motion 0, what the uncompensated gyro assumes) and with the fitted model.
   double rms_without_model_px = 0.0;
-  double rms_physical_px = 0.0;
   double rms_px = 0.0;
   std::vector<std::string> log;  // one line per candidate tried, for the training report
   // The RMS residual (pixels) after every accepted refinement step of the model kept (the first
@@ -139,8 +134,8 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
 // stabiliserComposition writes them: {"excursion_centring", "centring", "stroke:soft",
 // "actuator"}): each stage that a refit starts (StabiliserStage::start) set up as listed or left
 // out, refined by Levenberg-Marquardt from fitted's physical parameters with the listed stages'
-// parameters free (the stroke scanned again around them, pan detection and stroke shape kept), then
-// its linear residual bank as fitStabiliser fits it. The training RMS and the review are filled;
+// parameters free (the stroke scanned again around them, pan detection and stroke shape kept). The
+// training RMS and the review are filled;
 // rms_without_model_px and the timing check are not (they do not depend on the composition).
 //
 // With a linear-dynamics stage among `stages` ("linear_dynamics:1hz_x8", its basis as the variant)
@@ -150,8 +145,7 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
 // zero, twice: the second solve sees where the first one's lens meets the stroke), then the whole
 // chain jointly by block coordinate descent: the solver moves the other stages' parameters with
 // the coefficients held, the coefficients are solved again in closed form with the others held,
-// and so on while the cost falls (each block's step is kept only when it lowers the cost). No
-// linear residual bank is fitted on top (the stage is a linear filter of the rate already).
+// and so on while the cost falls (each block's step is kept only when it lowers the cost).
 // Throws std::invalid_argument as fitStabiliser, and for an unknown stage or variant.
 StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
                                           const std::vector<std::string>& stages,

@@ -7,8 +7,8 @@
 // deliberate pans, saturates at its stroke and moves the lens through an actuator with its own
 // bandwidth and a sensor lag. One inter-frame flow cannot carry that state; a model with the same
 // structure and a dozen parameters learned per camera can, and it is cheap (microseconds per
-// frame). What the structure does not capture is fitted as a linear residual over a bank of
-// leaky integrals of the rate (any stable linear dynamics is well approximated by such a bank).
+// frame). Linear dynamics no mechanism names are a linear-dynamics stage of free order
+// (core/ois/stages/linear_dynamics.h).
 //
 // Units are normalised by the focal length where it matters (gain as a fraction of the rotation
 // cancelled, stroke in degrees), so a model transfers between cameras of one module that differ
@@ -55,7 +55,7 @@ struct StageInstance {
 };
 
 // A stabiliser model: an ordered list of stages (the chain's order, stabiliserStages()), each with
-// its values. A stage acts when its values make it act (a pan threshold of 0, an empty residual:
+// its values. A stage acts when its values make it act (a pan threshold of 0, no linear-dynamics coefficients:
 // the stage is there and does nothing), as every model file before the stage list was written.
 class StabiliserModel {
  public:
@@ -98,21 +98,12 @@ class StabiliserModel {
 
   // Empty when usable; otherwise a sentence naming the bad field.
   std::string validate() const;
-  // The chain alone: the residual and learned stages cleared (the "physical" candidate, and the
-  // start of a structural refit).
-  StabiliserModel physicalChain() const;
 
  private:
   StageValues& required(const char* stage);
   const StageValues& required(const char* stage) const;
   std::vector<StageInstance> stages_;
 };
-
-// The known feature sets of the learned residual (0 for an unknown name and for ""):
-// "excursion_v1" (20: nonlinear functions of the chain's state), "rate_bank_v1" (18: leaky rate
-// integrals from 2 ms to 2.5 s, a learned higher-order linear filter) and "excursion_rate_v1"
-// (both, 38).
-int nonlinearFeatureCount(const std::string& feature_set);
 
 // A camera-frame angular rate sample (IMU clock, seconds; rad/s in the camera optical frame).
 struct CameraRateSample {
@@ -145,10 +136,6 @@ class LensShiftPredictor {
   double newestStamp() const { return last_stamp_s_; }
   bool started() const { return started_; }
   int resets() const { return resets_; }
-  // Keeps the nonlinear features of every retained step (for fitting the learned residual; the
-  // model must name a feature set) and answers them like lensShiftAt (focal-length units).
-  void recordFeatures() { record_features_ = true; }
-  Eigen::VectorXd featuresAt(double t_s) const;
 
   double max_gap_s = 0.1;
 
@@ -170,8 +157,6 @@ class LensShiftPredictor {
   long long steps_ = 0;       // internal steps since then
   double clock_s_ = 0.0;      // time of the newest internal step: start_s_ + steps_ * step_s_
   std::deque<Eigen::Vector2d> shifts_;  // lens shift at clock_s_ - (size - 1 - j) * step_s_
-  bool record_features_ = false;
-  std::deque<Eigen::VectorXd> feature_history_;  // aligned with shifts_ when recording
   int resets_ = 0;
 };
 

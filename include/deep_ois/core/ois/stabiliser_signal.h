@@ -38,6 +38,10 @@ struct StabiliserSignal {
   Eigen::Vector2d command_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d actuator_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d lens_px = Eigen::Vector2d::Zero();
+  // What stages add to the lens after the last stage, past the stroke and the actuator (px; a
+  // linear-dynamics stage whose output is the lens): zeroed at each step; the chain answers
+  // lens_px + lens_added_px.
+  Eigen::Vector2d lens_added_px = Eigen::Vector2d::Zero();
   // The stages of a sampled controller (a generated design or a camera module,
   // core/sim/stabiliser_design_runner.h). Inputs a simulator fills: its stabiliser's own sensors'
   // noise over the step (its gyro's at the step's end and, as the mean of the two samples, at its
@@ -59,8 +63,6 @@ struct StabiliserSignal {
   Eigen::Vector2d command_gain_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d angle_correction_rad = Eigen::Vector2d::Zero();
   Eigen::Vector2d excursion = Eigen::Vector2d::Zero();
-  // The learned residual's features (focal units; sized by its runner's reset), for its refit.
-  Eigen::VectorXd features;
 };
 
 // The constants a runner is built for.
@@ -95,14 +97,15 @@ class StabiliserChain {
   }
   // One internal step from the rate at its middle and at its end (rad/s, camera frame); set the
   // simulator's noise inputs in signal() before. Returns the lens (px).
-  const Eigen::Vector2d& step(const Eigen::Vector3d& rate_rad_s, const Eigen::Vector3d& end_rate_rad_s) {
+  Eigen::Vector2d step(const Eigen::Vector3d& rate_rad_s, const Eigen::Vector3d& end_rate_rad_s) {
     signal_.rate_rad_s = rate_rad_s;
     signal_.end_rate_rad_s = end_rate_rad_s;
     ++signal_.step_index;
     // The stages that write the raw command set it (centring) or add to it (linear dynamics).
     signal_.raw_command_px.setZero();
+    signal_.lens_added_px.setZero();
     for (const auto& runner : runners_) runner->advance(signal_);
-    return signal_.lens_px;
+    return signal_.lens_px + signal_.lens_added_px;
   }
   StabiliserSignal& signal() { return signal_; }
   const StabiliserSignal& signal() const { return signal_; }

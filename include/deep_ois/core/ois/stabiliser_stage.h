@@ -15,7 +15,7 @@
 // The stages, in the order the signal passes them (stabiliserStages()): gyro loop, pan detection,
 // motion mode, excursion re-centring, centring (gain and corner), intended motion, linear
 // dynamics, stroke (limits, shape, soft, anti-windup), travel, actuator (bandwidth, damping, sensor
-// lag), Hall actuator, actuator coupling, linear residual, learned residual.
+// lag), Hall actuator, actuator coupling.
 // The gyro loop, motion mode, intended motion, travel and Hall actuator are a sampled controller's:
 // the simulator's generated designs and camera modules are built from them
 // (core/sim/stabiliser_design_runner.h).
@@ -61,9 +61,6 @@ struct FittedStabiliserParameter {
 struct StabiliserStage {
   const char* name;         // "stroke"
   const char* description;  // one sentence for users
-  // A stage of the physical chain (kept by StabiliserModel::physicalChain()), or a residual or
-  // learned stage on top of it (cleared there).
-  bool physical;
   // In a default-constructed model (and in a model file that names no stage list).
   bool in_default_chain;
   std::vector<FittedStabiliserParameter> fitted;  // in the fit's order
@@ -80,8 +77,6 @@ struct StabiliserStage {
   bool (*read)(const YAML::Node& section, StageValues& own);
   // Empty when its values are usable; otherwise a sentence naming the bad field.
   std::string (*validate)(const StageValues& own, const StabiliserModel& model);
-  // Takes the stage out (a residual or learned stage; null for the physical ones).
-  void (*clear)(StageValues& own);
   // Its runner, or null when the stage does nothing for its values (switched off). Throws
   // std::invalid_argument when it cannot run at the context's step.
   std::unique_ptr<StabiliserStageRunner> (*runner)(const StageValues& own, const StabiliserModel& model,
@@ -116,7 +111,7 @@ const FittedStabiliserParameter& fittedStabiliserParameter(const std::string& na
 double fittedValue(const FittedStabiliserParameter& parameter, const StabiliserModel& model);
 
 // The model's composition: the tokens of the stages that act, in the chain's order
-// ({"centring", "stroke:anti_windup", "actuator", "linear_residual"}); what a candidate is written
+// ({"centring", "stroke:anti_windup", "actuator", "linear_dynamics:1hz_x8"}); what a candidate is written
 // as (core/ois/stabiliser_candidates.h).
 std::vector<std::string> stabiliserComposition(const StabiliserModel& model);
 // The stage name of a token ("stroke" for "stroke:soft") and its variant ("soft"; "" for none).

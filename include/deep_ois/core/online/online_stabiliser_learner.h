@@ -4,7 +4,7 @@
 // into gyro-anchored lens motions (the same code path as train_stabiliser's images target:
 // estimateLensShiftTrajectory + lensMotionsOfTrajectory, over windows of a few seconds), kept in a
 // rolling, motion-rich buffer; a background fit on it makes candidates (train_stabiliser's: the
-// chain, its learned residuals and, from the second fit on, its structural variants), and the
+// chain and, from the second fit on, its structural variants and linear-dynamics rows), and the
 // candidates (those, the priors given at the start, and always "no lens motion") are scored on the newest
 // held-out window (chooseStabiliserModel). The model in use is replaced only by a clearly better
 // one; the swap is atomic (a shared_ptr swapped under a mutex, versioned).

@@ -33,8 +33,7 @@ struct LensMotionScoreRow {
   std::size_t recordings = 0;
   std::size_t observations = 0;
   double without_model_px = 0.0;
-  double physical_px = 0.0;
-  double with_residual_px = 0.0;
+  double model_px = 0.0;
 };
 std::string lensMotionTable(const std::vector<LensMotionScoreRow>& rows);
 

@@ -39,7 +39,6 @@ const StabiliserStage& actuatorCouplingStage() {
       "actuator_coupling",
       "the image shift mixes the actuator's axes: (a_x + c_xy a_y, a_y + c_yx a_x); 0 = none",
       true,
-      true,
       {{"actuator_coupling", "actuator coupling c_xy", "", false, -0.5, 0.5, 1e-4,
         [](const StageValues& v) { return valuesAs<Values>(v).actuator_coupling.x(); },
         [](StageValues& v, double value) { valuesAs<Values>(v).actuator_coupling.x() = value; }, coupled},
@@ -72,7 +71,6 @@ const StabiliserStage& actuatorCouplingStage() {
               << p.actuator_coupling.y() << ")";
         return why.str();
       },
-      nullptr,
       [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
         return coupled(own) ? stage_numerics::runner<ActuatorCouplingRunner, Values>(own, model, context)
                             : nullptr;

@@ -65,7 +65,6 @@ const StabiliserStage& actuatorStage() {
       "the lens follows the command through a second-order position loop (natural frequency, "
       "damping) acting on commands as old as the sensor lag",
       true,
-      true,
       {{"actuator_natural_hz", "actuator natural frequency", "Hz", true, 2.0, 500.0, 1e-3,
         [](const StageValues& v) { return valuesAs<ActuatorValues>(v).actuator_natural_hz; },
         [](StageValues& v, double value) { valuesAs<ActuatorValues>(v).actuator_natural_hz = value; }, nullptr},
@@ -106,7 +105,6 @@ const StabiliserStage& actuatorStage() {
         }
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<ActuatorRunner, ActuatorValues>,
       [](const StageValues&) { return std::string("actuator"); }, nullptr};
   return stage;

@@ -76,7 +76,6 @@ const StabiliserStage& centringStage() {
       "the commanded shift f * gain * tan(angle) of the integrated pan/tilt angle, which leaks back "
       "to the centre with the high-pass corner",
       true,
-      true,
       {gainEntry<0, 0>("gain_xx"), gainEntry<0, 1>("gain_xy"), gainEntry<1, 0>("gain_yx"),
        gainEntry<1, 1>("gain_yy"),
        {"highpass_corner_hz", "centring corner", "Hz", true, 1e-3, 50.0, 1e-3,
@@ -110,7 +109,6 @@ const StabiliserStage& centringStage() {
         }
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<CentringRunner, CentringValues>,
       [](const StageValues&) { return std::string("centring"); }, nullptr};
   return stage;

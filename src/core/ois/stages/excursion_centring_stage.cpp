@@ -44,7 +44,6 @@ const StabiliserStage& excursionCentringStage() {
       "the centring corner grows with the command's excursion e against the stroke: corner * (1 + "
       "k e^2); k = 0 is a fixed corner",
       true,
-      true,
       {{"excursion_centring", "excursion-dependent re-centring", "", true, 1e-3, 100.0, 1e-3,
         [](const StageValues& v) { return k(v); },
         [](StageValues& v, double value) { valuesAs<Values>(v).excursion_centring = value; },
@@ -66,7 +65,6 @@ const StabiliserStage& excursionCentringStage() {
           why << "excursion_centring: must be >= 0, 0 = off (got " << k(own) << ")";
         return why.str();
       },
-      nullptr,
       [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
         return k(own) > 0.0 ? stage_numerics::runner<ExcursionCentringRunner, Values>(own, model, context)
                             : nullptr;

@@ -80,7 +80,6 @@ const StabiliserStage& gyroLoopStage() {
       "the stabiliser's gyro turned against the camera (roll, tilt, pan, deg) and sampled by a "
       "controller at rate_hz (newest sample, averaged, or the step's middle), its command held in "
       "between",
-      true,
       false,
       {},
       {"gyro_loop"},
@@ -114,7 +113,6 @@ const StabiliserStage& gyroLoopStage() {
           why << "gyro_loop.rate_hz: must be positive (got " << v.rate_hz << ")";
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<GyroLoopRunner, GyroLoopValues>,
       [](const StageValues&) { return std::string("gyro_loop"); },
       nullptr};

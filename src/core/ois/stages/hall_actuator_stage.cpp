@@ -226,7 +226,6 @@ const StabiliserStage& hallActuatorStage() {
       "the command late by delay_s, then the lens' position loop (first or second order, or a PI "
       "loop around a spring-mass lens; bandwidth_hz, damping, slew limit, stiction, end stops) on "
       "a Hall reading with quadratic and cubic terms",
-      true,
       false,
       {},
       {"hall_actuator"},
@@ -255,7 +254,6 @@ const StabiliserStage& hallActuatorStage() {
           why << "hall_actuator: needs the travel stage (its stroke sets the end stops)";
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<HallActuatorRunner, HallActuatorValues>,
       [](const StageValues& own) {
         return "hall_actuator:" + valuesAs<HallActuatorValues>(own).order;

@@ -161,7 +161,6 @@ const StabiliserStage& intendedMotionStage() {
       "the angle to cancel by an estimator (highpass_first_order, highpass_second_order, "
       "velocity_loop, kalman_cv with a manoeuvre gate, alpha_beta) with excursion-dependent "
       "corner, and its gain per axis",
-      true,
       false,
       {},
       {"intended_motion"},
@@ -192,7 +191,6 @@ const StabiliserStage& intendedMotionStage() {
           why << "intended_motion: needs the gyro_loop and travel stages";
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<IntendedMotionRunner, IntendedMotionValues>,
       [](const StageValues& own) {
         return "intended_motion:" + valuesAs<IntendedMotionValues>(own).kind;

@@ -5,6 +5,9 @@
 // filters of the gyro inside the stroke. Written before the stroke (and the actuator, when the
 // model has one), so the stroke limits what it commands. Fitted in closed form (a ridge least
 // squares) with the rest of the chain held: solveLinearDynamicsCoefficients below.
+// With output_to_lens it adds to the lens after the last stage instead (past the stroke and the
+// actuator), over a bank of first-order low-passes of the pan/tilt rate: the form into which the
+// model file converts the residual banks of older files (stabiliser_model_file.cpp), exactly.
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -29,17 +32,22 @@ namespace deep_ois {
 namespace {
 
 // Adds focal * coefficients * basis state to the raw command (the lens follows it at once until a
-// stroke or an actuator after it acts).
+// stroke or an actuator after it acts), or to what the chain adds to the lens after its last stage.
 class LinearDynamicsRunner final : public StabiliserStageRunner {
  public:
   LinearDynamicsRunner(const LinearDynamicsValues& p, const StabiliserModel&, const StabiliserRunContext& context)
       : basis_(p.basis, context.step_s),
         coefficients_(p.coefficients),
-        focal_px_(context.focal_px) {}
+        focal_px_(context.focal_px),
+        output_to_lens_(p.output_to_lens) {}
   void reset(StabiliserSignal&) override { basis_.reset(); }
   void advance(StabiliserSignal& signal) override {
     Eigen::Vector2d added;
     added.noalias() = coefficients_ * basis_.advance(signal.rate_rad_s);  // no allocation per step
+    if (output_to_lens_) {
+      signal.lens_added_px += focal_px_ * added;
+      return;
+    }
     signal.raw_command_px += focal_px_ * added;
     signal.command_px = signal.lens_px = signal.raw_command_px;
   }
@@ -48,12 +56,20 @@ class LinearDynamicsRunner final : public StabiliserStageRunner {
   LinearDynamicsBasis basis_;
   Eigen::MatrixXd coefficients_;  // 2 x 3 order, focal units per basis state
   double focal_px_;
+  bool output_to_lens_;
 };
 
-// The basis as a token's variant: "1hz_x8" (Laguerre, 1 Hz, 8 functions per axis), "1+10hz_x16"
-// (two poles alternating).
-std::string basisVariant(const LinearDynamicsBasisSpec& basis) {
+// The stage as a token's variant: "1hz_x8" (Laguerre, 1 Hz, 8 functions per axis), "1+10hz_x16"
+// (two poles alternating); "lens_leaky_x5" for a bank of 5 first-order low-passes added to the lens
+// (a converted file's: no refit starts it).
+std::string basisVariant(const LinearDynamicsValues& values) {
+  const LinearDynamicsBasisSpec& basis = values.basis;
   std::ostringstream variant;
+  if (values.output_to_lens) variant << "lens_";
+  if (basis.firstOrder()) {
+    variant << "leaky_x" << basis.order;
+    return variant.str();
+  }
   variant << basis.pole_hz;
   if (basis.second_pole_hz > 0.0) variant << "+" << basis.second_pole_hz;
   variant << "hz_x" << basis.order;
@@ -92,9 +108,9 @@ LinearDynamicsBasisSpec basisOfVariant(const std::string& variant) {
 const StabiliserStage& linearDynamicsStage() {
   static const StabiliserStage stage{
       "linear_dynamics",
-      "adds a linear filter of free order of the three gyro axes to the raw command: 2 x 3N "
-      "coefficients (focal units) of an orthonormal (Laguerre) basis of N functions per axis",
-      true,
+      "adds a linear filter of free order of the three gyro axes to the raw command (output: lens, "
+      "to the lens after the chain): 2 x 3N coefficients (focal units) of a basis of N functions "
+      "per axis, orthonormal (Laguerre) or first-order low-passes (time_constants_s)",
       true,
       {},
       {"linear_dynamics"},
@@ -104,9 +120,15 @@ const StabiliserStage& linearDynamicsStage() {
         const LinearDynamicsValues& v = p;
         if (!v.active()) return;  // optional: files without it load without the stage
         out << YAML::Key << "linear_dynamics" << YAML::Value << YAML::BeginMap;
-        out << YAML::Key << "pole_hz" << YAML::Value << v.basis.pole_hz;
-        out << YAML::Key << "second_pole_hz" << YAML::Value << v.basis.second_pole_hz;
-        out << YAML::Key << "order" << YAML::Value << v.basis.order;
+        // Optional keys only when used (files of the raw-command Laguerre form keep their bytes).
+        if (v.output_to_lens) out << YAML::Key << "output" << YAML::Value << "lens";
+        if (v.basis.firstOrder()) {
+          out << YAML::Key << "time_constants_s" << YAML::Value << YAML::Flow << v.basis.time_constants_s;
+        } else {
+          out << YAML::Key << "pole_hz" << YAML::Value << v.basis.pole_hz;
+          out << YAML::Key << "second_pole_hz" << YAML::Value << v.basis.second_pole_hz;
+          out << YAML::Key << "order" << YAML::Value << v.basis.order;
+        }
         std::vector<double> coefficients;
         for (long r = 0; r < v.coefficients.rows(); ++r)
           for (long c = 0; c < v.coefficients.cols(); ++c) coefficients.push_back(v.coefficients(r, c));
@@ -121,9 +143,19 @@ const StabiliserStage& linearDynamicsStage() {
         if (!s["linear_dynamics"]) return true;
         const YAML::Node node = s["linear_dynamics"];
         LinearDynamicsValues& v = *p;
-        v.basis.pole_hz = required<double>(node, "pole_hz");
-        v.basis.second_pole_hz = optional<double>(node, "second_pole_hz", 0.0);
-        v.basis.order = required<int>(node, "order");
+        const std::string output = optional<std::string>(node, "output", "raw_command");
+        if (output != "raw_command" && output != "lens")
+          throw StabiliserModelFileError("field 'linear_dynamics.output' must be raw_command or lens (got '" +
+                                         output + "')");
+        v.output_to_lens = output == "lens";
+        if (node["time_constants_s"]) {
+          v.basis.time_constants_s = required<std::vector<double>>(node, "time_constants_s");
+          v.basis.order = static_cast<int>(v.basis.time_constants_s.size());
+        } else {
+          v.basis.pole_hz = required<double>(node, "pole_hz");
+          v.basis.second_pole_hz = optional<double>(node, "second_pole_hz", 0.0);
+          v.basis.order = required<int>(node, "order");
+        }
         const auto coefficients = required<std::vector<double>>(node, "coefficients");
         const long n = 3L * std::max(0, v.basis.order);
         if (n == 0 || static_cast<long>(coefficients.size()) != 2 * n)
@@ -150,7 +182,6 @@ const StabiliserStage& linearDynamicsStage() {
         }
         return why.str();
       },
-      nullptr,
       [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
         const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
         return p.active() ? stage_numerics::runner<LinearDynamicsRunner, LinearDynamicsValues>(own, model, context)
@@ -158,7 +189,7 @@ const StabiliserStage& linearDynamicsStage() {
       },
       [](const StageValues& own) {
         const LinearDynamicsValues& p = valuesAs<LinearDynamicsValues>(own);
-        return p.active() ? "linear_dynamics:" + basisVariant(p.basis) : std::string();
+        return p.active() ? "linear_dynamics:" + basisVariant(p) : std::string();
       },
       // Started by a refit (refitStabiliserStages): the variant names the basis, the coefficients
       // start at zero (the refit's first step solves them in closed form).

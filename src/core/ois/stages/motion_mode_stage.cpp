@@ -100,7 +100,6 @@ const StabiliserStage& motionModeStage() {
       "motion_mode",
       "pan detection on the sustained rate that releases (corner x release_factor) or holds (gain "
       "to 0), and a gain schedule that lowers the gain with the motion",
-      true,
       false,
       {},
       {"motion_mode"},
@@ -127,7 +126,6 @@ const StabiliserStage& motionModeStage() {
           why << "motion_mode: schedule_depth must be in [0, 1), its span and time constant positive";
         return why.str();
       },
-      nullptr,
       [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
         return acts(own) ? stage_numerics::runner<MotionModeRunner, MotionModeValues>(own, model, context)
                          : nullptr;

@@ -56,7 +56,6 @@ const StabiliserStage& panDetectionStage() {
       "while the low-passed pan/tilt rate exceeds the threshold (0 = off) the angle re-centres "
       "with the release corner; below 0.7 x the threshold it holds again",
       true,
-      true,
       {{"pan_release_corner_hz", "pan release corner", "Hz", true, 0.05, 100.0, 1e-3,
         [](const StageValues& v) { return valuesAs<Values>(v).pan_release_corner_hz; },
         [](StageValues& v, double value) { valuesAs<Values>(v).pan_release_corner_hz = value; },
@@ -92,7 +91,6 @@ const StabiliserStage& panDetectionStage() {
         }
         return why.str();
       },
-      nullptr,
       [](const StageValues& own, const StabiliserModel& model, const StabiliserRunContext& context) {
         return detects(own) ? stage_numerics::runner<PanDetectionRunner, Values>(own, model, context)
                             : nullptr;

@@ -18,8 +18,6 @@ const StabiliserStage& linearDynamicsStage();
 const StabiliserStage& strokeStage();
 const StabiliserStage& actuatorStage();
 const StabiliserStage& actuatorCouplingStage();
-const StabiliserStage& linearResidualStage();
-const StabiliserStage& learnedResidualStage();
 const StabiliserStage& gyroLoopStage();
 const StabiliserStage& motionModeStage();
 const StabiliserStage& intendedMotionStage();
@@ -40,8 +38,6 @@ const std::vector<StabiliserStage>& stabiliserStages() {
       actuatorStage(),          // command -> lens
       hallActuatorStage(),      // command -> delay -> position loop, Hall sensor -> lens
       actuatorCouplingStage(),  // the actuator's axes -> the image's
-      linearResidualStage(),    // + residual of leaky rate integrals
-      learnedResidualStage(),   // + residual of the chain's features
   };
   return stages;
 }

@@ -103,7 +103,6 @@ const StabiliserStage& strokeStage() {
       "it), at an end stop or softly (tanh); at an end stop the integrator winds up or is held "
       "(anti-windup)",
       true,
-      true,
       {{"stroke_x_deg", "stroke x", "deg", true, 0.02, 20.0, 1e-3,
         [](const StageValues& v) { return valuesAs<StrokeValues>(v).stroke_x_deg; },
         [](StageValues& v, double value) { valuesAs<StrokeValues>(v).stroke_x_deg = value; }, nullptr},
@@ -146,7 +145,6 @@ const StabiliserStage& strokeStage() {
         }
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<StrokeRunner, StrokeValues>,
       [](const StageValues& own) {
         const StrokeValues& p = valuesAs<StrokeValues>(own);

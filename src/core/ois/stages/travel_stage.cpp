@@ -107,7 +107,6 @@ const StabiliserStage& travelStage() {
       "the stroke per axis and direction (box, ellipse, soft_box, soft_ellipse; deg), the "
       "intended-motion angle's anti-windup (none, clamp, back_calculation) and a DAC of "
       "quantiser_bits or a step of quantiser_lsb_deg",
-      true,
       false,
       {},
       {"travel"},
@@ -139,7 +138,6 @@ const StabiliserStage& travelStage() {
           why << "travel: quantiser_lsb_deg must be in [0, 1) deg, and not with quantiser_bits";
         return why.str();
       },
-      nullptr,
       stage_numerics::runner<TravelRunner, TravelValues>,
       [](const StageValues& own) { return "travel:" + valuesAs<TravelValues>(own).shape; },
       nullptr};
