@@ -95,9 +95,10 @@ int main(int argc, char** argv) {
   app.add_flag("--oracle-cost", oracle_cost,
                "print, under each row, the fit's own cost (Huber, per lens motion) and RMS on the "
                "training traces and the RMS on the choice trace, of the design's own model (the "
-               "oracle, designModel) beside the kept candidate's and the best candidate's: an oracle "
-               "with the lower training cost says the fit stopped short, a higher one that the "
-               "objective or the data do not single it out");
+               "oracle, designModel) beside the kept candidate's and the one with the lowest "
+               "training RMS: an oracle well below them says the data single it out and the "
+               "candidates cannot reach it (their structure or their start); a candidate at or "
+               "below it with a worse evaluation is an over-fit");
   app.add_option("--csv", csv_path, "write the rows here")->type_name("FILE.csv");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
