@@ -19,6 +19,7 @@
 #include "deep_ois/core/ois/stabiliser_candidates.h"
 #include "deep_ois/core/sim/design_generator.h"
 #include "deep_ois/core/sim/design_traces.h"
+#include "deep_ois/core/sim/stabiliser_design_runner.h"
 #include "deep_ois/tools/support/command_line.h"
 #include "deep_ois/tools/support/design_trace_recording.h"
 
@@ -65,7 +66,7 @@ int main(int argc, char** argv) {
   std::string split = "held_out", csv_path;
   std::uint32_t seed_begin = 0, count = 40;
   Settings settings;
-  bool chain_candidates = true, describe = false, list_candidates = false;
+  bool chain_candidates = true, describe = false, list_candidates = false, oracle_cost = false;
   deep_ois::ToolCommandLine command_line("benchmark_lens_dynamics", kDescription);
   CLI::App& app = command_line.app();
   app.add_option("--split", split, "which designs: the generator's held-out seeds (seed % 5 == 0) "
@@ -86,6 +87,13 @@ int main(int argc, char** argv) {
   app.add_flag("--candidates", list_candidates,
                "print every candidate under its row: its lens-motion RMS on the choice trace and "
                "the share it explains on the evaluation traces");
+  app.add_flag("--oracle-cost", oracle_cost,
+               "print, under each row, the fit's own cost (Huber, per lens motion) and RMS on the "
+               "training traces and the RMS on the choice trace, of the design's own model (the "
+               "oracle, designModel) beside the kept candidate's and the one with the lowest "
+               "training RMS: an oracle well below them says the data single it out and the "
+               "candidates cannot reach it (their structure or their start); a candidate at or "
+               "below it with a worse evaluation is an over-fit");
   app.add_option("--csv", csv_path, "write the rows here")->type_name("FILE.csv");
   if (const std::optional<int> status = command_line.parse(argc, argv)) return *status;
 
@@ -154,6 +162,30 @@ int main(int argc, char** argv) {
         for (const auto& c : selection.candidates)
           std::printf("       %s %-70s choice %.4f px, evaluation %.1f%%\n", &c == &selection.candidates[selection.kept] ? "*" : " ",
                       c.name.c_str(), c.held_out.rms_px, closed(rmsOf(c.parameters)));
+      if (oracle_cost) {
+        // The design's own model runs at its physics step (designModel); the candidates at the fit's.
+        deep_ois::StabiliserFitOptions oracle_options = fit_options;
+        oracle_options.step_s = 1.0 / sim::kDesignPhysicsRateHz;
+        const deep_ois::StabiliserModel own = sim::designModel(design);
+        auto perMotion = [](double cost, const deep_ois::StabiliserScore& score) {
+          return score.observations ? cost / static_cast<double>(score.observations) : std::nan("");
+        };
+        auto line = [&](const char* what, const deep_ois::StabiliserModel& m,
+                        const deep_ois::StabiliserFitOptions& o) {
+          const deep_ois::StabiliserScore train = deep_ois::scoreStabiliser(m, training, o);
+          std::printf("       %-9s training cost %.5f per motion, RMS %.4f px; choice RMS %.4f px; evaluation %.1f%%\n",
+                      what, perMotion(deep_ois::stabiliserFitCost(m, training, o), train), train.rms_px,
+                      deep_ois::scoreStabiliser(m, choice, o).rms_px,
+                      closed(deep_ois::scoreStabiliser(m, evaluation, o).rms_px));
+        };
+        line("oracle", own, oracle_options);
+        line("kept", selection.candidates[selection.kept].parameters, fit_options);
+        std::size_t lowest = 0;
+        for (std::size_t k = 1; k < selection.candidates.size(); ++k)
+          if (selection.candidates[k].training.rms_px < selection.candidates[lowest].training.rms_px) lowest = k;
+        line("lowest", selection.candidates[lowest].parameters, fit_options);
+        std::printf("       (lowest training RMS: %s)\n", selection.candidates[lowest].name.c_str());
+      }
       if (describe) {
         std::string tags;
         for (const std::string& tag : sim::designFeatures(design)) tags += " " + tag;

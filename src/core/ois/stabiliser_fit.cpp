@@ -217,6 +217,13 @@ std::vector<StabiliserFitRecording> movedInTime(
   return moved;
 }
 
+// The strokes a fit scans per axis before the solver moves them (degrees): the cost has no slope in
+// a limit the lens never reaches, so the solver alone cannot find a stroke far from its start.
+const std::vector<double>& strokeScanDeg() {
+  static const std::vector<double> strokes = {0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3, 1.7, 2.3, 3.0, 5.0};
+  return strokes;
+}
+
 // The timing check scans +-this, milliseconds (a grid of 2 ms steps, refined between them).
 constexpr double kTimingScanMs = 20.0;
 
@@ -621,11 +628,10 @@ StabiliserFitResult fitStabiliser(const std::vector<StabiliserFitRecording>& rec
          << " Hz, cost " << cost;
     log(line.str());
   }
-  const std::vector<double> strokes_deg = {0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3, 1.7, 2.3, 3.0, 5.0};
   for (int axis = 0; axis < 2; ++axis) {
     double axis_best = std::numeric_limits<double>::infinity();
     StabiliserModel scanned = best;
-    for (double stroke : strokes_deg) {
+    for (double stroke : strokeScanDeg()) {
       StabiliserModel candidate = best;
       StrokeValues& limits = candidate.get<StrokeValues>();
       (axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg) = stroke;
@@ -780,16 +786,24 @@ StabiliserFitResult refitStabiliserStages(const StabiliserModel& fitted,
     }
   }
   // The variant moves the stroke's meaning (where the integrator stops), so the stroke is scanned
-  // again around the fitted one before every parameter is refined (`cost` is the start's).
+  // again around the fitted one before every parameter is refined (`cost` is the start's). With
+  // the linear stage the whole grid of the fit is scanned too: the chain's stroke was fitted with a
+  // high-pass standing in for the estimator the linear stage now models, and can lie far from the
+  // stroke the composition needs (a Kalman design's 1.3 deg fitted as 3 deg by the chain), out of
+  // the solver's reach (docs/results/stabiliser_model.md, "Why the fit stops short of the oracle").
   for (int axis = 0; axis < 2; ++axis) {
+    const FittedStabiliserParameter& bounds =
+        fittedStabiliserParameter(axis == 0 ? "stroke_x_deg" : "stroke_y_deg");
+    const StrokeValues& fitted_limits = start.get<StrokeValues>();
+    const double fitted_stroke = axis == 0 ? fitted_limits.stroke_x_deg : fitted_limits.stroke_y_deg;
+    std::vector<double> strokes;
+    for (double factor : {0.7, 0.85, 1.15, 1.3}) strokes.push_back(fitted_stroke * factor);
+    if (linear_dynamics) strokes.insert(strokes.end(), strokeScanDeg().begin(), strokeScanDeg().end());
     StabiliserModel scanned = start;
-    for (double factor : {0.7, 0.85, 1.15, 1.3}) {
+    for (double value : strokes) {
       StabiliserModel candidate = start;
       StrokeValues& limits = candidate.get<StrokeValues>();
-      double& stroke = axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg;
-      const FittedStabiliserParameter& bounds =
-          fittedStabiliserParameter(axis == 0 ? "stroke_x_deg" : "stroke_y_deg");
-      stroke = std::clamp(stroke * factor, bounds.lower, bounds.upper);
+      (axis == 0 ? limits.stroke_x_deg : limits.stroke_y_deg) = std::clamp(value, bounds.lower, bounds.upper);
       const double c = stabiliserFitCost(candidate, recordings, options);
       if (c < cost) cost = c, scanned = candidate;
     }
